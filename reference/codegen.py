@@ -1,0 +1,288 @@
+"""Compile EquationsOfMotion to straight-line Python, once, cached on disk by model content.
+
+The generated module has no loops and no branches, so the same source runs on Python floats
+(with the `math` namespace: the fast single-state path) and on numpy arrays of states (the
+batched path). The KKT system
+
+    [ M  -A^T ] [u'    ]   [f]
+    [ A   0   ] [lambda] = [b]
+
+is solved by the range-space method: Cholesky of M, Y = M^-1 A^T, y = M^-1 f, Cholesky of the
+Schur complement S = A Y, lambda = S^-1 (b - A y), u' = y + Y lambda. Entries that are
+structurally zero (a block-diagonal M, sparse A) are skipped while writing the code, which is
+where the speed comes from. When M is singular in the chosen coordinates but positive definite
+on the null space of A (Euler parameters: omega = 2 E eps' annihilates eps), M is replaced by
+M + rho A^T A and f by f + rho A^T b, which leaves the solution unchanged because A u' = b.
+
+Every pivot is divided by its original diagonal entry and the minimum is returned, so callers can
+refuse a (nearly) singular M or S, that is, a kinematic singularity or redundant constraints.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+from sympy.printing.lambdarepr import LambdaPrinter
+
+from .eom import EquationsOfMotion
+from .formulations.lagrange import kinetic_energy, potential_energy
+
+CODEGEN_VERSION = "3"
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("CROSSCHECK_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "multibody-crosscheck")
+    return Path(root)
+
+
+def cache_key(model, formulation: str) -> str:
+    h = hashlib.sha256(
+        f"{model.content_hash()}|{formulation}|{CODEGEN_VERSION}|{sp.__version__}".encode())
+    return f"{model.name}-{formulation}-{h.hexdigest()[:16]}"
+
+
+def _is_zero(e) -> bool:
+    e = sp.sympify(e)
+    return e == 0 or sp.expand(e) == 0
+
+
+class _Writer:
+    """Accumulates straight-line code; names are '_'-prefixed so no model symbol can collide."""
+
+    def __init__(self):
+        self.lines: list[str] = []
+        self.printer = LambdaPrinter({"fully_qualified_modules": False})
+        self.n = 0
+
+    def expr(self, e) -> str:
+        return self.printer.doprint(e)
+
+    def assign(self, code: str) -> str:
+        name = f"_v{self.n}"
+        self.n += 1
+        self.lines.append(f"    {name} = {code}")
+        return name
+
+    def cse_block(self, exprs: list) -> list[str]:
+        """Common subexpressions of all `exprs`; returns their code strings (name, '0' or literal)."""
+        exprs = [sp.sympify(e) for e in exprs]
+        repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"_s{self.n}_"))
+        self.n += 1
+        for sym, sub in repl:
+            self.lines.append(f"    {sym} = {self.expr(sub)}")
+        return ["0" if _is_zero(r) else self.expr(r) for r in reduced]
+
+
+def _mul(a: str, b: str) -> str | None:
+    if a == "0" or b == "0":
+        return None
+    return f"{a}*{b}"
+
+
+def _dot_terms(pairs) -> list[str]:
+    return [t for t in (_mul(a, b) for a, b in pairs) if t is not None]
+
+
+def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str]) -> list[list[str]]:
+    """Lower-triangular L with L L^T = Mc, skipping structural zeros; records pivot ratios."""
+    n = len(Mc)
+    L = [["0"] * n for _ in range(n)]
+    for j in range(n):
+        terms = _dot_terms((L[j][k], L[j][k]) for k in range(j))
+        d = Mc[j][j] if not terms else f"{Mc[j][j]} - ({' + '.join(terms)})"
+        dv = w.assign(d)
+        pivots.append(f"{dv}/{Mc[j][j]}" if Mc[j][j] != "0" else dv)
+        L[j][j] = w.assign(f"sqrt({dv})")
+        for i in range(j + 1, n):
+            terms = _dot_terms((L[i][k], L[j][k]) for k in range(j))
+            if Mc[i][j] == "0" and not terms:
+                continue
+            num = Mc[i][j] if Mc[i][j] != "0" else "0"
+            num = num if not terms else f"{num} - ({' + '.join(terms)})"
+            L[i][j] = w.assign(f"({num})/{L[j][j]}")
+    return L
+
+
+def _chol_solve(w: _Writer, L: list[list[str]], rhs: list[str]) -> list[str]:
+    """Solve L L^T x = rhs with forward and back substitution, skipping zeros."""
+    n = len(L)
+    z = ["0"] * n
+    for i in range(n):
+        terms = _dot_terms((L[i][k], z[k]) for k in range(i))
+        if rhs[i] == "0" and not terms:
+            continue
+        num = rhs[i] if not terms else f"{rhs[i]} - ({' + '.join(terms)})"
+        z[i] = w.assign(f"({num})/{L[i][i]}")
+    x = ["0"] * n
+    for i in reversed(range(n)):
+        terms = _dot_terms((L[k][i], x[k]) for k in range(i + 1, n))
+        if z[i] == "0" and not terms:
+            continue
+        num = z[i] if not terms else f"{z[i]} - ({' + '.join(terms)})"
+        x[i] = w.assign(f"({num})/{L[i][i]}")
+    return x
+
+
+def _safe_symbols(eom: EquationsOfMotion) -> dict:
+    m = eom.model
+    rename = {s: sp.Symbol(f"_q{i}", real=True) for i, s in enumerate(m.coordinates)}
+    rename.update({s: sp.Symbol(f"_u{i}", real=True) for i, s in enumerate(m.speeds)})
+    rename.update({s: sp.Symbol(f"_p{i}", real=True) for i, s in enumerate(m.parameter_symbols)})
+    rename[m.t] = sp.Symbol("_t", real=True)
+    return rename
+
+
+def _header(name: str, eom: EquationsOfMotion) -> list[str]:
+    m = eom.model
+    lines = [f"def {name}(_q, _u, _t, _p):"]
+    if m.coordinates:
+        lines.append("    " + ", ".join(f"_q{i}" for i in range(len(m.coordinates))) + ", = _q")
+    if m.speeds:
+        lines.append("    " + ", ".join(f"_u{i}" for i in range(len(m.speeds))) + ", = _u")
+    if m.parameters:
+        lines.append("    " + ", ".join(f"_p{i}" for i in range(len(m.parameters))) + ", = _p")
+    return lines
+
+
+def needs_augmentation(eom: EquationsOfMotion, params: dict) -> bool:
+    """True when M is singular on its own (checked numerically at a generic configuration)."""
+    m = eom.model
+    rng = np.random.default_rng(12345)
+    subs = {s: float(v) + 0.1 * rng.standard_normal() for s, v in zip(m.coordinates, m.initial_q)}
+    subs.update({s: float(v) for s, v in zip(m.speeds, m.initial_u)})
+    subs.update({p.symbol: params[p.name] for p in m.parameters})
+    subs[m.t] = 0.3
+    M = np.array(eom.M.xreplace(subs).evalf(), dtype=float)
+    ev = np.linalg.eigvalsh(0.5 * (M + M.T))
+    # A generic M of the unit's models has a condition number below 1e8 (point masses carry no
+    # inertia, but they get no rotational speed either); an exact null space shows up at 1e-16.
+    return ev[0] <= 1e-12 * max(abs(ev[-1]), 1e-300)
+
+
+def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
+    """Python source for forward, matrices, kinematics, residuals and energy of one model."""
+    m = eom.model
+    rn = _safe_symbols(eom)
+    X = lambda e: sp.sympify(e).xreplace(rn)  # noqa: E731
+    n, mc = len(m.speeds), eom.A.shape[0]
+    src = [f"# generated by reference.codegen v{CODEGEN_VERSION} for {m.name} / {eom.formulation}",
+           f"META = {{'n': {n}, 'm': {mc}, 'augmented': {augment}}}", ""]
+
+    # forward: u', lambda, min pivot ratio
+    w = _Writer()
+    flat = [X(eom.M[i, j]) for i in range(n) for j in range(i, n)]
+    flat += [X(e) for e in eom.f] + [X(e) for e in eom.A] + [X(e) for e in eom.b]
+    code = w.cse_block(flat)
+    it = iter(code)
+    Mc = [["0"] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i, n):
+            Mc[i][j] = Mc[j][i] = next(it)
+    fc = [next(it) for _ in range(n)]
+    Ac = [[next(it) for _ in range(n)] for _ in range(mc)]
+    bc = [next(it) for _ in range(mc)]
+    # materialize entries as variables so they are evaluated once
+    mat = lambda c: c if c == "0" else w.assign(c)  # noqa: E731
+    Mc = [[mat(Mc[i][j]) if j >= i else None for j in range(n)] for i in range(n)]
+    for i in range(n):
+        for j in range(i):
+            Mc[i][j] = Mc[j][i]
+    fc = [mat(c) for c in fc]
+    Ac = [[mat(c) for c in row] for row in Ac]
+    bc = [mat(c) for c in bc]
+    if augment and mc:
+        # rho scales A^T A to the size of M so the augmented matrix stays well conditioned
+        trM = " + ".join(Mc[i][i] for i in range(n) if Mc[i][i] != "0") or "1"
+        sA = " + ".join(f"{a}*{a}" for row in Ac for a in row if a != "0") or "1"
+        rho = w.assign(f"(({trM})/{n})/(({sA})/{mc})")
+        for i in range(n):
+            for j in range(i, n):
+                terms = _dot_terms((Ac[k][i], Ac[k][j]) for k in range(mc))
+                if terms:
+                    base = Mc[i][j] if Mc[i][j] != "0" else "0"
+                    Mc[i][j] = w.assign(f"{base} + {rho}*({' + '.join(terms)})")
+                    Mc[j][i] = Mc[i][j]
+            terms = _dot_terms((Ac[k][i], bc[k]) for k in range(mc))
+            if terms:
+                fc[i] = w.assign(f"{fc[i]} + {rho}*({' + '.join(terms)})")
+    pivots: list[str] = []
+    L = _cholesky(w, Mc, pivots)
+    y = _chol_solve(w, L, fc)
+    if mc:
+        Y = [_chol_solve(w, L, [Ac[k][i] for i in range(n)]) for k in range(mc)]  # columns
+        S = [["0"] * mc for _ in range(mc)]
+        for k in range(mc):
+            for l in range(k, mc):
+                terms = _dot_terms((Ac[k][i], Y[l][i]) for i in range(n))
+                if terms:
+                    S[k][l] = S[l][k] = w.assign(" + ".join(terms))
+        r = []
+        for k in range(mc):
+            terms = _dot_terms((Ac[k][i], y[i]) for i in range(n))
+            r.append(w.assign(f"{bc[k]} - ({' + '.join(terms)})") if terms else bc[k])
+        lam = _chol_solve(w, _cholesky(w, S, pivots), r)
+        ud = []
+        for i in range(n):
+            terms = _dot_terms((Y[k][i], lam[k]) for k in range(mc))
+            ud.append(y[i] if not terms else w.assign(f"{y[i]} + {' + '.join(terms)}"))
+    else:
+        lam, ud = [], y
+    piv = f"_min({', '.join(pivots)})" if len(pivots) > 1 else (pivots[0] if pivots else "1.0")
+    src += _header("forward", eom) + w.lines
+    src.append(f"    return [{', '.join(ud)}], [{', '.join(lam)}], {piv}")
+    src.append("")
+
+    def simple(name, exprs_groups):
+        w2 = _Writer()
+        flat2 = [X(e) for g in exprs_groups for e in g]
+        codes = w2.cse_block(flat2) if flat2 else []
+        out, k = [], 0
+        for g in exprs_groups:
+            out.append("[" + ", ".join(codes[k:k + len(g)]) + "]")
+            k += len(g)
+        return _header(name, eom) + w2.lines + [f"    return {', '.join(out)}", ""]
+
+    src += simple("matrices", [list(eom.M), list(eom.f), list(eom.A), list(eom.b)])
+    src += simple("kinematics", [list(m.kinematics)])
+    cs = eom.constraints
+    src += simple("residuals", [list(cs.f), list(cs.A * sp.Matrix(m.speeds) + cs.a0)])
+    src += simple("energy", [[kinetic_energy(m), potential_energy(m)]])
+    return "\n".join(src) + "\n"
+
+
+def _namespace(batched: bool) -> dict:
+    if batched:
+        from functools import reduce
+        return {"sin": np.sin, "cos": np.cos, "tan": np.tan, "sqrt": np.sqrt, "exp": np.exp,
+                "log": np.log, "atan2": np.arctan2, "pi": np.pi, "abs": np.abs,
+                "_min": lambda *a: reduce(np.minimum, a)}
+    return {"sin": math.sin, "cos": math.cos, "tan": math.tan, "sqrt": math.sqrt,
+            "exp": math.exp, "log": math.log, "atan2": math.atan2, "pi": math.pi, "abs": abs,
+            "_min": min}
+
+
+def load_compiled(eom_factory, model, formulation: str, params: dict):
+    """Return (scalar namespace, batched namespace, source), deriving only on a cache miss.
+
+    `eom_factory()` is called only when the cache has no entry for this model content.
+    """
+    path = cache_dir() / f"{cache_key(model, formulation)}.py"
+    if path.exists():
+        src = path.read_text()
+    else:
+        eom = eom_factory()
+        src = generate_source(eom, needs_augmentation(eom, params))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(src)
+        os.replace(tmp, path)  # atomic: concurrent processes never read half a file
+    code = compile(src, str(path), "exec")
+    scalar, batched = _namespace(False), _namespace(True)
+    exec(code, scalar)
+    exec(code, batched)
+    return scalar, batched, src

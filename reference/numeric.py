@@ -1,0 +1,221 @@
+"""Numeric evaluation of a model: forward dynamics (u', lambda), residuals, energy, projection.
+
+`NumericModel` wraps the compiled code of reference.codegen with validation: parameters are
+checked once at construction, states on every public call (sizes, finiteness), and a KKT solve
+whose pivots collapse raises instead of returning a wrong number.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import codegen
+from .errors import ModelInputError, OffManifoldError, SingularSystemError
+from .formulations import derive
+from .system import Model
+
+# A pivot of M or of the Schur complement S below this fraction of its original diagonal entry
+# means the KKT matrix is singular to working precision: 1e-12 leaves 4 digits of a double's 16
+# for the answer, the least a validation suite can call a number.
+PIVOT_RATIO_MIN = 1e-12
+
+# A consistent state satisfies its constraints to round-off of the expressions (entries of size
+# ~1 in SI): 1e-9 absolute (scaled by the state size) separates "consistent" from "off manifold"
+# with a wide margin on both sides.
+MANIFOLD_TOL = 1e-9
+
+
+def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str, float]:
+    """The model's parameter values with `overrides`, checked: names, finiteness, signs."""
+    overrides = dict(overrides or {})
+    names = [p.name for p in model.parameters]
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise ModelInputError(
+            f"unknown parameter(s) {unknown} for model {model.name!r}; valid: {', '.join(names)}")
+    values, problems = {}, []
+    for p in model.parameters:
+        v = overrides.get(p.name, p.default)
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            problems.append(f"{p.name}={v!r} is not a number")
+            continue
+        if not math.isfinite(v):
+            problems.append(f"{p.name}={v} is not finite")
+        elif p.positive and v <= 0:
+            problems.append(f"{p.name}={v} must be > 0 ({p.description})")
+        elif p.nonnegative and v < 0:
+            problems.append(f"{p.name}={v} must be >= 0 ({p.description})")
+        values[p.name] = v
+    if problems:
+        raise ModelInputError(f"model {model.name!r}: " + "; ".join(problems))
+    return values
+
+
+@dataclass
+class Forward:
+    accelerations: np.ndarray  # u'
+    multipliers: np.ndarray  # lambda, constraint order
+    pivot_ratio: float
+
+
+class NumericModel:
+    """Compiled numeric model for one formulation and one parameter set."""
+
+    def __init__(self, model: Model, formulation: str | None = None, params: dict | None = None):
+        model.validate()
+        self.model = model
+        self.formulation = formulation or model.formulations[0]
+        self.params = resolve_parameters(model, params)
+        self.p = tuple(self.params[p.name] for p in model.parameters)
+        self._scalar, self._batched, self.source = codegen.load_compiled(
+            lambda: derive(model, self.formulation), model, self.formulation, self.params)
+        self.n = len(model.speeds)
+        self.nq = len(model.coordinates)
+        self.m = self._scalar["META"]["m"]
+
+    # ---- validation --------------------------------------------------------------------
+    def _state(self, q, u, t):
+        q = np.asarray(q, dtype=float).reshape(-1)
+        u = np.asarray(u, dtype=float).reshape(-1)
+        if q.size != self.nq:
+            raise ModelInputError(
+                f"{self.model.name}: expected {self.nq} coordinates "
+                f"({', '.join(s.name for s in self.model.coordinates)}), got {q.size}")
+        if u.size != self.n:
+            raise ModelInputError(
+                f"{self.model.name}: expected {self.n} speeds "
+                f"({', '.join(s.name for s in self.model.speeds)}), got {u.size}")
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(u)) and math.isfinite(t)):
+            raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
+        return q, u, float(t)
+
+    # ---- single state ------------------------------------------------------------------
+    def forward(self, q, u, t: float = 0.0) -> Forward:
+        """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
+        q, u, t = self._state(q, u, t)
+        try:
+            ud, lam, piv = self._scalar["forward"](q.tolist(), u.tolist(), t, self.p)
+        except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
+            piv = -1.0
+        if not piv > PIVOT_RATIO_MIN:
+            raise SingularSystemError(self._singular_message(q, piv))
+        return Forward(np.array(ud, dtype=float), np.array(lam, dtype=float), float(piv))
+
+    def forward_raw(self, q: list, u: list, t: float):
+        """Unchecked fast path for integrators: lists in, (u', lambda, pivot ratio) out."""
+        return self._scalar["forward"](q, u, t, self.p)
+
+    def _singular_message(self, q, piv) -> str:
+        return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
+                f"(pivot ratio {piv:.1e} <= {PIVOT_RATIO_MIN:.0e}): the constraint rows are "
+                f"dependent there (a kinematic singularity or redundant constraints) or M is not "
+                f"definite on their null space. Move the state away from this pose or remove "
+                f"the redundant constraints.")
+
+    def matrices(self, q, u, t: float = 0.0):
+        """M (n x n), f (n), A (m x n), b (m) at a state: the EquationsOfMotion contract."""
+        q, u, t = self._state(q, u, t)
+        M, f, A, b = self._scalar["matrices"](q.tolist(), u.tolist(), t, self.p)
+        n, m = self.n, self.m
+        return (np.array(M, float).reshape(n, n), np.array(f, float),
+                np.array(A, float).reshape(m, n), np.array(b, float))
+
+    def kinematics(self, q, u, t: float = 0.0) -> np.ndarray:
+        q, u, t = self._state(q, u, t)
+        return np.array(self._scalar["kinematics"](q.tolist(), u.tolist(), t, self.p)[0], float)
+
+    def residuals(self, q, u, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Position residuals f(q, t) and velocity residuals A u + a0."""
+        q, u, t = self._state(q, u, t)
+        pos, vel = self._scalar["residuals"](q.tolist(), u.tolist(), t, self.p)
+        return np.array(pos, float), np.array(vel, float)
+
+    def energy(self, q, u, t: float = 0.0) -> tuple[float, float]:
+        """Kinetic and potential energy (gravity from the bodies plus the model's springs)."""
+        q, u, t = self._state(q, u, t)
+        (K, V), = self._scalar["energy"](q.tolist(), u.tolist(), t, self.p)
+        return float(K), float(V)
+
+    def check_consistent(self, q, u, t: float = 0.0, tol: float = MANIFOLD_TOL) -> None:
+        """Refuse a state off the constraint manifold, saying by how much."""
+        pos, vel = self.residuals(q, u, t)
+        worst_p = float(np.max(np.abs(pos))) if pos.size else 0.0
+        worst_v = float(np.max(np.abs(vel))) if vel.size else 0.0
+        scale = 1.0 + float(np.max(np.abs(q)) if np.size(q) else 0.0)
+        if worst_p > tol * scale or worst_v > tol * (1.0 + float(np.max(np.abs(u)))):
+            raise OffManifoldError(
+                f"{self.model.name}: state is off the constraint manifold: max |f(q,t)| = "
+                f"{worst_p:.3e}, max |A u + a0| = {worst_v:.3e} (tolerance {tol:.0e}). "
+                f"Give a consistent state or pass --project to project it onto the manifold.")
+
+    # ---- projection onto the manifold ----------------------------------------------------
+    def project(self, q, u, t: float = 0.0, tol: float = 1e-13, max_iter: int = 50):
+        """Closest consistent state: Gauss-Newton on f(q, t) = 0 (minimum-norm steps in q),
+        then the velocity projection u <- u - A^+ (A u + a0). Raises when it cannot converge."""
+        q, u, t = self._state(q, u, t)
+        q = q.copy()
+        cs_f = self.model.configuration_constraints
+        n_pos = len(cs_f)
+        for _ in range(max_iter):
+            pos, _vel = self.residuals(q, u, t)
+            if n_pos == 0 or np.max(np.abs(pos)) <= tol * (1 + np.max(np.abs(q))):
+                break
+            Aq = self._position_jacobian(q, t)
+            dq, *_ = np.linalg.lstsq(Aq, -pos, rcond=None)
+            q += dq
+        else:
+            raise OffManifoldError(
+                f"{self.model.name}: projection onto f(q,t)=0 did not converge in {max_iter} "
+                f"Gauss-Newton steps (residual {np.max(np.abs(pos)):.2e}); the constraints may "
+                f"have no solution near this q (for example a slider-crank with l2 < l1 beyond "
+                f"its reach)")
+        _, _, A, _ = self.matrices(q, u, t)
+        _, vel = self.residuals(q, u, t)
+        if A.shape[0]:
+            du, *_ = np.linalg.lstsq(A, -vel, rcond=None)
+            u = u + du
+        return q, u
+
+    def _position_jacobian(self, q, t, h=1e-7):
+        """df/dq by central differences of the compiled residuals (used only for projection)."""
+        cols = []
+        for k in range(self.nq):
+            e = np.zeros(self.nq)
+            e[k] = h
+            fp, _ = self.residuals(q + e, np.zeros(self.n), t)
+            fm, _ = self.residuals(q - e, np.zeros(self.n), t)
+            cols.append((fp - fm) / (2 * h))
+        return np.array(cols).T
+
+    # ---- batched -----------------------------------------------------------------------
+    def forward_batch(self, Q, U, t=0.0):
+        """u' and lambda for N states at once: Q (N x nq), U (N x n). Returns (UD, LAM, piv)."""
+        Q = np.asarray(Q, dtype=float)
+        U = np.asarray(U, dtype=float)
+        if Q.ndim != 2 or Q.shape[1] != self.nq or U.shape != (Q.shape[0], self.n):
+            raise ModelInputError(
+                f"{self.model.name}: batched states must be (N, {self.nq}) and (N, {self.n}), "
+                f"got {Q.shape} and {U.shape}")
+        if not (np.isfinite(Q).all() and np.isfinite(U).all()):
+            raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
+        N = Q.shape[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p)
+        UD = np.empty((N, self.n))
+        for i, c in enumerate(ud):
+            UD[:, i] = c
+        LAM = np.empty((N, self.m))
+        for i, c in enumerate(lam):
+            LAM[:, i] = c
+        piv = np.broadcast_to(np.asarray(piv, float), (N,))
+        bad = ~(piv > PIVOT_RATIO_MIN)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise SingularSystemError(
+                f"{bad.sum()} of {N} states are singular; first: index {i}. "
+                + self._singular_message(Q[i], float(piv[i])))
+        return UD, LAM, piv
