@@ -13,6 +13,15 @@ _FACTORIES = {
     "slider_crank_free": "slider_crank:free_model",
     "slider_crank": "slider_crank:model",
     "slider_crank_split": "slider_crank:split_model",
+    "frame_bar": "frame_bar:model",
+    "double_pendulum_3d": "double_pendulum:model",
+    "top_euler": "top:euler_model",
+    "top_cartesian": "top:cartesian_model",
+    "exercise_6_1": "exercise_6_1:model",
+    "exercise_6_2": "exercise_6_2:model",
+    "exercise_6_4": "exercise_6_4:model",
+    "knife_edge": "knife_edge:model",
+    "pendulum_moving_support": "moving_support:model",
 }
 
 
