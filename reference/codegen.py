@@ -31,7 +31,7 @@ from sympy.printing.lambdarepr import LambdaPrinter
 from .eom import EquationsOfMotion
 from .formulations.lagrange import kinetic_energy, potential_energy
 
-CODEGEN_VERSION = "3"
+CODEGEN_VERSION = "5"
 
 
 def cache_dir() -> Path:
@@ -245,13 +245,16 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
         for g in exprs_groups:
             out.append("[" + ", ".join(codes[k:k + len(g)]) + "]")
             k += len(g)
-        return _header(name, eom) + w2.lines + [f"    return {', '.join(out)}", ""]
+        return _header(name, eom) + w2.lines + [f"    return {', '.join(out)},", ""]
 
     src += simple("matrices", [list(eom.M), list(eom.f), list(eom.A), list(eom.b)])
     src += simple("kinematics", [list(m.kinematics)])
     cs = eom.constraints
     src += simple("residuals", [list(cs.f), list(cs.A * sp.Matrix(m.speeds) + cs.a0)])
-    src += simple("energy", [[kinetic_energy(m), potential_energy(m)]])
+    E = kinetic_energy(m) + potential_energy(m)
+    src += simple("energy", [[kinetic_energy(m), potential_energy(m), m.load_power()],
+                             [sp.diff(E, s) for s in m.coordinates],
+                             [sp.diff(E, s) for s in m.speeds], [sp.diff(E, m.t)]])
     return "\n".join(src) + "\n"
 
 

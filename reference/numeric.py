@@ -137,8 +137,22 @@ class NumericModel:
     def energy(self, q, u, t: float = 0.0) -> tuple[float, float]:
         """Kinetic and potential energy (gravity from the bodies plus the model's springs)."""
         q, u, t = self._state(q, u, t)
-        (K, V), = self._scalar["energy"](q.tolist(), u.tolist(), t, self.p)
+        (K, V, _P), *_ = self._scalar["energy"](q.tolist(), u.tolist(), t, self.p)
         return float(K), float(V)
+
+    def power_balance(self, q, u, t: float = 0.0) -> dict[str, float]:
+        """Work-energy terms at a state: dE/dt (exact gradient of E = K + V along the motion),
+        the power of the applied loads, and the power of the constraint forces
+        u . A^T lambda = -lambda . a0 on the manifold (zero for scleronomic constraints)."""
+        q, u, t = self._state(q, u, t)
+        (K, V, P), dEdq, dEdu, (dEdt,) = self._scalar["energy"](q.tolist(), u.tolist(), t, self.p)
+        fw = self.forward(q, u, t)
+        qdot = self.kinematics(q, u, t)
+        dE = float(np.dot(dEdq, qdot) + np.dot(dEdu, fw.accelerations) + dEdt)
+        _, _, A, _ = self.matrices(q, u, t)
+        P_c = float(fw.multipliers @ (A @ u)) if self.m else 0.0
+        return {"dE_dt": dE, "load_power": float(P), "constraint_power": P_c,
+                "energy": float(K + V)}
 
     def check_consistent(self, q, u, t: float = 0.0, tol: float = MANIFOLD_TOL) -> None:
         """Refuse a state off the constraint manifold, saying by how much."""

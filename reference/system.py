@@ -149,6 +149,16 @@ class Model:
                 out += sp.diff(expr, u) * ud
         return out
 
+    def load_power(self) -> sp.Expr:
+        """Power of the applied loads (forces and torques; gravity and springs excluded)."""
+        P = sp.Integer(0)
+        for ld in self.loads:
+            if isinstance(ld, Force):
+                P += (ld.force.T * ld.velocity)[0]
+            else:
+                P += (ld.torque.T * ld.omega)[0]
+        return P
+
     def content_hash(self) -> str:
         """A hash of everything that defines the equations (for the derivation cache)."""
         parts = [self.name, repr(self.formulations)]

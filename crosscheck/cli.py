@@ -1,0 +1,205 @@
+"""`crosscheck` command line. Subcommand names and JSON fields are a contract (see README).
+
+Bad input prints one line `crosscheck: error: ...` and exits with status 2, never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+from reference.errors import ModelInputError
+
+EXIT_USAGE = 2
+
+
+class UsageError(ModelInputError):
+    pass
+
+
+def _floats(text: str | None, what: str) -> list[float] | None:
+    if text is None:
+        return None
+    out = []
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        try:
+            out.append(float(item))
+        except ValueError:
+            raise UsageError(f"{what}: {item!r} is not a number (give comma-separated values)")
+    return out
+
+
+def _assignments(pairs: list[str]) -> dict[str, float]:
+    out = {}
+    for pair in pairs or []:
+        if "=" not in pair:
+            raise UsageError(f"--set {pair!r}: expected NAME=VALUE")
+        name, value = pair.split("=", 1)
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise UsageError(f"--set {pair!r}: {value!r} is not a number")
+    return out
+
+
+def _json_default(x):
+    try:
+        import numpy as np
+        if isinstance(x, np.ndarray):
+            return x.tolist()
+        if isinstance(x, np.generic):
+            return x.item()
+    except ImportError:  # pragma: no cover
+        pass
+    raise TypeError(f"not JSON serializable: {type(x)}")
+
+
+def dump_json(obj) -> str:
+    return json.dumps(obj, indent=2, default=_json_default, allow_nan=False)
+
+
+# ---- models ------------------------------------------------------------------------------
+def describe_model(model) -> dict:
+    from reference.constraints import classify
+    return {
+        "name": model.name,
+        "source": model.source,
+        "title": model.title,
+        "coordinates": [s.name for s in model.coordinates],
+        "speeds": [s.name for s in model.speeds],
+        "parameters": {p.name: p.default for p in model.parameters},
+        "parameter_units": {p.name: p.unit for p in model.parameters},
+        "constraints": classify(model),
+        "formulations": list(model.formulations),
+        "multiplier_meaning": model.multiplier_meaning,
+        "geometry_note": model.geometry_note,
+        "initial_state": {"q": list(model.initial_q), "u": list(model.initial_u)},
+    }
+
+
+def cmd_models(args) -> int:
+    from reference import models
+    described = [describe_model(models.get(n)) for n in models.names()]
+    if args.json:
+        print(dump_json(described))
+        return 0
+    rows = [("name", "source", "q", "u", "constraints", "formulations")]
+    for d in described:
+        rows.append((d["name"], d["source"], ",".join(d["coordinates"]),
+                     str(len(d["speeds"])), str(len(d["constraints"])),
+                     ",".join(d["formulations"])))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for r in rows:
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip())
+    return 0
+
+
+# ---- eval --------------------------------------------------------------------------------
+def cmd_eval(args) -> int:
+    import numpy as np
+
+    from reference import NumericModel, models
+    model = models.get(args.name)
+    nm = NumericModel(model, args.formulation, _assignments(args.set))
+    q = _floats(args.q, "--q")
+    u = _floats(args.u, "--u")
+    q = list(model.initial_q) if q is None else q
+    u = list(model.initial_u) if u is None else u
+    if not math.isfinite(args.t):
+        raise UsageError("--t must be finite")
+    if args.project:
+        q, u = nm.project(q, u, args.t)
+    else:
+        nm.check_consistent(q, u, args.t)
+    res = nm.forward(q, u, args.t)
+    pos, vel = nm.residuals(q, u, args.t)
+    K, V = nm.energy(q, u, args.t)
+    out = {
+        "model": model.name, "source": model.source, "formulation": nm.formulation,
+        "parameters": nm.params, "t": args.t,
+        "q": np.asarray(q, float), "u": np.asarray(u, float),
+        "coordinates": [s.name for s in model.coordinates],
+        "speeds": [s.name for s in model.speeds],
+        "accelerations": res.accelerations,
+        "multipliers": res.multipliers,
+        "constraint_names": list(model.constraint_names),
+        "multiplier_meaning": model.multiplier_meaning,
+        "coordinate_rates": nm.kinematics(q, u, args.t),
+        "residuals": {"position": pos, "velocity": vel},
+        "energy": {"kinetic": K, "potential": V, "total": K + V},
+        "pivot_ratio": res.pivot_ratio,
+    }
+    if args.json:
+        print(dump_json(out))
+    else:
+        print(f"{model.name} ({model.source}), {nm.formulation}, t = {args.t}")
+        for s, a in zip(out["speeds"], res.accelerations):
+            print(f"  d({s})/dt = {a:.12g}")
+        for name, lam in zip(model.constraint_names or [], res.multipliers):
+            print(f"  lambda[{name}] = {lam:.12g}")
+        print(f"  residuals: position {np.abs(pos).max() if pos.size else 0:.2e}, "
+              f"velocity {np.abs(vel).max() if vel.size else 0:.2e}")
+    return 0
+
+
+# ---- parser ------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="crosscheck",
+        description="Textbook multiplier formulations cross-checked against Pinocchio and MuJoCo")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    m = sub.add_parser("models", help="list the models of the unit")
+    m.add_argument("--json", action="store_true", help="machine-readable list")
+    m.set_defaults(func=cmd_models)
+
+    e = sub.add_parser("eval", help="accelerations and multipliers of a model at a state")
+    e.add_argument("name", help="model name (see `crosscheck models`)")
+    e.add_argument("--formulation", default=None, help="lagrange | dalembert | kane")
+    e.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a parameter (repeatable)")
+    e.add_argument("--q", help="coordinates, comma-separated (default: the model's initial state)")
+    e.add_argument("--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)")
+    e.add_argument("--t", type=float, default=0.0, help="time (rheonomic constraints)")
+    e.add_argument("--project", action="store_true",
+                   help="project the state onto the constraint manifold instead of refusing it")
+    e.add_argument("--json", action="store_true")
+    e.set_defaults(func=cmd_eval)
+
+    for register in _optional_commands():
+        register(sub)
+    return p
+
+
+def _optional_commands():
+    """Subcommands living in their own modules (run, bench, report, gate), when present."""
+    out = []
+    for mod in ("crosscheck.run", "crosscheck.bench", "crosscheck.report", "crosscheck.gate"):
+        try:
+            module = __import__(mod, fromlist=["register"])
+        except ModuleNotFoundError as exc:
+            if exc.name != mod:
+                raise
+            continue
+        out.append(module.register)
+    return out
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except ModelInputError as exc:
+        print(f"crosscheck: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except BrokenPipeError:  # pragma: no cover - `crosscheck models | head`
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
