@@ -55,6 +55,13 @@ def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str,
     return values
 
 
+def _floats(x) -> list[float]:
+    """Values as a list of Python floats (the compiled code is fastest on plain floats)."""
+    if type(x) is np.ndarray:
+        return x.astype(float, copy=False).reshape(-1).tolist()
+    return [float(v) for v in x]
+
+
 @dataclass
 class Forward:
     accelerations: np.ndarray  # u'
@@ -79,26 +86,30 @@ class NumericModel:
 
     # ---- validation --------------------------------------------------------------------
     def _state(self, q, u, t):
-        q = np.asarray(q, dtype=float).reshape(-1)
-        u = np.asarray(u, dtype=float).reshape(-1)
-        if q.size != self.nq:
+        """Validated state as Python float lists (cheap: this runs on every public call)."""
+        try:
+            ql, ul, t = _floats(q), _floats(u), float(t)
+        except (TypeError, ValueError) as exc:
+            raise ModelInputError(f"{self.model.name}: state values must be numbers ({exc})")
+        if len(ql) != self.nq:
             raise ModelInputError(
                 f"{self.model.name}: expected {self.nq} coordinates "
-                f"({', '.join(s.name for s in self.model.coordinates)}), got {q.size}")
-        if u.size != self.n:
+                f"({', '.join(s.name for s in self.model.coordinates)}), got {len(ql)}")
+        if len(ul) != self.n:
             raise ModelInputError(
                 f"{self.model.name}: expected {self.n} speeds "
-                f"({', '.join(s.name for s in self.model.speeds)}), got {u.size}")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(u)) and math.isfinite(t)):
+                f"({', '.join(s.name for s in self.model.speeds)}), got {len(ul)}")
+        if not math.isfinite(sum(ql) + sum(ul) + t) and not (
+                all(map(math.isfinite, ql)) and all(map(math.isfinite, ul)) and math.isfinite(t)):
             raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
-        return q, u, float(t)
+        return ql, ul, t
 
     # ---- single state ------------------------------------------------------------------
     def forward(self, q, u, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
         q, u, t = self._state(q, u, t)
         try:
-            ud, lam, piv = self._scalar["forward"](q.tolist(), u.tolist(), t, self.p)
+            ud, lam, piv = self._scalar["forward"](q, u, t, self.p)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
             piv = -1.0
         if not piv > PIVOT_RATIO_MIN:
@@ -119,25 +130,25 @@ class NumericModel:
     def matrices(self, q, u, t: float = 0.0):
         """M (n x n), f (n), A (m x n), b (m) at a state: the EquationsOfMotion contract."""
         q, u, t = self._state(q, u, t)
-        M, f, A, b = self._scalar["matrices"](q.tolist(), u.tolist(), t, self.p)
+        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
         n, m = self.n, self.m
         return (np.array(M, float).reshape(n, n), np.array(f, float),
                 np.array(A, float).reshape(m, n), np.array(b, float))
 
     def kinematics(self, q, u, t: float = 0.0) -> np.ndarray:
         q, u, t = self._state(q, u, t)
-        return np.array(self._scalar["kinematics"](q.tolist(), u.tolist(), t, self.p)[0], float)
+        return np.array(self._scalar["kinematics"](q, u, t, self.p)[0], float)
 
     def residuals(self, q, u, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Position residuals f(q, t) and velocity residuals A u + a0."""
         q, u, t = self._state(q, u, t)
-        pos, vel = self._scalar["residuals"](q.tolist(), u.tolist(), t, self.p)
+        pos, vel = self._scalar["residuals"](q, u, t, self.p)
         return np.array(pos, float), np.array(vel, float)
 
     def energy(self, q, u, t: float = 0.0) -> tuple[float, float]:
         """Kinetic and potential energy (gravity from the bodies plus the model's springs)."""
         q, u, t = self._state(q, u, t)
-        (K, V, _P), *_ = self._scalar["energy"](q.tolist(), u.tolist(), t, self.p)
+        (K, V, _P), *_ = self._scalar["energy"](q, u, t, self.p)
         return float(K), float(V)
 
     def power_balance(self, q, u, t: float = 0.0) -> dict[str, float]:
@@ -145,9 +156,10 @@ class NumericModel:
         the power of the applied loads, and the power of the constraint forces
         u . A^T lambda = -lambda . a0 on the manifold (zero for scleronomic constraints)."""
         q, u, t = self._state(q, u, t)
-        (K, V, P), dEdq, dEdu, (dEdt,) = self._scalar["energy"](q.tolist(), u.tolist(), t, self.p)
+        (K, V, P), dEdq, dEdu, (dEdt,) = self._scalar["energy"](q, u, t, self.p)
         fw = self.forward(q, u, t)
         qdot = self.kinematics(q, u, t)
+        u = np.asarray(u)
         dE = float(np.dot(dEdq, qdot) + np.dot(dEdu, fw.accelerations) + dEdt)
         _, _, A, _ = self.matrices(q, u, t)
         P_c = float(fw.multipliers @ (A @ u)) if self.m else 0.0
@@ -171,7 +183,7 @@ class NumericModel:
         """Closest consistent state: Gauss-Newton on f(q, t) = 0 (minimum-norm steps in q),
         then the velocity projection u <- u - A^+ (A u + a0). Raises when it cannot converge."""
         q, u, t = self._state(q, u, t)
-        q = q.copy()
+        q, u = np.array(q), np.array(u)
         cs_f = self.model.configuration_constraints
         n_pos = len(cs_f)
         for _ in range(max_iter):
@@ -189,21 +201,15 @@ class NumericModel:
                 f"its reach)")
         _, _, A, _ = self.matrices(q, u, t)
         _, vel = self.residuals(q, u, t)
-        if A.shape[0]:
+        if A.shape[0]:  # minimum-norm correction: u <- u - A^+ (A u + a0)
             du, *_ = np.linalg.lstsq(A, -vel, rcond=None)
             u = u + du
         return q, u
 
-    def _position_jacobian(self, q, t, h=1e-7):
-        """df/dq by central differences of the compiled residuals (used only for projection)."""
-        cols = []
-        for k in range(self.nq):
-            e = np.zeros(self.nq)
-            e[k] = h
-            fp, _ = self.residuals(q + e, np.zeros(self.n), t)
-            fm, _ = self.residuals(q - e, np.zeros(self.n), t)
-            cols.append((fp - fm) / (2 * h))
-        return np.array(cols).T
+    def _position_jacobian(self, q, t):
+        """df/dq (Eq. 4's a_jk of the configuration constraints), for the projection."""
+        (Aq,) = self._scalar["position_jacobian"](list(q), [0.0] * self.n, t, self.p)
+        return np.array(Aq, float).reshape(-1, self.nq)
 
     # ---- batched -----------------------------------------------------------------------
     def forward_batch(self, Q, U, t=0.0):

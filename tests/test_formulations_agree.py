@@ -27,6 +27,13 @@ ROUNDOFF_REL = 1e-11
 
 MULTI = [n for n in loadable_models() if len(models.get(n).formulations) > 1]
 
+# Multipliers are formulation-dependent where the coordinates are dependent in a way the kinetic
+# energy does not see: with Euler parameters, K = 1/2 omega.I omega with omega = 2 E(eps) eps'
+# and the gravity potential differ from their d'Alembert counterparts off the unit sphere, and
+# the difference lands on the normalization row (EQUATIONS.md, Exercise 6.6: Lagrange gives
+# lambda = 2V - 4K, d'Alembert 0). The motion is the same; the rows listed here are not compared.
+FORMULATION_DEPENDENT_ROWS = {"top_euler": "norm", "top_cartesian": "norm"}
+
 
 def _rel(a, b):
     a, b = np.asarray(a, float), np.asarray(b, float)
@@ -43,10 +50,13 @@ def test_formulations_agree_numerically(name):
     for _ in range(10):
         q, u = random_consistent_state(ref, rng)
         r0 = ref.forward(q, u)
+        keep = [j for j, c in enumerate(model.constraint_names or [""] * ref.m)
+                if FORMULATION_DEPENDENT_ROWS.get(name) != c]
         for nm in others:
             r = nm.forward(q, u)
             assert _rel(r.accelerations, r0.accelerations) < ROUNDOFF_REL, (nm.formulation, q, u)
-            assert _rel(r.multipliers, r0.multipliers) < ROUNDOFF_REL, (nm.formulation, q, u)
+            assert _rel(r.multipliers[keep], r0.multipliers[keep]) < ROUNDOFF_REL, (
+                nm.formulation, q, u)
 
 
 def test_pendulum_1a_equals_1b_and_tension():

@@ -1,0 +1,169 @@
+"""`crosscheck bench`: forward-dynamics speed (and, with the numerics, work-precision).
+
+Forward records time one evaluation of the accelerations and multipliers at a state:
+- reference `single` (the checked public call), `single-raw` (the unchecked path integrators
+  use), `batched` (10^4 states in one call);
+- `baseline`: the plain route a user would write first, sympy lambdify of M, f, A, b (numpy)
+  plus np.linalg.solve of the KKT matrix, single state and batched (np.linalg.solve on a stack);
+- each engine's constrained forward call at the same state, timed through the adapter's
+  `timed_forward` hook when it has one (engine call only, no mapping).
+All figures come from one run, so their ratios are meaningful on this noisy machine.
+"""
+from __future__ import annotations
+
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from reference import NumericModel, models
+from reference.formulations import derive
+
+from .timing import per_call_seconds
+
+BATCH = 10_000
+
+
+def _states(nm, n, seed=0):
+    """n consistent states near the model's initial state (projected)."""
+    rng = np.random.default_rng(seed)
+    m = nm.model
+    Q, U = [], []
+    for _ in range(n):
+        q = np.asarray(m.initial_q) + 0.2 * rng.standard_normal(len(m.initial_q))
+        u = np.asarray(m.initial_u) + 0.5 * rng.standard_normal(len(m.initial_u))
+        q, u = nm.project(q, u)
+        Q.append(q)
+        U.append(u)
+    return np.array(Q), np.array(U)
+
+
+def _baseline(model, formulation, params):
+    """lambdify(M, f, A, b) with numpy + np.linalg.solve: the obvious implementation."""
+    eom = derive(model, formulation)
+    args = list(model.coordinates) + list(model.speeds) + [model.t] + list(model.parameter_symbols)
+    fn = sp.lambdify(args, [eom.M, eom.f, eom.A, eom.b], modules="numpy", cse=True)
+    n, m = len(model.speeds), eom.A.shape[0]
+    flat = list(eom.M) + list(eom.f) + list(eom.A) + list(eom.b)
+    fn_flat = sp.lambdify(args, flat, modules="numpy", cse=True)
+    p = [params[pp.name] for pp in model.parameters]
+
+    def single(q, u, t=0.0):
+        M, f, A, b = (np.asarray(x, float) for x in fn(*q, *u, t, *p))
+        K = np.zeros((n + m, n + m))
+        K[:n, :n] = M
+        K[:n, n:] = -A.T
+        K[n:, :n] = A
+        return np.linalg.solve(K, np.concatenate([f.ravel(), b.ravel()]))
+
+    def batched(Q, U, t=0.0):
+        N = Q.shape[0]
+        vals = [np.broadcast_to(v, (N,)) for v in fn_flat(*Q.T, *U.T, t, *p)]
+        M = np.stack(vals[:n * n], -1).reshape(N, n, n)
+        f = np.stack(vals[n * n:n * n + n], -1)
+        K = np.zeros((N, n + m, n + m))
+        K[:, :n, :n] = M
+        rhs = np.zeros((N, n + m))
+        rhs[:, :n] = f
+        if m:
+            A = np.stack(vals[n * n + n:n * n + n + m * n], -1).reshape(N, m, n)
+            K[:, :n, n:] = -np.transpose(A, (0, 2, 1))
+            K[:, n:, :n] = A
+            rhs[:, n:] = np.stack(vals[n * n + n + m * n:], -1)
+        return np.linalg.solve(K, rhs[..., None])[..., 0]
+
+    return single, batched
+
+
+def forward_records(names, quick=False, engines=()):
+    recs = []
+    for name in names:
+        model = models.get(name)
+        nm = NumericModel(model)
+        Q, U = _states(nm, 16 if quick else 64, seed=1)
+        q, u = Q[0], U[0]
+        ql, ul, p = q.tolist(), u.tolist(), nm.p
+        rec = lambda path, batch, t: recs.append(  # noqa: E731
+            {"model": name, "engine": "reference" if not path.startswith("engine") else path.split(":")[1],
+             "formulation": nm.formulation, "path": path, "batch": batch,
+             "us_per_state": t["median"] / batch * 1e6, "us_per_state_min": t["min"] / batch * 1e6})
+        rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
+        raw = nm._scalar["forward"]
+        rec("single-raw", 1, per_call_seconds(lambda: raw(ql, ul, 0.0, p)))
+        reps = int(np.ceil(BATCH / Q.shape[0]))
+        QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
+        rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
+        b_single, b_batched = _baseline(model, nm.formulation, nm.params)
+        # the baseline must agree before it is timed (a fast wrong baseline proves nothing)
+        ref = nm.forward(q, u)
+        sol = b_single(q, u)
+        assert np.allclose(sol[:nm.n], ref.accelerations, rtol=1e-9, atol=1e-9), name
+        rec("baseline-lambdify-solve", 1, per_call_seconds(lambda: b_single(q, u)))
+        rec("baseline-lambdify-solve-batched", BATCH,
+            per_call_seconds(lambda: b_batched(QB, UB), repeats=3))
+        for engine in engines:
+            try:
+                em = engine.build(name, nm.params)
+            except Exception as exc:  # EngineUnsupported and friends: recorded, not hidden
+                recs.append({"model": name, "engine": engine.name, "path": "engine",
+                             "batch": 1, "us_per_state": None, "skipped": str(exc)})
+                continue
+            timed = getattr(em, "timed_forward", None)
+            fn = timed(q, u) if timed else (lambda: em.forward(q, u))
+            rec(f"engine:{engine.name}", 1, per_call_seconds(fn))
+    return recs
+
+
+def _engines(requested):
+    out = []
+    for name in requested:
+        if name == "pinocchio":
+            from .engines.pinocchio_engine import PinocchioAdapter
+            out.append(PinocchioAdapter())
+        elif name == "mujoco":
+            from .engines.mujoco_engine import MujocoAdapter
+            out.append(MujocoAdapter())
+    return out
+
+
+def meta(argv) -> dict:
+    import scipy
+    versions = {"python": platform.python_version(), "numpy": np.__version__,
+                "scipy": scipy.__version__, "sympy": sp.__version__}
+    for mod, key in (("pinocchio", "pin"), ("mujoco", "mujoco")):
+        try:
+            versions[key] = __import__(mod).__version__
+        except ImportError:
+            versions[key] = None
+    return {"command": "crosscheck " + " ".join(argv), "versions": versions,
+            "machine": {"platform": platform.platform(), "processor": platform.machine(),
+                        "cpus": __import__("os").cpu_count()},
+            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+
+
+def cmd_bench(args) -> int:
+    names = args.models or models.names()
+    engines = _engines([e for e in args.engines.split(",") if e])
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = {"meta": meta(sys.argv[1:]), "forward": forward_records(names, args.quick, engines),
+              "work_precision": []}
+    (out / "bench.json").write_text(json.dumps(result, indent=2))
+    for r in result["forward"]:
+        t = r["us_per_state"]
+        print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "
+              + (f"{t:10.3f} us/state" if t is not None else f"skipped: {r.get('skipped')}"))
+    return 0
+
+
+def register(sub):
+    b = sub.add_parser("bench", help="benchmark forward dynamics (and work-precision)")
+    b.add_argument("models", nargs="*", help="models (default: all)")
+    b.add_argument("--quick", action="store_true")
+    b.add_argument("--engines", default="pinocchio,mujoco")
+    b.add_argument("--out", default="out")
+    b.set_defaults(func=cmd_bench)

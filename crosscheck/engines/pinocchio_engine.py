@@ -1,0 +1,688 @@
+"""Pinocchio 4.1 adapter: the reference models built in code, solved by Pinocchio's own algorithms.
+
+Why in code and not from the MJCF the MuJoCo adapter uses (ENGINES.md section 2.4, re-checked
+where this module relies on it): Pinocchio's MJCF parser ignores ``<option gravity>`` (every
+planar model here needs gravity along -Y), silently drops spatial tendons and tendon equalities
+(the (x, y) pendulum's distance constraint would vanish), returns the equality constraints sorted
+by name instead of in file order (the multiplier order would change with a rename), and parses
+only the first body subtree under ``<worldbody>`` (the slider-crank's slider is a sibling of the
+crank). Each of these would have to be patched after parsing; building the few joints by hand is
+shorter and leaves nothing implicit.
+
+Engine frames and coordinates (the maps are written out per model below):
+- Planar models use the engine world with X right, Y UP, gravity (0, -g, 0), hinges about +Z.
+  Example 1 is written with Y DOWN in the reference, so its maps flip y (y_ref = -y_engine);
+  Example 2 and Note 2 / Exercise 6.3 are Y up in both.
+- Bodies that are planar bars in the reference carry only I_zz. In the engine each gets the full
+  inertia of a planar lamina, diag(I_zz/2, I_zz/2, I_zz) (perpendicular-axis theorem, a valid
+  rigid-body inertia). Hinges about Z and slides in X/Y never excite the in-plane components, so
+  they do not change any planar answer (tests/test_engine_pinocchio.py checks this by changing
+  them).
+- Point masses (the pendulum bob, the slider) get NO rotational inertia: each one either
+  translates on prismatic joints (the joint-space inertia is its mass) or sits off the axis of
+  the hinge that carries it (m L^2 > 0), so Pinocchio never needs one and the engine model has
+  exactly the reference's mass distribution.
+- The reference's models are scleronomic with constant loads, so the time argument t is unused.
+
+Solvers (ENGINES.md section 2.3, re-verified in the tests):
+- no constraints: ``pin.aba``;
+- a constraint that is not a point coincidence (x^2 + y^2 = L^2): ``pin.forwardDynamics(model,
+  data, q, v, tau, J, gamma)`` with the textbook row J and gamma = Jdot v, an exact KKT solve
+  whose data.lambda_c has the textbook sign: M a + nle = tau + J^T lambda, J a + gamma = 0;
+- point coincidences (loop closures): ``RigidConstraintModel`` CONTACT_3D in LOCAL_WORLD_ALIGNED
+  with ``pin.constraintDynamics``. A planar loop gives 3 rows of which the out-of-plane one is
+  identically zero, so the Delassus matrix is singular and the plain Cholesky (mu = 0) returns
+  NaN; ProximalSettings(1e-12, 1e-8, 50) converges to the exact minimum-norm answer in 2-4
+  proximal iterations. contact_force is the force that joint2's body applies to joint1's body at
+  the anchor, world-oriented.
+
+Every EngineModel here also has ``mass_matrix(q)``, ``forcing(q, u)`` (the reference's f, where
+the coordinates map linearly) and ``simulate(...)`` (scipy's solve_ivp on Pinocchio's forward
+dynamics in the ENGINE's coordinates).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+import pinocchio as pin
+from scipy.integrate import solve_ivp
+
+from .base import EngineForward, EngineUnsupported
+
+__all__ = ["PinocchioAdapter", "PinocchioTrajectory", "PROX_REDUNDANT", "PROX_EXACT"]
+
+# Proximal settings (absolute_accuracy, mu, max_iter).
+# Planar loops: the out-of-plane row of a CONTACT_3D closure is zero, the Delassus matrix is
+# singular; mu = 1e-8 regularizes each factorization and the proximal iterations remove its
+# O(mu) bias geometrically (stop when |d lambda|_inf <= 1e-12 or the residual <= 1e-12).
+PROX_REDUNDANT = (1e-12, 1e-8, 50)
+# Full-rank rows (the 3-D double pendulum as free bodies): mu = 0 and one iteration is the plain
+# Cholesky KKT solve, exact to round-off.
+PROX_EXACT = (1e-12, 0.0, 1)
+
+_Y = np.array([0.0, 1.0, 0.0])
+
+
+def _lamina(I_zz: float) -> np.ndarray:
+    """Full central inertia of a planar body whose reference inertia is only I_zz."""
+    return np.diag([0.5 * I_zz, 0.5 * I_zz, I_zz])
+
+
+def _prox(settings) -> pin.ProximalSettings:
+    acc, mu, it = settings
+    return pin.ProximalSettings(float(acc), float(mu), int(it))
+
+
+@dataclass
+class PinocchioTrajectory:
+    """Output of EngineModel.simulate, in reference coordinates at the output times.
+
+    q: (N, nq) and u: (N, n) reference coordinates and speeds; nfev: right-hand-side calls;
+    raw: engine states, constraint violation (engine measure, see each model) and energy.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    u: np.ndarray
+    nfev: int
+    success: bool
+    message: str
+    raw: dict = field(default_factory=dict)
+
+
+class _PinModel:
+    """Shared machinery; subclasses build the engine model and write the maps."""
+
+    engine = "pinocchio"
+    # reference coordinates (nq) and speeds (n); subclasses set them
+    nq_ref: int
+    n_ref: int
+    solver = "aba"  # "aba" | "kkt" (forwardDynamics with J, gamma) | "constraint"
+    prox_settings = PROX_REDUNDANT
+    variant: Optional[str] = None
+    up = np.array([0.0, 1.0, 0.0])  # engine world "up"; gravity is -g up (g = 0 if no "g")
+
+    def __init__(self, model_name: str, params: dict[str, float]):
+        self.model_name = model_name
+        self.params = dict(params)
+        self.model = pin.Model()
+        g = float(params.get("g", 0.0))
+        self.model.gravity = pin.Motion(np.concatenate([-g * self.up, np.zeros(3)]))
+        self.cms = pin.StdVec_RigidConstraintModel()
+        self.cds = pin.StdVec_RigidConstraintData()
+        self._build()
+        self.data = self.model.createData()
+        if len(self.cms):
+            for cm in self.cms:
+                self.cds.append(cm.createData())
+            pin.initConstraintDynamics(self.model, self.data, self.cms, self.cds)
+        self.prox = _prox(self.prox_settings)
+        self.tau = self._tau()
+
+    # ---- hooks ---------------------------------------------------------------------------
+    def _build(self) -> None:
+        raise NotImplementedError
+
+    def _tau(self) -> np.ndarray:
+        return np.zeros(self.model.nv)
+
+    def to_engine_state(self, q, u):
+        raise NotImplementedError
+
+    def from_engine_state(self, qe, ve):
+        raise NotImplementedError
+
+    def _acc_to_reference(self, qe, ve, ae) -> np.ndarray:
+        raise NotImplementedError
+
+    def _multipliers(self, qe, ve, ae, lam_engine) -> np.ndarray:
+        return np.zeros(0)
+
+    def _kkt_rows(self, qe, ve):
+        """(J, gamma) for the 'kkt' solver."""
+        raise NotImplementedError
+
+    def _qdot(self, qe, ve) -> np.ndarray:
+        """Engine coordinate rates from engine velocities (identity for hinges and slides)."""
+        return ve
+
+    def _normalize(self, qe) -> np.ndarray:
+        """Engine configuration on its manifold (unit quaternions); identity here."""
+        return qe
+
+    def _violation(self, qe) -> float:
+        """Position-level constraint violation in the engine (0 without constraints)."""
+        if not len(self.cms):
+            return 0.0
+        pin.forwardKinematics(self.model, self.data, qe)
+        worst = 0.0
+        for cm in self.cms:
+            p1 = self._anchor_position(cm.joint1_id, cm.joint1_placement)
+            p2 = self._anchor_position(cm.joint2_id, cm.joint2_placement)
+            worst = max(worst, float(np.max(np.abs(p1 - p2))))
+        return worst
+
+    # M and f in reference coordinates when q_engine = P q_ref (+ const) with P invertible
+    _P: Optional[np.ndarray] = None
+
+    # ---- engine-level dynamics -------------------------------------------------------------
+    def _solve(self, qe, ve):
+        """Engine accelerations and the engine's raw constraint forces (array, maybe empty)."""
+        m, d = self.model, self.data
+        if self.solver == "aba":
+            return pin.aba(m, d, qe, ve, self.tau).copy(), np.zeros(0)
+        if self.solver == "kkt":
+            J, gamma = self._kkt_rows(qe, ve)
+            a = pin.forwardDynamics(m, d, qe, ve, self.tau, J, gamma).copy()
+            return a, d.lambda_c.copy()
+        a = pin.constraintDynamics(m, d, qe, ve, self.tau, self.cms, self.cds, self.prox).copy()
+        lam = np.concatenate([cd.contact_force.linear for cd in self.cds])
+        return a, lam
+
+    def _anchor_position(self, joint, placement) -> np.ndarray:
+        if joint == 0:
+            return placement.translation.copy()
+        return (self.data.oMi[joint] * placement).translation.copy()
+
+    def _anchor_classical_acc(self, joint, placement) -> np.ndarray:
+        """World classical acceleration of a point fixed in a joint frame (after FK with a)."""
+        if joint == 0:
+            return np.zeros(3)
+        v = placement.actInv(self.data.v[joint])
+        a = placement.actInv(self.data.a[joint])
+        acc_local = a.linear + np.cross(v.angular, v.linear)
+        return (self.data.oMi[joint] * placement).rotation @ acc_local
+
+    def _constraint_residuals(self, qe, ve, ae, lam):
+        """Independent checks of the engine's own solve.
+
+        primal: |J a + gamma|_inf, here the mismatch of the two anchors' classical accelerations
+        (point constraints) or J a + gamma (user rows);
+        dual: |rnea(q, v, a, f_ext) - tau|_inf with the constraint forces applied as external
+        forces: Pinocchio's inverse dynamics must give back the applied torques.
+        Returns (primal, dual, fext-augmented rnea data reaction forces computed).
+        """
+        m, d = self.model, self.data
+        if self.solver == "kkt":
+            J, gamma = self._kkt_rows(qe, ve)
+            primal = float(np.max(np.abs(J @ ae + gamma)))
+            tau_id = pin.rnea(m, d, qe, ve, ae)
+            dual = float(np.max(np.abs(tau_id - self.tau - J.T @ lam)))
+            return primal, dual
+        pin.forwardKinematics(m, d, qe, ve, ae)
+        primal = 0.0
+        fext = pin.StdVec_Force()
+        for _ in range(m.njoints):
+            fext.append(pin.Force.Zero())
+        for k, cm in enumerate(self.cms):
+            a1 = self._anchor_classical_acc(cm.joint1_id, cm.joint1_placement)
+            a2 = self._anchor_classical_acc(cm.joint2_id, cm.joint2_placement)
+            primal = max(primal, float(np.max(np.abs(a1 - a2))))
+            f = lam[3 * k:3 * k + 3]  # on joint1's body at its anchor, world-oriented
+            for joint, placement, sign in ((cm.joint1_id, cm.joint1_placement, 1.0),
+                                           (cm.joint2_id, cm.joint2_placement, -1.0)):
+                if joint == 0:
+                    continue
+                p = self._anchor_position(joint, placement)
+                f_world = pin.Force(sign * f, np.cross(p, sign * f))
+                fext[joint] = fext[joint] + d.oMi[joint].actInv(f_world)
+        tau_id = pin.rnea(m, d, qe, ve, ae, fext)
+        dual = float(np.max(np.abs(tau_id - self.tau)))
+        return primal, dual
+
+    def _energy_engine(self, qe, ve) -> tuple[float, float]:
+        """Kinetic energy from Pinocchio; potential -sum m_i g . c_i computed here from the body
+        positions, datum at the world origin = the reference's datum (the pivot, point A)."""
+        m, d = self.model, self.data
+        K = float(pin.computeKineticEnergy(m, d, qe, ve))
+        pin.forwardKinematics(m, d, qe)
+        gvec = m.gravity.linear
+        V = 0.0
+        for i in range(1, m.njoints):
+            Y = m.inertias[i]
+            c = d.oMi[i].act(Y.lever)
+            V -= Y.mass * float(gvec @ c)
+        return K, V
+
+    # ---- the EngineModel interface ---------------------------------------------------------
+    def forward(self, q, u, t: float = 0.0) -> EngineForward:
+        qe, ve = self.to_engine_state(q, u)
+        ae, lam_e = self._solve(qe, ve)
+        raw = {"engine_q": qe, "engine_v": ve, "engine_accelerations": ae,
+               "engine_forces": lam_e, "solver": self.solver}
+        if self.solver == "constraint":
+            raw["iterations"] = int(self.prox.iter)
+            raw["prox_absolute_residual"] = float(self.prox.absolute_residual)
+            raw["prox_relative_residual"] = float(self.prox.relative_residual)
+            raw["prox_settings"] = tuple(self.prox_settings)
+        else:
+            raw["iterations"] = 1 if self.solver == "kkt" else 0  # direct solve / no solve
+        lam = self._multipliers(qe, ve, ae, lam_e)
+        self._extra_raw(qe, ve, ae, lam_e, raw)
+        if self.solver != "aba":
+            raw["primal_residual"], raw["dual_residual"] = self._constraint_residuals(
+                qe, ve, ae, lam_e)
+        if self.variant is not None:
+            raw["variant"] = self.variant
+        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw)
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw) -> None:
+        pass
+
+    def energy(self, q, u) -> tuple[float, float]:
+        qe, ve = self.to_engine_state(q, u)
+        return self._energy_engine(qe, ve)
+
+    def mass_matrix(self, q) -> Optional[np.ndarray]:
+        """Engine mass matrix in reference coordinates (P^T M_e P), or None when the engine's
+        coordinates are not a linear bijection of the reference's."""
+        if self._P is None:
+            return None
+        qe, _ = self.to_engine_state(q, np.zeros(self.n_ref))
+        Me = pin.crba(self.model, self.data, qe).copy()
+        Me = np.triu(Me) + np.triu(Me, 1).T  # crba fills the upper triangle
+        return self._P.T @ Me @ self._P
+
+    def forcing(self, q, u, t: float = 0.0) -> Optional[np.ndarray]:
+        """The reference's f (applied generalized forces minus velocity products) from the
+        engine: P^T (tau - nle), or None where the coordinates do not map linearly."""
+        if self._P is None:
+            return None
+        qe, ve = self.to_engine_state(q, u)
+        nle = pin.nonLinearEffects(self.model, self.data, qe, ve)
+        return self._P.T @ (self.tau - nle)
+
+    def simulate(self, q0, u0, t_end: float, rtol: float, atol: float, method: str = "DOP853",
+                 t_eval=None) -> PinocchioTrajectory:
+        """Integrate Pinocchio's forward dynamics with scipy's solve_ivp in engine coordinates.
+
+        No constraint stabilization (no projection, no Baumgarte): the constrained models drift
+        off their manifold at the integrator's tolerance level (index-1 drift), which is
+        recorded per output time in raw["violation"] so the report can show it.
+        """
+        qe0, ve0 = self.to_engine_state(q0, u0)
+        nq, nv = self.model.nq, self.model.nv
+        y0 = np.concatenate([qe0, ve0])
+
+        def rhs(_t, y):
+            qe = self._normalize(y[:nq])
+            ve = y[nq:]
+            a, _ = self._solve(qe, ve)
+            return np.concatenate([self._qdot(qe, ve), a])
+
+        if t_eval is None:
+            t_eval = np.linspace(0.0, t_end, 101)
+        sol = solve_ivp(rhs, (0.0, float(t_end)), y0, method=method, rtol=rtol, atol=atol,
+                        t_eval=np.asarray(t_eval, dtype=float))
+        Q, U, viol, E = [], [], [], []
+        for y in sol.y.T:
+            qe = self._normalize(y[:nq])
+            ve = y[nq:]
+            q, u = self.from_engine_state(qe, ve)
+            Q.append(q)
+            U.append(u)
+            viol.append(self._violation(qe))
+            E.append(sum(self._energy_engine(qe, ve)))
+        return PinocchioTrajectory(
+            t=sol.t, q=np.array(Q), u=np.array(U), nfev=int(sol.nfev), success=bool(sol.success),
+            message=str(sol.message),
+            raw={"engine_states": sol.y.T.copy(), "violation": np.array(viol),
+                 "energy": np.array(E), "method": method, "rtol": rtol, "atol": atol,
+                 "stabilization": "none"})
+
+
+# ======================================================================================
+# Example 1: the simple pendulum (reference Y DOWN; engine Y UP)
+# ======================================================================================
+class PendulumAngle(_PinModel):
+    """Example 1(a). One hinge RZ at the origin; the bob (mass m, no inertia) at (0, -L, 0) in
+    the hinge frame, so the engine angle is the reference's theta (from the downward vertical)
+    with positions (L sin, -L cos) = (x_ref, -y_ref). Plain ABA; the reference has no multipliers.
+    raw["rod_tension"] is the force of the pivot on the rod+bob body along the rod, read from
+    rnea's data.f[1] (parent on body, local frame): local +y points from the bob to the pivot."""
+
+    nq_ref = n_ref = 1
+    solver = "aba"
+    _P = np.eye(1)
+
+    def _build(self):
+        p = self.params
+        j = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "theta")
+        self.model.appendBodyToJoint(
+            j, pin.Inertia(p["m"], np.array([0.0, -p["L"], 0.0]), np.zeros((3, 3))),
+            pin.SE3.Identity())
+
+    def to_engine_state(self, q, u):
+        return np.array(q, float).reshape(1).copy(), np.array(u, float).reshape(1).copy()
+
+    def from_engine_state(self, qe, ve):
+        return np.array(qe, float).copy(), np.array(ve, float).copy()
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return ae.copy()
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        pin.rnea(self.model, self.data, qe, ve, ae)
+        raw["rod_tension"] = float(self.data.f[1].linear @ _Y)
+
+
+class PendulumXY(_PinModel):
+    """Example 1(b). Slides PX (x_e) then PY (y_e) carrying the bob; y_ref = -y_e, x_ref = x_e.
+    The distance constraint (x^2 + y^2 - L^2)/2 = 0 is the same function in both coordinate
+    sets, so with J = [x_e, y_e] and gamma = xdot_e^2 + ydot_e^2 data.lambda_c is the textbook
+    lambda itself (lambda = -T/L)."""
+
+    nq_ref = n_ref = 2
+    solver = "kkt"
+    _P = np.diag([1.0, -1.0])  # q_e = P q_ref
+
+    def _build(self):
+        jx = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
+        jy = self.model.addJoint(jx, pin.JointModelPY(), pin.SE3.Identity(), "y")
+        self.model.appendBodyToJoint(
+            jy, pin.Inertia(self.params["m"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+
+    def _kkt_rows(self, qe, ve):
+        return qe.reshape(1, 2).copy(), np.array([ve @ ve])
+
+    def to_engine_state(self, q, u):
+        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
+
+    def from_engine_state(self, qe, ve):
+        return self._P @ np.asarray(qe, float), self._P @ np.asarray(ve, float)
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return self._P @ ae
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return lam_e.copy()
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        raw["rod_tension"] = float(-lam_e[0] * self.params["L"])
+
+    def _violation(self, qe):
+        return abs(float(np.hypot(qe[0], qe[1])) - self.params["L"])
+
+
+# ======================================================================================
+# Example 2 and Note 2 / Exercise 6.3: the slider-crank (Y UP in both)
+# ======================================================================================
+class _SliderCrankBase(_PinModel):
+    def _tau(self):
+        tau = np.zeros(self.model.nv)
+        tau[0] = self.params["T"]  # the crank hinge is joint 1 (q index 0) in every variant
+        return tau
+
+    def _crank(self):
+        p = self.params
+        j1 = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "theta1")
+        self.model.appendBodyToJoint(
+            j1, pin.Inertia(p["m1"], np.array([p["r1"], 0.0, 0.0]), _lamina(p["I_G1"])),
+            pin.SE3.Identity())
+        return j1
+
+
+class SliderCrankFree(_SliderCrankBase):
+    """Example 2(a), the slider row removed. Crank hinge (theta1) and rod hinge at B relative to
+    the crank (phi2 = theta2 - theta1); the end mass m3 is a point mass fixed on the rod at C
+    (it does not turn, so lumping it into the rod body is exact). q_e = P q_ref with
+    P = [[1, 0], [-1, 1]]. Plain ABA."""
+
+    nq_ref = n_ref = 2
+    solver = "aba"
+    _P = np.array([[1.0, 0.0], [-1.0, 1.0]])
+    _Pinv = np.array([[1.0, 0.0], [1.0, 1.0]])
+
+    def _build(self):
+        p = self.params
+        j1 = self._crank()
+        j2 = self.model.addJoint(j1, pin.JointModelRZ(),
+                                 pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])), "phi2")
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), _lamina(p["I_G2"])),
+            pin.SE3.Identity())
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(p["m3"], np.array([p["l2"], 0.0, 0.0]), np.zeros((3, 3))),
+            pin.SE3.Identity())
+
+    def to_engine_state(self, q, u):
+        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
+
+    def from_engine_state(self, qe, ve):
+        return self._Pinv @ np.asarray(qe, float), self._Pinv @ np.asarray(ve, float)
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return self._Pinv @ ae
+
+
+class SliderCrank(_SliderCrankBase):
+    """Example 2(b). Engine tree: crank hinge (theta1), rod hinge at B relative to the crank
+    (phi2 = theta2 - theta1), slider on a root slide PX (x_s, the world x of C) carrying m3.
+    Loop closure: CONTACT_3D at C, joint1 = rod (anchor (l2, 0, 0)), joint2 = slider (origin),
+    LOCAL_WORLD_ALIGNED; rows x, y, z of which z is identically zero (ProximalSettings for a
+    singular Delassus matrix, PROX_REDUNDANT).
+
+    Force map. contact_force lambda_c is the force of the slider on the rod at C (world axes).
+    The reference lumps m3 at C on the rod and its single row l1 S1 + l2 S2 = y_C = 0 makes its
+    lambda the vertical force of the guide at C. In the engine the guide acts on the slider
+    through the PX joint: the slider's vertical equation, with its vertical acceleration 0,
+    reads N - m3 g - lambda_c,y = 0, hence
+
+        lambda_ref = N = lambda_c,y + m3 g.
+
+    raw["guide_force_rnea"] is N read independently from Pinocchio's rnea with the constraint
+    forces applied as external forces (the y component of the PX joint's transmitted force).
+    The horizontal component lambda_c,x is internal to the reference's lumped rod+m3 body.
+
+    Coordinates: 2 reference (theta1, theta2) vs 3 engine (theta1, phi2, x_s); x_s = l1 C1 +
+    l2 C2 follows from the closure, so mass_matrix/forcing return None (the reference's M also
+    carries m3's vertical motion that the guide removes in the engine)."""
+
+    nq_ref = n_ref = 2
+    solver = "constraint"
+    prox_settings = PROX_REDUNDANT
+
+    def _build(self):
+        p = self.params
+        j1 = self._crank()
+        j2 = self.model.addJoint(j1, pin.JointModelRZ(),
+                                 pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])), "phi2")
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), _lamina(p["I_G2"])),
+            pin.SE3.Identity())
+        j3 = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x_slider")
+        self.model.appendBodyToJoint(
+            j3, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+        self.j_rod, self.j_slider = j2, j3
+        self.cms.append(pin.RigidConstraintModel(
+            pin.ContactType.CONTACT_3D, self.model,
+            j2, pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
+            j3, pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+
+    def to_engine_state(self, q, u):
+        p = self.params
+        th1, th2 = np.asarray(q, float)
+        w1, w2 = np.asarray(u, float)
+        xs = p["l1"] * math.cos(th1) + p["l2"] * math.cos(th2)
+        xs_dot = -p["l1"] * math.sin(th1) * w1 - p["l2"] * math.sin(th2) * w2
+        return np.array([th1, th2 - th1, xs]), np.array([w1, w2 - w1, xs_dot])
+
+    def from_engine_state(self, qe, ve):
+        return np.array([qe[0], qe[0] + qe[1]]), np.array([ve[0], ve[0] + ve[1]])
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return np.array([ae[0], ae[0] + ae[1]])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return np.array([lam_e[1] + self.params["m3"] * self.params["g"]])
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        m, d = self.model, self.data
+        pin.forwardKinematics(m, d, qe, ve, ae)
+        fext = pin.StdVec_Force()
+        for _ in range(m.njoints):
+            fext.append(pin.Force.Zero())
+        f = lam_e[0:3]
+        pC = self._anchor_position(self.j_rod, self.cms[0].joint1_placement)
+        fext[self.j_rod] = d.oMi[self.j_rod].actInv(pin.Force(f, np.cross(pC, f)))
+        pS = d.oMi[self.j_slider].translation
+        fext[self.j_slider] = d.oMi[self.j_slider].actInv(pin.Force(-f, np.cross(pS, -f)))
+        pin.rnea(m, d, qe, ve, ae, fext)
+        # transmitted force of the world on the slider through the PX joint, world axes
+        N = d.oMi[self.j_slider].rotation @ d.f[self.j_slider].linear
+        raw["guide_force_rnea"] = float(N[1])
+        raw["force_on_rod_at_C"] = f.copy()
+
+
+class SliderCrankSplit(_SliderCrankBase):
+    """Note 2 / Exercise 6.3, coordinates (theta1, x, theta2) with theta2 measured from C to B
+    and r2 = |C G2|. Engine tree: crank hinge (theta1), root slide PX (x) carrying m3, rod hinge
+    on the slider at C (the slider does not turn, so the rod's hinge angle is the absolute
+    theta2); the rod's mass center at (r2, 0, 0) in its frame. q_e = q_ref exactly.
+    Loop closure at B: CONTACT_3D, joint1 = crank (anchor (l1, 0, 0)), joint2 = rod (anchor
+    (l2, 0, 0)), LOCAL_WORLD_ALIGNED, rows B_crank - B_rod. The reference's rows are
+    f1 = l1 C1 - l2 C2 - x and f2 = l1 S1 - l2 S2: the same difference, so (lambda1, lambda2) =
+    contact_force[0:2] = the force of the rod on the crank at B; the z row is identically 0."""
+
+    nq_ref = n_ref = 3
+    solver = "constraint"
+    prox_settings = PROX_REDUNDANT
+    _P = np.eye(3)
+
+    def _build(self):
+        p = self.params
+        j1 = self._crank()
+        j2 = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+        j3 = self.model.addJoint(j2, pin.JointModelRZ(), pin.SE3.Identity(), "theta2")
+        self.model.appendBodyToJoint(
+            j3, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), _lamina(p["I_G2"])),
+            pin.SE3.Identity())
+        self.cms.append(pin.RigidConstraintModel(
+            pin.ContactType.CONTACT_3D, self.model,
+            j1, pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])),
+            j3, pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
+            pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+
+    def to_engine_state(self, q, u):
+        return np.array(q, float).reshape(3).copy(), np.array(u, float).reshape(3).copy()
+
+    def from_engine_state(self, qe, ve):
+        return np.array(qe, float).copy(), np.array(ve, float).copy()
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return ae.copy()
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return lam_e[0:2].copy()
+
+
+# ======================================================================================
+# Example 3: rotating light frame F and bar B (no gravity)
+# ======================================================================================
+class FrameBar(_PinModel):
+    """Example 3. Engine tree: hinge RZ (phi) carrying the light frame F (no body: F is light),
+    then hinge RY (theta) about the arm n2 placed at (0, d, 0) in F, carrying the bar with its
+    mass center at the joint origin and central principal inertias diag(I1, I2, I3) along the
+    joint axes e1, e2 = n2, e3 (the reference's R = rot_z(phi) rot_y(theta)). No gravity.
+    tau = (M_phi, M_theta): the motor on F about k and the motor on B about n2.
+
+    Speeds: the reference's three dependent body-fixed omega components vs the engine's two
+    joint rates: omega = phi' k + theta' e2 = (-S phi', theta', C phi') and, inversely,
+    theta' = omega2, phi' = -S omega1 + C omega3 (exact on omega1 C + omega3 S = 0). The
+    reference's u' are the bar's body-fixed angular acceleration components, read from
+    Pinocchio's data.a of the bar joint (local frame = bar frame) after forwardKinematics.
+
+    Multiplier: lambda is the n1 component of the bearing moment of the ground on F about O
+    (reference docstring); rnea's data.f[1] is the wrench of the ground on F at O in F's axes
+    (n1, n2, k), so lambda = data.f[1].angular[0] (its k component is the motor torque)."""
+
+    nq_ref, n_ref = 2, 3
+    solver = "aba"
+
+    def _build(self):
+        p = self.params
+        j1 = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "phi")
+        j2 = self.model.addJoint(j1, pin.JointModelRY(),
+                                 pin.SE3(np.eye(3), np.array([0.0, p["d"], 0.0])), "theta")
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(p["m"], np.zeros(3), np.diag([p["I1"], p["I2"], p["I3"]])),
+            pin.SE3.Identity())
+        self.j_bar = j2
+
+    def _tau(self):
+        return np.array([self.params["M_phi"], self.params["M_theta"]])
+
+    def to_engine_state(self, q, u):
+        phi, th = np.asarray(q, float)
+        w1, w2, w3 = np.asarray(u, float)
+        return np.array([phi, th]), np.array([-math.sin(th) * w1 + math.cos(th) * w3, w2])
+
+    def from_engine_state(self, qe, ve):
+        th = float(qe[1])
+        return (np.array(qe, float).copy(),
+                np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))
+
+    def _acc_to_reference(self, qe, ve, ae):
+        pin.forwardKinematics(self.model, self.data, qe, ve, ae)
+        return self.data.a[self.j_bar].angular.copy()
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        pin.rnea(self.model, self.data, qe, ve, ae)
+        return np.array([self.data.f[1].angular[0]])
+
+
+# ======================================================================================
+# Registry
+# ======================================================================================
+_MODELS = {
+    "pendulum_angle": PendulumAngle,
+    "pendulum_xy": PendulumXY,
+    "slider_crank": SliderCrank,
+    "slider_crank_split": SliderCrankSplit,
+    "slider_crank_free": SliderCrankFree,
+    "frame_bar": FrameBar,
+}
+
+# models of the unit this engine cannot represent, with the reason shown in results
+_UNSUPPORTED: dict[str, str] = {}
+
+
+def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
+    """The reference model's parameter values (defaults filled in, names and signs checked)."""
+    from reference.models import get
+    from reference.numeric import resolve_parameters
+
+    return resolve_parameters(get(model_name), params)
+
+
+class PinocchioAdapter:
+    """EngineAdapter for Pinocchio 4.1 (models built in code; see the module docstring)."""
+
+    name = "pinocchio"
+
+    def supported(self) -> list[str]:
+        return list(_MODELS)
+
+    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
+              variant: Optional[str] = None):
+        if model_name in _UNSUPPORTED:
+            raise EngineUnsupported(_UNSUPPORTED[model_name])
+        if model_name not in _MODELS:
+            raise EngineUnsupported(
+                f"pinocchio adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
+        cls = _MODELS[model_name]
+        values = _resolve(model_name, params)
+        if isinstance(cls, dict):  # several engine variants of one reference model
+            key = variant or next(iter(cls))
+            if key not in cls:
+                raise EngineUnsupported(
+                    f"{model_name}: unknown pinocchio variant {key!r}; valid: {', '.join(cls)}")
+            return cls[key](model_name, values)
+        if variant is not None:
+            raise EngineUnsupported(f"{model_name}: pinocchio has a single variant here")
+        return cls(model_name, values)
