@@ -86,14 +86,14 @@ def forward_records(names, quick=False, engines=()):
         nm = NumericModel(model)
         Q, U = _states(nm, 16 if quick else 64, seed=1)
         q, u = Q[0], U[0]
-        ql, ul, p = q.tolist(), u.tolist(), nm.p
+        ql, ul = q.tolist(), u.tolist()
         rec = lambda path, batch, t: recs.append(  # noqa: E731
             {"model": name, "engine": "reference" if not path.startswith("engine") else path.split(":")[1],
              "formulation": nm.formulation, "path": path, "batch": batch,
              "us_per_state": t["median"] / batch * 1e6, "us_per_state_min": t["min"] / batch * 1e6})
         rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
-        raw = nm._scalar["forward"]
-        rec("single-raw", 1, per_call_seconds(lambda: raw(ql, ul, 0.0, p)))
+        raw = nm.forward_raw
+        rec("single-raw", 1, per_call_seconds(lambda: raw(ql, ul, 0.0)))
         reps = int(np.ceil(BATCH / Q.shape[0]))
         QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
         rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))

@@ -31,7 +31,7 @@ from sympy.printing.lambdarepr import LambdaPrinter
 from .eom import EquationsOfMotion
 from .formulations.lagrange import kinetic_energy, potential_energy
 
-CODEGEN_VERSION = "7"
+CODEGEN_VERSION = "8"
 
 
 def cache_dir() -> Path:
@@ -104,15 +104,20 @@ def _dot_terms(pairs) -> list[str]:
     return [t for t in (_mul(a, b) for a, b in pairs) if t is not None]
 
 
-def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str]) -> list[list[str]]:
-    """Lower-triangular L with L L^T = Mc, skipping structural zeros; records pivot ratios."""
+def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str],
+              reference: list[str] | None = None) -> list[list[str]]:
+    """Lower-triangular L with L L^T = Mc, skipping structural zeros; records pivot ratios
+    (each pivot over `reference[j]`, by default the original diagonal entry)."""
     n = len(Mc)
     L = [["0"] * n for _ in range(n)]
     for j in range(n):
         terms = _dot_terms((L[j][k], L[j][k]) for k in range(j))
         d = Mc[j][j] if not terms else f"{Mc[j][j]} - ({' + '.join(terms)})"
         dv = w.assign(d)
-        pivots.append(f"{dv}/{Mc[j][j]}" if Mc[j][j] != "0" else dv)
+        if reference is not None:
+            pivots.append(f"{dv}/{reference[j]}")
+        else:
+            pivots.append(f"{dv}/{Mc[j][j]}" if Mc[j][j] != "0" else dv)
         L[j][j] = w.assign(f"sqrt({dv})")
         for i in range(j + 1, n):
             terms = _dot_terms((L[i][k], L[j][k]) for k in range(j))
@@ -242,7 +247,9 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
         for k in range(mc):
             terms = _dot_terms((Ac[k][i], y[i]) for i in range(n))
             r.append(w.assign(f"{bc[k]} - ({' + '.join(terms)})") if terms else bc[k])
-        lam = _chol_solve(w, _cholesky(w, S, pivots), r)
+        # S's pivots are measured against S's diagonal at a generic configuration (_sref, set
+        # by the caller): at a singular pose S itself collapses, so its own diagonal would hide it
+        lam = _chol_solve(w, _cholesky(w, S, pivots, [f"_sref[{k}]" for k in range(mc)]), r)
         ud = []
         for i in range(n):
             terms = _dot_terms((Y[k][i], lam[k]) for k in range(mc))
@@ -250,7 +257,7 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     else:
         lam, ud = [], y
     piv = f"_min({', '.join(pivots)})" if len(pivots) > 1 else (pivots[0] if pivots else "1.0")
-    src += _header("forward", eom) + w.lines
+    src += [h.replace("_p):", "_p, _sref):") for h in _header("forward", eom)] + w.lines
     src.append(f"    return [{', '.join(ud)}], [{', '.join(lam)}], {piv}")
     src.append("")
 

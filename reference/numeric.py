@@ -83,6 +83,26 @@ class NumericModel:
         self.n = len(model.speeds)
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]
+        self.sref = self._schur_reference()
+
+    def _schur_reference(self) -> tuple[float, ...]:
+        """Diagonal of S = A M^-1 A^T at the model's initial state: the scale against which
+        the Schur pivots are judged (a pose where a row of A collapses has S_jj -> 0)."""
+        if self.m == 0:
+            return ()
+        q, u = list(map(float, self.model.initial_q)), list(map(float, self.model.initial_u))
+        M, _f, A, _b = self._scalar["matrices"](q, u, 0.0, self.p)
+        M = np.array(M, float).reshape(self.n, self.n)
+        A = np.array(A, float).reshape(self.m, self.n)
+        if self._scalar["META"]["augmented"]:
+            M = M + A.T @ A * (np.trace(M) / self.n) / max((A * A).sum() / self.m, 1e-300)
+        S = A @ np.linalg.solve(M, A.T)
+        d = np.diag(S).copy()
+        if not np.all(np.isfinite(d)) or np.any(d <= 0):
+            raise SingularSystemError(
+                f"{self.model.name}: the KKT matrix is singular at the model's initial state "
+                f"(diag of A M^-1 A^T = {d}); check the parameters and the constraint rows")
+        return tuple(float(x) for x in d)
 
     # ---- validation --------------------------------------------------------------------
     def _state(self, q, u, t):
@@ -109,7 +129,7 @@ class NumericModel:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
         q, u, t = self._state(q, u, t)
         try:
-            ud, lam, piv = self._scalar["forward"](q, u, t, self.p)
+            ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
             piv = -1.0
         if not piv > PIVOT_RATIO_MIN:
@@ -118,7 +138,7 @@ class NumericModel:
 
     def forward_raw(self, q: list, u: list, t: float):
         """Unchecked fast path for integrators: lists in, (u', lambda, pivot ratio) out."""
-        return self._scalar["forward"](q, u, t, self.p)
+        return self._scalar["forward"](q, u, t, self.p, self.sref)
 
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
@@ -224,7 +244,7 @@ class NumericModel:
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
         with np.errstate(invalid="ignore", divide="ignore"):
-            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p)
+            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref)
         UD = np.empty((N, self.n))
         for i, c in enumerate(ud):
             UD[:, i] = c

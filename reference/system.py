@@ -115,6 +115,9 @@ class Model:
     geometry_note: str = ""  # assumptions where the textbook's figure was lost
     multiplier_meaning: str = ""  # what lambda is physically (Addendum)
     energy_conserved: bool = False  # no non-conservative loads, scleronomic constraints
+    # constraint rows whose multiplier depends on the formulation, with the reason (the motion
+    # does not): e.g. the Euler-parameter normalization row of the top (Exercise 6.6)
+    formulation_dependent_rows: tuple[tuple[str, str], ...] = ()
     state_sampler: Optional[Callable] = None  # rng, params -> (q, u) consistent (optional)
     t: sp.Symbol = field(default_factory=lambda: sp.Symbol("t", real=True))
 

@@ -71,6 +71,48 @@ def _lamina(I_zz: float) -> np.ndarray:
     return np.diag([0.5 * I_zz, 0.5 * I_zz, I_zz])
 
 
+def _quat_to_R(qxyzw) -> np.ndarray:
+    """Rotation (local -> world) of a Pinocchio quaternion stored (x, y, z, w)."""
+    x, y, z, w = qxyzw
+    return pin.Quaternion(w, x, y, z).toRotationMatrix()
+
+
+def _R_to_quat(R) -> np.ndarray:
+    """(x, y, z, w) of a rotation matrix, Pinocchio's (Eigen's) coefficient order."""
+    return pin.Quaternion(np.asarray(R, float)).coeffs().copy()
+
+
+def _quat_rate(qxyzw, omega_local) -> np.ndarray:
+    """d/dt of a unit quaternion (x, y, z, w) for the local angular velocity: q (x) (w, 0) / 2."""
+    v, w = np.asarray(qxyzw[:3]), qxyzw[3]
+    return 0.5 * np.concatenate([w * omega_local + np.cross(v, omega_local),
+                                 [-(v @ omega_local)]])
+
+
+def _E(e) -> np.ndarray:
+    """The textbook's E(eps) (omega = 2 E eps', eps4 scalar); linear in eps."""
+    e1, e2, e3, e4 = e
+    return np.array([[e4, e3, -e2, -e1], [-e3, e4, e1, -e2], [e2, -e1, e4, -e3]])
+
+
+def _R313(a, b, c) -> np.ndarray:
+    """The textbook's 3-1-3 matrix (N components -> body components), Example 4."""
+    C1, S1, C2, S2, C3, S3 = (math.cos(a), math.sin(a), math.cos(b), math.sin(b),
+                              math.cos(c), math.sin(c))
+    return np.array([[C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
+                     [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
+                     [S1 * S2, -C1 * S2, C2]])
+
+
+def _angles313(Rnb) -> np.ndarray:
+    """3-1-3 angles of an N -> body matrix, on the branch theta2 in [0, pi] (the reference's
+    sampler keeps theta2 in [0.3, pi - 0.3]), theta1, theta3 in (-pi, pi]."""
+    b = math.acos(max(-1.0, min(1.0, Rnb[2, 2])))
+    a = math.atan2(Rnb[2, 0], -Rnb[2, 1])
+    c = math.atan2(Rnb[0, 2], Rnb[1, 2])
+    return np.array([a, b, c])
+
+
 def _prox(settings) -> pin.ProximalSettings:
     acc, mu, it = settings
     return pin.ProximalSettings(float(acc), float(mu), int(it))
@@ -146,14 +188,40 @@ class _PinModel:
         raise NotImplementedError
 
     def _qdot(self, qe, ve) -> np.ndarray:
-        """Engine coordinate rates from engine velocities (identity for hinges and slides)."""
-        return ve
+        """Engine coordinate rates from engine velocities: identity for hinges and slides;
+        for the quaternion (x, y, z, w) of a spherical or free-flyer joint, whose velocity is
+        the LOCAL angular velocity, q' = q (x) (omega, 0) / 2; the free flyer's position rate
+        is R v_linear (its linear velocity is in the local frame, ENGINES.md 2.2)."""
+        if self.model.nq == self.model.nv:
+            return ve
+        out = np.empty(self.model.nq)
+        for jm in self.model.joints[1:]:
+            iq, iv, kind = jm.idx_q, jm.idx_v, jm.shortname()
+            if kind == "JointModelSpherical":
+                out[iq:iq + 4] = _quat_rate(qe[iq:iq + 4], ve[iv:iv + 3])
+            elif kind == "JointModelFreeFlyer":
+                out[iq:iq + 3] = _quat_to_R(qe[iq + 3:iq + 7]) @ ve[iv:iv + 3]
+                out[iq + 3:iq + 7] = _quat_rate(qe[iq + 3:iq + 7], ve[iv + 3:iv + 6])
+            else:
+                out[iq:iq + jm.nq] = ve[iv:iv + jm.nv]
+        return out
 
     def _normalize(self, qe) -> np.ndarray:
-        """Engine configuration on its manifold (unit quaternions); identity here."""
+        """Engine configuration on its manifold: unit quaternions (the integrator's drift of
+        |q| is removed before every evaluation and in the output; |q| itself is not a
+        constraint of the engine). Identity for hinges and slides."""
+        if self.model.nq == self.model.nv:
+            return qe
+        qe = np.array(qe, float)
+        for jm in self.model.joints[1:]:
+            iq, kind = jm.idx_q, jm.shortname()
+            if kind == "JointModelSpherical":
+                qe[iq:iq + 4] /= np.linalg.norm(qe[iq:iq + 4])
+            elif kind == "JointModelFreeFlyer":
+                qe[iq + 3:iq + 7] /= np.linalg.norm(qe[iq + 3:iq + 7])
         return qe
 
-    def _violation(self, qe) -> float:
+    def constraint_violation(self, qe) -> float:
         """Position-level constraint violation in the engine (0 without constraints)."""
         if not len(self.cms):
             return 0.0
@@ -186,6 +254,13 @@ class _PinModel:
         if joint == 0:
             return placement.translation.copy()
         return (self.data.oMi[joint] * placement).translation.copy()
+
+    def _anchor_velocity(self, joint, placement) -> np.ndarray:
+        """World velocity of a point fixed in a joint frame (after forwardKinematics with v)."""
+        if joint == 0:
+            return np.zeros(3)
+        v = placement.actInv(self.data.v[joint])
+        return (self.data.oMi[joint] * placement).rotation @ v.linear
 
     def _anchor_classical_acc(self, joint, placement) -> np.ndarray:
         """World classical acceleration of a point fixed in a joint frame (after FK with a)."""
@@ -324,7 +399,7 @@ class _PinModel:
             q, u = self.from_engine_state(qe, ve)
             Q.append(q)
             U.append(u)
-            viol.append(self._violation(qe))
+            viol.append(self.constraint_violation(qe))
             E.append(sum(self._energy_engine(qe, ve)))
         return PinocchioTrajectory(
             t=sol.t, q=np.array(Q), u=np.array(U), nfev=int(sol.nfev), success=bool(sol.success),
@@ -403,7 +478,7 @@ class PendulumXY(_PinModel):
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         raw["rod_tension"] = float(-lam_e[0] * self.params["L"])
 
-    def _violation(self, qe):
+    def constraint_violation(self, qe):
         return abs(float(np.hypot(qe[0], qe[1])) - self.params["L"])
 
 
@@ -637,6 +712,325 @@ class FrameBar(_PinModel):
 
 
 # ======================================================================================
+# Example 4: the 3-D double pendulum (N2 up in the reference and in the engine)
+# ======================================================================================
+def _at(x, y, z) -> pin.SE3:
+    return pin.SE3(np.eye(3), np.array([x, y, z], float))
+
+
+class _DoublePendulumBase(_PinModel):
+    """Shared maps of Example 4. The engine world is the reference's N (X = N1, Y = N2 up,
+    Z = N3), gravity (0, -g, 0). Each link's engine frame is its n_i frame, so its rotation
+    (local -> world) is B_i = R313(theta_i)^T and its body-fixed omega is the reference's w_i.
+    Links are full 3-D bodies here: inertias diag(I_11, I_22, I_33) exactly as the reference.
+
+    Reference speeds u = (w1, w2, v_G1, v_G2); multipliers
+    lambda = (F_O - F_A, F_A), F_O the ground's force on link 1 at O, F_A the force of link 1
+    on link 2 at A (both N components; see the reference docstring and EQUATIONS.md)."""
+
+    nq_ref, n_ref = 6, 12
+
+    def _links(self):
+        p = self.params
+        return (pin.Inertia(p["m1"], np.zeros(3), np.diag([p["I1_11"], p["I1_22"], p["I1_33"]])),
+                pin.Inertia(p["m2"], np.zeros(3), np.diag([p["I2_11"], p["I2_22"], p["I2_33"]])))
+
+    def _rotations(self, q):
+        q = np.asarray(q, float)
+        return _R313(*q[0:3]).T, _R313(*q[3:6]).T
+
+
+class DoublePendulumFree(_DoublePendulumBase):
+    """Example 4 as the textbook writes it: two free bodies (FreeFlyer joints with their origin
+    at G_i and axes n_i) and two point constraints, solved by constraintDynamics with the exact
+    KKT (PROX_EXACT: 6 independent rows). Constraint O: joint1 = link 1 at (0, l1/2, 0),
+    joint2 = the world at O; its contact_force is F_O. Constraint A: joint1 = link 2 at
+    (0, l2/2, 0), joint2 = link 1 at (0, -l1/2, 0); its contact_force is the force of link 1 on
+    link 2 at A = F_A. Engine velocity per link: (B^T v_G, w) (local linear velocity of the
+    origin G, local omega); the engine's spatial acceleration gives
+    v_G' = B (a_lin + omega x v_lin) and w' = a_ang. The speed map is linear for a fixed q,
+    ve = P(q) u, so mass_matrix returns P^T M_e P; forcing is None (P depends on q)."""
+
+    variant = "free"
+    solver = "constraint"
+    prox_settings = PROX_EXACT
+
+    def _build(self):
+        p = self.params
+        I1, I2 = self._links()
+        j1 = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "link1")
+        self.model.appendBodyToJoint(j1, I1, pin.SE3.Identity())
+        j2 = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "link2")
+        self.model.appendBodyToJoint(j2, I2, pin.SE3.Identity())
+        LWA, C3 = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ContactType.CONTACT_3D
+        self.cms.append(pin.RigidConstraintModel(
+            C3, self.model, j1, _at(0, p["l1"] / 2, 0), 0, pin.SE3.Identity(), LWA))
+        self.cms.append(pin.RigidConstraintModel(
+            C3, self.model, j2, _at(0, p["l2"] / 2, 0), j1, _at(0, -p["l1"] / 2, 0), LWA))
+
+    def _P_of(self, B1, B2) -> np.ndarray:
+        P = np.zeros((12, 12))
+        P[0:3, 6:9] = B1.T
+        P[3:6, 0:3] = np.eye(3)
+        P[6:9, 9:12] = B2.T
+        P[9:12, 3:6] = np.eye(3)
+        return P
+
+    def to_engine_state(self, q, u):
+        p = self.params
+        B1, B2 = self._rotations(q)
+        u = np.asarray(u, float)
+        e2 = np.array([0.0, 1.0, 0.0])
+        rG1 = -p["l1"] / 2 * B1 @ e2
+        rG2 = -p["l1"] * B1 @ e2 - p["l2"] / 2 * B2 @ e2
+        qe = np.concatenate([rG1, _R_to_quat(B1), rG2, _R_to_quat(B2)])
+        return qe, self._P_of(B1, B2) @ u
+
+    def from_engine_state(self, qe, ve):
+        B1, B2 = _quat_to_R(qe[3:7]), _quat_to_R(qe[10:14])
+        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        return q, self._P_of(B1, B2).T @ np.asarray(ve, float)  # P is orthogonal
+
+    def _acc_to_reference(self, qe, ve, ae):
+        out = np.empty(12)
+        for k, (iq, iv) in enumerate(((0, 0), (7, 6))):
+            B = _quat_to_R(qe[iq + 3:iq + 7])
+            vl, w = ve[iv:iv + 3], ve[iv + 3:iv + 6]
+            out[3 * k:3 * k + 3] = ae[iv + 3:iv + 6]
+            out[6 + 3 * k:9 + 3 * k] = B @ (ae[iv:iv + 3] + np.cross(w, vl))
+        return out
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        F_O, F_A = lam_e[0:3], lam_e[3:6]
+        return np.concatenate([F_O - F_A, F_A])
+
+    def mass_matrix(self, q):
+        qe, _ = self.to_engine_state(q, np.zeros(12))
+        Me = pin.crba(self.model, self.data, qe).copy()
+        Me = np.triu(Me) + np.triu(Me, 1).T
+        P = self._P_of(*self._rotations(q))
+        return P.T @ Me @ P
+
+    def forcing(self, q, u, t: float = 0.0):
+        return None
+
+
+class DoublePendulumTree(_DoublePendulumBase):
+    """Example 4 as a ball-joint tree: JointModelSpherical at O (link 1, frame n_1) and at A
+    (placement (0, -l1, 0) in link 1; link 2 relative to link 1), mass centers at
+    (0, -l_i/2, 0). Plain ABA; the six multipliers come from rnea's joint reactions:
+    data.f[1] is the force of the ground on link 1 at O and data.f[2] the force of link 1 on
+    link 2 at A, both in the joint's local frame, so F_O = B1 f[1].linear, F_A = B2 f[2].linear.
+    Spherical q is the quaternion (x, y, z, w) of the child relative to the parent and v the
+    relative omega in the child frame: q1 = quat(B1), q2 = quat(B1^T B2), v1 = w1,
+    v2 = w2 - B2^T B1 w1. v_G and the accelerations are read from forwardKinematics."""
+
+    variant = "tree"
+    solver = "aba"
+
+    def _build(self):
+        p = self.params
+        I1, I2 = self._links()
+        j1 = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
+        self.model.appendBodyToJoint(
+            j1, pin.Inertia(I1.mass, np.array([0.0, -p["l1"] / 2, 0.0]), I1.inertia),
+            pin.SE3.Identity())
+        j2 = self.model.addJoint(j1, pin.JointModelSpherical(), _at(0, -p["l1"], 0), "A")
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(I2.mass, np.array([0.0, -p["l2"] / 2, 0.0]), I2.inertia),
+            pin.SE3.Identity())
+        self.G = (_at(0, -p["l1"] / 2, 0), _at(0, -p["l2"] / 2, 0))
+
+    def to_engine_state(self, q, u):
+        B1, B2 = self._rotations(q)
+        u = np.asarray(u, float)
+        w1, w2 = u[0:3], u[3:6]
+        qe = np.concatenate([_R_to_quat(B1), _R_to_quat(B1.T @ B2)])
+        return qe, np.concatenate([w1, w2 - B2.T @ B1 @ w1])
+
+    def from_engine_state(self, qe, ve):
+        qe, ve = np.asarray(qe, float), np.asarray(ve, float)
+        B1 = _quat_to_R(qe[0:4])
+        B12 = _quat_to_R(qe[4:8])
+        B2 = B1 @ B12
+        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        pin.forwardKinematics(self.model, self.data, qe, ve)
+        vG1 = self._anchor_velocity(1, self.G[0])
+        vG2 = self._anchor_velocity(2, self.G[1])
+        w1, w2 = ve[0:3], ve[3:6] + B12.T @ ve[0:3]
+        return q, np.concatenate([w1, w2, vG1, vG2])
+
+    def _acc_to_reference(self, qe, ve, ae):
+        d = self.data
+        pin.forwardKinematics(self.model, d, qe, ve, ae)
+        return np.concatenate([d.a[1].angular, d.a[2].angular,
+                               self._anchor_classical_acc(1, self.G[0]),
+                               self._anchor_classical_acc(2, self.G[1])])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        d = self.data
+        pin.forwardKinematics(self.model, d, qe)
+        pin.rnea(self.model, d, qe, ve, ae)
+        F_O = d.oMi[1].rotation @ d.f[1].linear
+        F_A = d.oMi[2].rotation @ d.f[2].linear
+        return np.concatenate([F_O - F_A, F_A])
+
+
+# ======================================================================================
+# Exercises 6.5-6.7: the symmetric top with Euler parameters (N3 up)
+# ======================================================================================
+class _TopBase(_PinModel):
+    """Shared maps. Engine world = the reference's N, gravity (0, 0, -g). The Euler parameters
+    (eps1, eps2, eps3, eps4), eps4 scalar, ARE Pinocchio's quaternion coefficients (x, y, z, w):
+    the reference's R(eps) = (e4^2 - ev.ev) 1 + 2 ev ev^T + 2 e4 skew(ev) is Eigen's
+    toRotationMatrix, and omega = 2 E(eps) eps' is the body-fixed (LOCAL) angular velocity
+    (both checked in the tests). Inversely eps' = E^T omega / 2 on |eps| = 1, eps . eps' = 0,
+    and eps'' = (E(eps')^T omega + E(eps)^T omega') / 2."""
+
+    up = np.array([0.0, 0.0, 1.0])
+
+    def _top_inertia(self, lever):
+        p = self.params
+        return pin.Inertia(p["m"], np.asarray(lever, float), np.diag([p["I"], p["I"], p["I3"]]))
+
+    @staticmethod
+    def _eps_rates(eps, omega):
+        return 0.5 * _E(eps).T @ omega
+
+    @staticmethod
+    def _eps_acc(eps, omega, omega_dot):
+        eps_dot = 0.5 * _E(eps).T @ omega
+        return 0.5 * (_E(eps_dot).T @ omega + _E(eps).T @ omega_dot)
+
+
+class TopEuler(_TopBase):
+    """Exercises 6.5/6.6. JointModelSpherical at O, the top's mass center at (0, 0, L) in its
+    frame, central inertia diag(I, I, I3). Plain ABA. The reference's single row is the
+    normalization eps . eps = 1, which the engine's quaternion coordinates satisfy by
+    construction: there is no engine force for it. Its multiplier is not a force and depends
+    on the formulation (0 for d'Alembert and Kane, 2V - 4K for Lagrange; reference docstring),
+    so multipliers is None and raw carries both textbook values computed from the engine's
+    K and V ("normalization_lambda_dalembert_kane", "normalization_lambda_lagrange")."""
+
+    nq_ref = n_ref = 4
+    solver = "aba"
+
+    def _build(self):
+        j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
+        self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, self.params["L"]]),
+                                     pin.SE3.Identity())
+
+    def to_engine_state(self, q, u):
+        eps = np.asarray(q, float).reshape(4)
+        return eps.copy(), 2.0 * _E(eps) @ np.asarray(u, float)
+
+    def from_engine_state(self, qe, ve):
+        eps = np.asarray(qe, float).copy()
+        return eps, self._eps_rates(eps, np.asarray(ve, float))
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return self._eps_acc(qe, ve, ae)
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return None
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        K, V = self._energy_engine(qe, ve)
+        raw["normalization_lambda_dalembert_kane"] = 0.0
+        raw["normalization_lambda_lagrange"] = 2.0 * V - 4.0 * K
+        pin.forwardKinematics(self.model, self.data, qe)
+        pin.rnea(self.model, self.data, qe, ve, ae)
+        raw["socket_force"] = self.data.oMi[1].rotation @ self.data.f[1].linear
+
+
+class _TopCartesianBase(_TopBase):
+    """Exercise 6.7: reference q = (x, eps) with x the mass center G, u = (x', eps'); rows
+    x - L R e3 = 0 (+1 on x) and the normalization. (lambda1, lambda2, lambda3) = F_O, the
+    socket's force on the top at O (N components). lambda4 is not a force: for the two
+    formulations this model declares (d'Alembert, Kane, both with the rates as speeds), summing
+    eps_k times the eps equations gives 0 = -2 L F_O . (R e3) + lambda4 (the inertia terms
+    vanish because E eps = 0, the x terms do not involve eps'), so lambda4 = 2 L F_O . (R e3),
+    a function of the engine's force."""
+
+    nq_ref = n_ref = 7
+
+    def _lambda(self, F_O, eps):
+        return np.concatenate([F_O, [2.0 * self.params["L"] * F_O @ (_quat_to_R(eps)[:, 2])]])
+
+
+class TopCartesianFree(_TopCartesianBase):
+    """Exercise 6.7 as one free body (FreeFlyer with its origin at G: engine q = (x, eps)
+    exactly, the reference's order) held at O by a CONTACT_3D point constraint: joint1 = the
+    top at (0, 0, -L), joint2 = the world at O, exact KKT (PROX_EXACT, 3 independent rows);
+    contact_force = F_O. Engine v = (R^T x', omega)."""
+
+    variant = "free"
+    solver = "constraint"
+    prox_settings = PROX_EXACT
+
+    def _build(self):
+        j = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "top")
+        self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, 0.0]), pin.SE3.Identity())
+        self.cms.append(pin.RigidConstraintModel(
+            pin.ContactType.CONTACT_3D, self.model, j, _at(0, 0, -self.params["L"]),
+            0, pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        R = _quat_to_R(q[3:7])
+        return q.copy(), np.concatenate([R.T @ u[0:3], 2.0 * _E(q[3:7]) @ u[3:7]])
+
+    def from_engine_state(self, qe, ve):
+        qe, ve = np.asarray(qe, float), np.asarray(ve, float)
+        R = _quat_to_R(qe[3:7])
+        return qe.copy(), np.concatenate([R @ ve[0:3], self._eps_rates(qe[3:7], ve[3:6])])
+
+    def _acc_to_reference(self, qe, ve, ae):
+        R = _quat_to_R(qe[3:7])
+        xdd = R @ (ae[0:3] + np.cross(ve[3:6], ve[0:3]))
+        return np.concatenate([xdd, self._eps_acc(qe[3:7], ve[3:6], ae[3:6])])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return self._lambda(lam_e[0:3], qe[3:7])
+
+
+class TopCartesianTree(_TopCartesianBase):
+    """Exercise 6.7 with the engine's minimal model (JointModelSpherical at O, as TopEuler):
+    x and x' are read from forwardKinematics, F_O from rnea (data.f[1], ground on top at O)."""
+
+    variant = "tree"
+    solver = "aba"
+
+    def _build(self):
+        j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
+        self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, self.params["L"]]),
+                                     pin.SE3.Identity())
+        self.G = _at(0, 0, self.params["L"])
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        return q[3:7].copy(), 2.0 * _E(q[3:7]) @ u[3:7]
+
+    def from_engine_state(self, qe, ve):
+        qe, ve = np.asarray(qe, float), np.asarray(ve, float)
+        pin.forwardKinematics(self.model, self.data, qe, ve)
+        x = self._anchor_position(1, self.G)
+        xd = self._anchor_velocity(1, self.G)
+        return np.concatenate([x, qe]), np.concatenate([xd, self._eps_rates(qe, ve)])
+
+    def _acc_to_reference(self, qe, ve, ae):
+        pin.forwardKinematics(self.model, self.data, qe, ve, ae)
+        xdd = self._anchor_classical_acc(1, self.G)
+        return np.concatenate([xdd, self._eps_acc(qe, ve, ae)])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        pin.forwardKinematics(self.model, self.data, qe)
+        pin.rnea(self.model, self.data, qe, ve, ae)
+        F_O = self.data.oMi[1].rotation @ self.data.f[1].linear
+        return self._lambda(F_O, qe)
+
+
+# ======================================================================================
 # Registry
 # ======================================================================================
 _MODELS = {
@@ -646,6 +1040,10 @@ _MODELS = {
     "slider_crank_split": SliderCrankSplit,
     "slider_crank_free": SliderCrankFree,
     "frame_bar": FrameBar,
+    # several engine models of one reference model: {variant: class}, the first is the default
+    "double_pendulum_3d": {"free": DoublePendulumFree, "tree": DoublePendulumTree},
+    "top_euler": TopEuler,
+    "top_cartesian": {"free": TopCartesianFree, "tree": TopCartesianTree},
 }
 
 # models of the unit this engine cannot represent, with the reason shown in results
@@ -667,6 +1065,11 @@ class PinocchioAdapter:
 
     def supported(self) -> list[str]:
         return list(_MODELS)
+
+    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
+        """Engine variants of a model (the first is build's default); (None,) for one."""
+        cls = _MODELS.get(model_name)
+        return tuple(cls) if isinstance(cls, dict) else (None,)
 
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):

@@ -1,0 +1,263 @@
+"""`crosscheck run`: the reference against Pinocchio and MuJoCo, stage by stage, then in time.
+
+Writes DIR/results.json = {"meta": {...}, "records": [...]} (see crosscheck.compare for the
+record fields). Exit 0 when every executed record passes, 1 when any fails, 2 on usage errors.
+`--perturb ENGINE:PARAM=REL` changes one parameter of one engine's model by a relative amount
+(fault injection: a run with mujoco:m2=1e-6 on the slider-crank must fail).
+"""
+from __future__ import annotations
+
+import json
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from reference import NumericModel, models
+from reference.errors import ModelInputError
+
+from . import compare as C
+from .engines.base import EngineUnsupported
+
+ENGINE_NAMES = ("pinocchio", "mujoco")
+
+
+def engine_adapter(name: str):
+    if name == "pinocchio":
+        from .engines.pinocchio_engine import PinocchioAdapter
+        return PinocchioAdapter()
+    if name == "mujoco":
+        from .engines.mujoco_engine import MujocoAdapter
+        return MujocoAdapter()
+    raise ModelInputError(f"unknown engine {name!r}; valid: {', '.join(ENGINE_NAMES)}")
+
+
+def parse_perturb(specs: list[str]) -> dict[str, dict[str, float]]:
+    """['mujoco:m2=1e-6'] -> {'mujoco': {'m2': 1e-6}}."""
+    out: dict[str, dict[str, float]] = {}
+    for spec in specs or []:
+        try:
+            engine, rest = spec.split(":", 1)
+            param, rel = rest.split("=", 1)
+            out.setdefault(engine.strip(), {})[param.strip()] = float(rel)
+        except ValueError:
+            raise ModelInputError(f"--perturb {spec!r}: expected ENGINE:PARAM=REL, "
+                                  f"e.g. mujoco:m2=1e-6")
+        if engine.strip() not in ENGINE_NAMES:
+            raise ModelInputError(f"--perturb {spec!r}: unknown engine {engine!r}; valid: "
+                                  f"{', '.join(ENGINE_NAMES)}")
+    return out
+
+
+def consistent_states(nm: NumericModel, count: int):
+    """The model's initial state and count-1 seeded random consistent states near it.
+
+    The seed is derived from the model name so every run draws the same states (deterministic
+    results), and a state whose projection fails is replaced by the next draw.
+    """
+    rng = np.random.default_rng(zlib.crc32(nm.model.name.encode()))
+    m = nm.model
+    states = [nm.project(m.initial_q, m.initial_u)]
+    tries = 0
+    while len(states) < count and tries < 20 * count:
+        tries += 1
+        q = np.asarray(m.initial_q) + 0.4 * rng.standard_normal(len(m.initial_q))
+        u = np.asarray(m.initial_u) + rng.standard_normal(len(m.initial_u))
+        try:
+            q, u = nm.project(q, u)
+            nm.forward(q, u)
+        except ModelInputError:
+            continue
+        states.append((q, u))
+    return states
+
+
+def _formulation_records(name, nm, states):
+    """The reference's formulations against its primary one (Lagrange = d'Alembert = Kane)."""
+    model = nm.model
+    out = []
+    dependent = dict(model.formulation_dependent_rows)
+    keep = [j for j, c in enumerate(model.constraint_names or [""] * nm.m) if c not in dependent]
+    tol = C.Tolerance(1e-11, "two derivations of the same equations evaluated in different "
+                             "arithmetic order: round-off only")
+    for other in model.formulations[1:]:
+        on = NumericModel(model, other, nm.params)
+        acc, lam = C.WorstCase(), C.WorstCase()
+        for i, (q, u) in enumerate(states):
+            a, b = nm.forward(q, u), on.forward(q, u)
+            acc.add(C.scaled_error(b.accelerations, a.accelerations), i)
+            lam.add(C.scaled_error(b.multipliers[keep], a.multipliers[keep]), i)
+        out.append(C.record(name, other, "reference", "formulations", "accelerations",
+                            acc.error, tol, worst_state=acc.state,
+                            against=nm.formulation))
+        if nm.m == 0:
+            out.append(C.record(name, other, "reference", "formulations", "multipliers", None,
+                                None, "no constraints, so no multipliers to compare"))
+            continue
+        reason = ""
+        if dependent:
+            reason = (tol.reason + "; rows not compared because their multiplier depends on "
+                      "the formulation: " + "; ".join(f"{k}: {v}" for k, v in dependent.items()))
+        out.append(C.record(name, other, "reference", "formulations", "multipliers",
+                            lam.error, tol, reason, worst_state=lam.state, against=nm.formulation))
+    return out
+
+
+def _engine_records(name, nm, states, adapter, perturb):
+    formulation = nm.formulation
+    params = dict(nm.params)
+    for p, rel in perturb.items():
+        if p not in params:
+            raise ModelInputError(f"--perturb: model {name!r} has no parameter {p!r}; valid: "
+                                  f"{', '.join(params)}")
+        params[p] *= 1.0 + rel
+    rec = lambda *a, **k: C.record(name, formulation, adapter.name, *a, **k)  # noqa: E731
+    try:
+        em = adapter.build(name, params)
+    except EngineUnsupported as exc:
+        return [rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
+                for q in ("accelerations", "multipliers")]
+    worst = {k: C.WorstCase() for k in ("state_map", "mass_matrix", "accelerations",
+                                        "multipliers", "energy", "accelerations_rigid",
+                                        "multipliers_rigid", "soft_vs_prediction")}
+    skipped: dict[str, str] = {}
+    extras: dict[str, list] = {"iterations": [], "predicted_rel_error": []}
+    for i, (q, u) in enumerate(states):
+        ref = nm.forward(q, u)
+        qe, ve = em.to_engine_state(q, u)
+        q2, u2 = em.from_engine_state(qe, ve)
+        worst["state_map"].add(max(C.scaled_error(q2, q), C.scaled_error(u2, u)), i)
+        M_e = em.mass_matrix(q) if hasattr(em, "mass_matrix") else None
+        if M_e is None:
+            skipped["mass_matrix"] = ("engine coordinates do not map one to one onto the "
+                                      "reference's, so their mass matrices are not comparable")
+        else:
+            M_r, *_ = nm.matrices(q, u)
+            worst["mass_matrix"].add(C.scaled_error(M_e, M_r), i)
+        ef = em.forward(q, u)
+        raw = ef.raw or {}
+        if "iterations" in raw:
+            extras["iterations"].append(int(raw["iterations"]))
+        Ke, Ve = em.energy(q, u)
+        Kr, Vr = nm.energy(q, u)
+        worst["energy"].add(abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0), i)
+        soft = "rigid_accelerations" in raw  # MuJoCo: soft answer + its rigid recovery
+        err_acc = C.scaled_error(ef.accelerations, ref.accelerations)
+        if nm.m == 0:
+            skipped["multipliers"] = ("no constraints: the engine runs plain forward dynamics "
+                                      "(ABA / unconstrained step), no multipliers to compare")
+            err_lam = 0.0
+        elif ef.multipliers is None:
+            skipped["multipliers"] = ("the engine model is a minimal-coordinate tree with no "
+                                      "constraint rows; its joint reactions are reported in raw")
+            err_lam = 0.0
+        else:
+            err_lam = C.scaled_error(ef.multipliers, ref.multipliers)
+        if soft:
+            predicted = float(raw.get("predicted_rel_error", np.nan))
+            extras["predicted_rel_error"].append(predicted)
+            worst["accelerations_rigid"].add(
+                C.scaled_error(raw["rigid_accelerations"], ref.accelerations), i)
+            if "multipliers" not in skipped:
+                worst["multipliers_rigid"].add(
+                    C.scaled_error(raw["rigid_multipliers"], ref.multipliers), i)
+            # the soft answer's error relative to its own prediction (1 = as predicted)
+            worst["soft_vs_prediction"].add(max(err_acc, err_lam) / predicted
+                                            if predicted > 0 else np.inf, i)
+        else:
+            worst["accelerations"].add(err_acc, i)
+            if "multipliers" not in skipped:
+                worst["multipliers"].add(err_lam, i)
+    out = [rec("instantaneous", "state_map", worst["state_map"].error, C.STATE_MAP,
+               worst_state=worst["state_map"].state)]
+    if "mass_matrix" in skipped:
+        out.append(rec("instantaneous", "mass_matrix", None, None, skipped["mass_matrix"]))
+    else:
+        out.append(rec("instantaneous", "mass_matrix", worst["mass_matrix"].error, C.MASS_MATRIX,
+                       worst_state=worst["mass_matrix"].state))
+    out.append(rec("instantaneous", "energy", worst["energy"].error, C.ENERGY,
+                   worst_state=worst["energy"].state))
+    it = {"iterations_max": max(extras["iterations"])} if extras["iterations"] else {}
+    if "soft_vs_prediction" in {k for k, w in worst.items() if w.state is not None}:
+        pred = float(np.nanmax(extras["predicted_rel_error"]))
+        out.append(rec("instantaneous", "soft_vs_prediction", worst["soft_vs_prediction"].error,
+                       C.SOFT_PREDICTION_FACTOR, worst_state=worst["soft_vs_prediction"].state,
+                       predicted_rel_error=pred, **it))
+        out.append(rec("instantaneous", "accelerations", worst["accelerations_rigid"].error,
+                       C.RIGID_RECOVERY, worst_state=worst["accelerations_rigid"].state,
+                       answer="rigid recovered from the soft solution", **it))
+        if "multipliers" in skipped:
+            out.append(rec("instantaneous", "multipliers", None, None, skipped["multipliers"]))
+        else:
+            out.append(rec("instantaneous", "multipliers", worst["multipliers_rigid"].error,
+                           C.RIGID_RECOVERY, worst_state=worst["multipliers_rigid"].state,
+                           answer="rigid recovered from the soft solution", **it))
+    else:
+        out.append(rec("instantaneous", "accelerations", worst["accelerations"].error,
+                       C.EXACT_KKT, worst_state=worst["accelerations"].state, **it))
+        if "multipliers" in skipped:
+            out.append(rec("instantaneous", "multipliers", None, None, skipped["multipliers"]))
+        else:
+            out.append(rec("instantaneous", "multipliers", worst["multipliers"].error,
+                           C.EXACT_KKT, worst_state=worst["multipliers"].state, **it))
+    return out
+
+
+def run(model_names, engine_names, n_states=6, perturb=None, progress=None):
+    perturb = perturb or {}
+    adapters = [engine_adapter(e) for e in engine_names]
+    records = []
+    for name in model_names:
+        model = models.get(name)
+        nm = NumericModel(model)
+        states = consistent_states(nm, n_states)
+        records += _formulation_records(name, nm, states)
+        for adapter in adapters:
+            records += _engine_records(name, nm, states, adapter, perturb.get(adapter.name, {}))
+        if progress:
+            progress(name)
+    return records
+
+
+def cmd_run(args) -> int:
+    from .bench import meta
+    names = args.models or models.names()
+    for n in names:
+        models.get(n)  # unknown names fail before any work
+    engine_names = [e for e in args.engines.split(",") if e]
+    for e in engine_names:
+        if e not in ENGINE_NAMES:
+            raise ModelInputError(f"unknown engine {e!r}; valid: {', '.join(ENGINE_NAMES)}")
+    perturb = parse_perturb(args.perturb)
+    bar = None
+    if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
+        from tqdm import tqdm
+        bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
+    records = run(names, engine_names, args.states, perturb,
+                  progress=(lambda n: bar.update(1)) if bar else None)
+    if bar:
+        bar.close()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    result = {"meta": meta(sys.argv[1:]), "records": records}
+    (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True))
+    failed = [r for r in records if r["passed"] is False]
+    skipped = [r for r in records if r["skipped"]]
+    passed = sum(1 for r in records if r["passed"])
+    for r in failed:
+        print(f"FAIL {r['model']} {r['engine']} {r['check']} {r['quantity']}: error "
+              f"{r['error']:.3e} > {r['tolerance']:.1e}", file=sys.stderr)
+    print(f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
+          f"-> {out / 'results.json'}")
+    return 1 if failed else 0
+
+
+def register(sub):
+    r = sub.add_parser("run", help="cross-check the reference against the engines")
+    r.add_argument("models", nargs="*", help="models (default: all)")
+    r.add_argument("--engines", default=",".join(ENGINE_NAMES))
+    r.add_argument("--out", default="out")
+    r.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL")
+    r.add_argument("--states", type=int, default=6, help="consistent states per model")
+    r.set_defaults(func=cmd_run)

@@ -1,0 +1,109 @@
+"""The CLI contract: names, JSON fields, exit codes, one-line errors."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from crosscheck.cli import main
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_models_json_fields(capsys):
+    code, out, _ = _run(capsys, "models", "--json")
+    assert code == 0
+    listed = {d["name"]: d for d in json.loads(out)}
+    sc = listed["slider_crank"]
+    for key in ("name", "source", "coordinates", "speeds", "parameters", "constraints",
+                "formulations"):
+        assert key in sc
+    assert sc["source"] == "Example 2(b)"
+    assert sc["coordinates"] == ["theta1", "theta2"]
+    assert sc["parameters"]["l2"] == pytest.approx(0.8)
+    assert sc["constraints"][0]["holonomic"] == "holonomic"
+
+
+def test_models_table(capsys):
+    code, out, _ = _run(capsys, "models")
+    assert code == 0 and "slider_crank_split" in out and "Exercise 6.3" in out
+
+
+def test_eval_json_matches_addendum(capsys):
+    # theta = 0.3, theta' = 1 on L = 0.8: T = m L w^2 + m g cos(theta) = -lambda L
+    import math
+    L, th, w, m, g = 0.8, 0.3, 1.0, 1.5, 9.81
+    q = f"{L * math.sin(th)!r},{L * math.cos(th)!r}"
+    u = f"{L * w * math.cos(th)!r},{-L * w * math.sin(th)!r}"
+    code, out, _ = _run(capsys, "eval", "pendulum_xy", "--q", q, "--u", u, "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert set(d) >= {"accelerations", "multipliers", "residuals"}
+    T = -d["multipliers"][0] * L
+    assert T == pytest.approx(m * L * w**2 + m * g * math.cos(th), rel=1e-12)
+    assert abs(d["residuals"]["position"][0]) < 1e-15
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["eval", "nope"], "unknown model"),
+    (["eval", "slider_crank", "--formulation", "hamilton"], "unknown formulation"),
+    (["eval", "slider_crank", "--set", "mass=2"], "unknown parameter"),
+    (["eval", "slider_crank", "--set", "m2=0"], "must be > 0"),
+    (["eval", "slider_crank", "--set", "m2=nan"], "not finite"),
+    (["eval", "slider_crank", "--q", "0.5"], "expected 2 coordinates"),
+    (["eval", "slider_crank", "--q", "0.5,0.1", "--u", "1"], "expected 2 speeds"),
+    (["eval", "slider_crank", "--q", "0.5,nan", "--u", "0,0"], "NaN"),
+    (["eval", "slider_crank", "--q", "0.5,0.1", "--u", "0,0"], "off the constraint manifold"),
+    (["eval", "slider_crank", "--q", "0.5,x"], "not a number"),
+    (["run", "slider_crank", "--perturb", "bullet:m2=1"], "unknown engine"),
+])
+def test_bad_input_is_one_line_and_exit_2(capsys, argv, needle):
+    code, _, err = _run(capsys, *argv)
+    assert code == 2
+    assert needle in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_off_manifold_project(capsys):
+    code, out, _ = _run(capsys, "eval", "slider_crank", "--q", "0.5,0.1", "--u", "0,0",
+                        "--project", "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert max(map(abs, d["residuals"]["position"])) < 1e-12
+
+
+def test_singular_pose_is_refused(capsys):
+    # l1 = l2 folds the slider-crank onto itself at theta1 = pi/2: the slider row's
+    # coefficients l1 C1, l2 C2 both vanish and A loses rank
+    import math
+    code, _, err = _run(capsys, "eval", "slider_crank", "--set", "l2=0.3",
+                        "--q", f"{math.pi / 2!r},{-math.pi / 2!r}", "--u", "0,0")
+    assert code == 2 and "singular" in err
+
+
+def test_run_fault_injection_fails(tmp_path, capsys):
+    code, out, err = _run(capsys, "run", "slider_crank", "--engines", "pinocchio",
+                          "--out", str(tmp_path), "--perturb", "pinocchio:m2=1e-6")
+    assert code == 1
+    records = json.loads((tmp_path / "results.json").read_text())["records"]
+    failed = {r["quantity"] for r in records if r["passed"] is False}
+    assert {"accelerations", "multipliers"} <= failed
+
+
+def test_run_clean_passes_and_records_contract(tmp_path, capsys):
+    code, out, err = _run(capsys, "run", "slider_crank", "--engines", "pinocchio",
+                          "--out", str(tmp_path))
+    assert code == 0, err
+    data = json.loads((tmp_path / "results.json").read_text())
+    for key in ("command", "versions", "machine", "date"):
+        assert key in data["meta"]
+    for key in ("python", "numpy", "scipy", "sympy", "pin", "mujoco"):
+        assert data["meta"]["versions"][key]
+    for r in data["records"]:
+        for key in ("model", "formulation", "engine", "check", "quantity", "error",
+                    "tolerance", "passed", "reason"):
+            assert key in r
