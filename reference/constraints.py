@@ -129,12 +129,12 @@ def check_independent(A_numeric: np.ndarray, names, *, where: str) -> None:
     rank = int((s > tol).sum())
     if rank == m:
         return
-    dependent = []
-    for j in range(m):  # rows that add nothing to the rows before them
-        sub = A_numeric[: j + 1]
-        if np.linalg.matrix_rank(sub, tol) <= np.linalg.matrix_rank(A_numeric[:j], tol) if j else (
-                np.abs(A_numeric[0]).max() <= tol):
+    dependent, rank_before = [], 0
+    for j in range(m):  # a row that does not raise the rank of the rows before it
+        r = int(np.linalg.matrix_rank(A_numeric[: j + 1], tol))
+        if r == rank_before:
             dependent.append(names[j])
+        rank_before = r
     raise RedundantConstraintError(
         f"constraint rows are dependent at {where}: rank(A) = {rank} < m = {m}; rows "
         f"{dependent} repeat earlier rows. Remove the redundant constraints (Eq. 4: only "

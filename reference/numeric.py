@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import codegen
+from .constraints import check_independent
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
 from .formulations import derive
 from .system import Model
@@ -96,6 +97,8 @@ class NumericModel:
         A = np.array(A, float).reshape(self.m, self.n)
         if self._scalar["META"]["augmented"]:
             M = M + A.T @ A * (np.trace(M) / self.n) / max((A * A).sum() / self.m, 1e-300)
+        names = self.model.constraint_names or tuple(f"c{j + 1}" for j in range(self.m))
+        check_independent(A, names, where=f"the initial state of {self.model.name}")
         S = A @ np.linalg.solve(M, A.T)
         d = np.diag(S).copy()
         if not np.all(np.isfinite(d)) or np.any(d <= 0):
