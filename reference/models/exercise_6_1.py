@@ -17,14 +17,19 @@ as printed. The equations derived from this declaration are
   (1/4) m x'' + c x' + k x = lambda1
   ((1/4) m + m_p) y'' + ((1/2) m + m_p) g = lambda2 - F(t)
   (1/12) m l^2 theta'' = l (-lambda1 C + lambda2 S)
-How they compare with the garbled printed answers: the legible symbols (m x'' + c x' + k x =
-lambda1; (m + m_p) y'' + (m + m_p) g = F(t), lambda2; (1/12) m l^2 theta'' = (...)(-lambda1 C +
-lambda2 S); constraint rows with no numeric factor) all match; the printed sign pattern
-"+ + + = -" of the second equation is met by "... = lambda2 - F(t)" (F pushing down), and is the
-only order of terms consistent with the third equation's "+ lambda2 S" and the printed second
-constraint row; the stray fraction digits of the extraction ("1 4", "1 4", "1 2", and "1 12" in
-the small-font run) are exactly the 1/4, 1/4, 1/2 and 1/12 above. The printed coefficient of the
-constraint rows and of the third equation carries no digit, i.e. it is l itself. See
+How they compare with the garbled printed answers (symbols and stacked fractions were lost; what
+survives is the letters, the signs, the parentheses and the digits, partly moved to lines of
+their own): the legible letters and signs match term by term (m x'' + c x' + k x = lambda1;
+(m + m_p) y'' + (m + m_p) g = ... with the sign run "+ + + = -"; (1/12) m l^2 theta'' =
+(...)(-lambda1 C + lambda2 S); x'' - (...) theta'' C + (...) theta'^2 S = 0 and
+y'' + (...) theta'' S + (...) theta'^2 C = 0). The digits left over in the answers' fraction
+lines, "1 4" and "1 1 4 2", are exactly the 1/4, 1/4 and 1/2 of the first two equations, and the
+small-font run "2 1 1 2 1 2" is exactly l^2, lambda1, lambda2 and 1/12 of the third; the
+constraint rows and the third equation's factor carry no digit, i.e. their factor is l itself
+(Exercise 6.2's answers, whose factor is l/2, show a "1 2" for it). The second equation's sign
+run is met by "... = lambda2 - F(t)" (F pushing the block down); "F(t) - lambda2" (F pushing up)
+would need the row l cos(theta) - y, whose theta coefficient puts "- lambda2 S" into the third
+equation, against the printed "+ lambda2 S" (sign and scale of lambda follow the row). See
 tests/test_models_exercises.py for the symbolic comparison and part (b), the reduction to the
 single equation in theta of Exercises 4.3 and 5.1:
   (m l^2/3 + m_p l^2 S^2) theta'' + m_p l^2 S C theta'^2 + c l^2 C^2 theta' + k l^2 S C
