@@ -48,7 +48,7 @@ def cache_key(model, formulation: str) -> str:
 
 # trigsimp pays for itself (slider-crank: 219 -> 94 operations, 1 s once, then cached) but its
 # cost grows steeply with expression size, so larger entries are only expanded or left as they are.
-TIDY_MAX_OPS = 300
+TIDY_MAX_OPS = 200
 
 
 def _tidy(e):

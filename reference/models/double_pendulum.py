@@ -101,8 +101,9 @@ def mass_center_velocities(angles1, angles2, w1, w2, lengths=(L1, L2)):
     """Consistent (v_G1, v_G2) in N components from the angles and body-fixed omegas (floats)."""
     a, b = lengths
     R1, R2 = R313(*angles1), R313(*angles2)
-    v1 = -(a / 2) * R1.T @ np.array([-w1[2], 0.0, w1[0]])
-    v2 = -a * R1.T @ np.array([-w1[2], 0.0, w1[0]]) - (b / 2) * R2.T @ np.array([-w2[2], 0.0, w2[0]])
+    h1, h2 = np.array([-w1[2], 0.0, w1[0]]), np.array([-w2[2], 0.0, w2[0]])
+    v1 = -(a / 2) * R1.T @ h1
+    v2 = -a * R1.T @ h1 - (b / 2) * R2.T @ h2
     return v1, v2
 
 

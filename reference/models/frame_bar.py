@@ -22,9 +22,11 @@ Printed equations (EQUATIONS.md, Example 3), reproduced exactly by Kane's equati
 
 Multiplier. With these partial velocities, C*(k=1) + S*(k=3) gives
 lambda = m d a_G . k + (I alpha + omega x H) . n1: the n1 component of the moment about O that
-the ground's bearing exerts on F (and F, being light, passes on to B). Another way of writing
-v_G in the dependent speeds (for instance -d phi'(C e1 + S e3)) changes the partial velocities
-and with them the value of lambda, not the motion.
+the ground's bearing exerts on F (and F, being light, passes on to B). How v_G is written in
+the dependent speeds sets the partial velocities and with them lambda, not the motion: adding
+c d (omega1 C + omega3 S) n2 (zero on the manifold) shifts lambda by m c d a_G . n2
+= -c m d^2 phi'^2. (Writing v_G = -d phi'(C e1 + S e3) instead changes the partial velocities
+by -d k (C, 0, S), which leaves lambda unchanged because a_G . k = 0.)
 
 Default bar: a rectangular bar of length 0.5 m along e1 with a 0.04 m (along e2) x 0.02 m
 (along e3) cross-section, m = 2 kg, so I1 = m(b^2 + h^2)/12, I2 = m(l^2 + h^2)/12,
@@ -93,7 +95,8 @@ def model() -> Model:
         title="Rotating light frame and bar, Kane with the bar's body-fixed omega as dependent "
               "speeds",
         parameters=PARAMETERS, coordinates=q, speeds=u, kinematics=kin, bodies=(bar,),
-        loads=(Torque("M_phi", omega, M_phi * k_body), Torque("M_theta", omega, vec(0, M_theta, 0))),
+        loads=(Torque("M_phi", omega, M_phi * k_body),
+               Torque("M_theta", omega, vec(0, M_theta, 0))),
         motion_constraints=(w1 * C + w3 * S,), constraint_names=("omega_n1",),
         multiplier_meaning="lambda: n1 component of the moment of the ground's bearing on the "
                            "light frame F about O (= m d a_G.k + (I alpha + omega x H).n1 with "

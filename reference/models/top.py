@@ -22,7 +22,8 @@ eps . eps' = 0 (the fourth row of its kinematical differential equations).
 - Exercise 6.7 (`cartesian_model`): coordinates (x1, x2, x3, eps1..eps4), G's base-frame
   coordinates added; constraints x - L R e3 = 0 (three rows, +1 on x, as printed) and the
   normalization. (lambda1, lambda2, lambda3) is the force of the socket on the top at O
-  (m x'' = lambda - m g N3). lambda4 is again formulation-dependent.
+  (m x'' = lambda - m g N3). lambda4 is again formulation-dependent: with d'Alembert (and
+  Kane) eps times the Euler-parameter rows gives lambda4 = 2 x . (lambda1, lambda2, lambda3).
 
 M is singular in the Euler parameters (4 E^T I_O E has rank 3); reference.codegen solves with
 M + rho A^T A, which leaves the solution unchanged because M is definite on the null space of A.
@@ -107,6 +108,11 @@ def _cartesian_sampler(rng, params):
     return x + eps, xd + eps_dot
 
 
+_NORM_REASON = ("the Euler-parameter normalization: Lagrange's K(eps, eps') and V(eps) see "
+                "variations off the unit sphere that d'Alembert's partial velocities 2 E_k do "
+                "not (Exercise 6.6: lambda = 0 with d'Alembert, 2V - 4K with Lagrange)")
+
+
 def _top_body(eps, eps_dot, v_G, v_frame, r_G) -> Body:
     return Body("top", m, v_G=v_G, v_frame=v_frame, inertia=sp.diag(I, I, I3),
                 omega=2 * E_matrix(eps) * sp.Matrix(eps_dot), r_G=r_G, R=rotation(eps))
@@ -129,6 +135,7 @@ def euler_model() -> Model:
                            "lambda = 2V - 4K (V = m g L R33 homogeneous in eps). The "
                            "normalization's multiplier is formulation-dependent",
         formulations=("dalembert", "lagrange", "kane"),
+        formulation_dependent_rows=(("norm", _NORM_REASON),),
         initial_q=EPS0, initial_u=eps_rates(EPS0, OMEGA0),
         energy_conserved=True, state_sampler=_euler_sampler)
 
@@ -152,5 +159,6 @@ def cartesian_model() -> Model:
         multiplier_meaning="(lambda1, lambda2, lambda3): force of the socket on the top at O "
                            "(N components); lambda4: normalization, formulation-dependent",
         formulations=("dalembert", "kane"),
+        formulation_dependent_rows=(("norm", _NORM_REASON),),
         initial_q=x0 + EPS0, initial_u=xd0 + eps_rates(EPS0, OMEGA0),
         energy_conserved=True, state_sampler=_cartesian_sampler)
