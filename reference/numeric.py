@@ -79,8 +79,11 @@ class NumericModel:
         self.formulation = formulation or model.formulations[0]
         self.params = resolve_parameters(model, params)
         self.p = tuple(self.params[p.name] for p in model.parameters)
+        # the code (and its choice of an augmented solve) depends on the model only: it is
+        # generated once with the declared defaults, and the parameters are arguments
         self._scalar, self._batched, self.source = codegen.load_compiled(
-            lambda: derive(model, self.formulation), model, self.formulation, self.params)
+            lambda: derive(model, self.formulation), model, self.formulation,
+            resolve_parameters(model))
         self.n = len(model.speeds)
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]

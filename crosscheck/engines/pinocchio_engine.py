@@ -9,36 +9,54 @@ only the first body subtree under ``<worldbody>`` (the slider-crank's slider is 
 crank). Each of these would have to be patched after parsing; building the few joints by hand is
 shorter and leaves nothing implicit.
 
-Engine frames and coordinates (the maps are written out per model below):
+Engine frames and coordinates (the maps are written out in each class's docstring):
 - Planar models use the engine world with X right, Y UP, gravity (0, -g, 0), hinges about +Z.
-  Example 1 is written with Y DOWN in the reference, so its maps flip y (y_ref = -y_engine);
-  Example 2 and Note 2 / Exercise 6.3 are Y up in both.
+  Models written with Y DOWN in the reference (Example 1, the moving support, Exercise 6.2) get
+  y_ref = -y_engine in their maps; Example 2, Note 2 / Exercise 6.3 and Exercise 6.1 are Y up in
+  both. The 3-D models use the reference's own axes (N2 up for Example 4, N3 / Z up for the
+  tops and Exercise 6.4), gravity set by hand (``model.gravity``).
 - Bodies that are planar bars in the reference carry only I_zz. In the engine each gets the full
   inertia of a planar lamina, diag(I_zz/2, I_zz/2, I_zz) (perpendicular-axis theorem, a valid
   rigid-body inertia). Hinges about Z and slides in X/Y never excite the in-plane components, so
   they do not change any planar answer (tests/test_engine_pinocchio.py checks this by changing
-  them).
-- Point masses (the pendulum bob, the slider) get NO rotational inertia: each one either
-  translates on prismatic joints (the joint-space inertia is its mass) or sits off the axis of
-  the hinge that carries it (m L^2 > 0), so Pinocchio never needs one and the engine model has
-  exactly the reference's mass distribution.
-- The reference's models are scleronomic with constant loads, so the time argument t is unused.
+  them). 3-D bodies get exactly the reference's inertias.
+- Point masses (the pendulum bob, the slider, the blocks) get NO rotational inertia: each one
+  either translates on prismatic joints (the joint-space inertia is its mass) or sits off the
+  axis of the hinge that carries it (m L^2 > 0), so Pinocchio never needs one and the engine
+  model has exactly the reference's mass distribution. Exercise 6.4's bar keeps its zero axial
+  inertia too (the disk's inertia keeps the mass matrix definite).
+- Loads: constant torques/forces go to tau; springs, dampers and loads that turn with a body are
+  evaluated per state (``_applied``), and the springs' potential is added to V. Only the moving
+  support is rheonomic: its explicit time terms enter the constraint row; t is unused elsewhere.
 
 Solvers (ENGINES.md section 2.3, re-verified in the tests):
-- no constraints: ``pin.aba``;
-- a constraint that is not a point coincidence (x^2 + y^2 = L^2): ``pin.forwardDynamics(model,
-  data, q, v, tau, J, gamma)`` with the textbook row J and gamma = Jdot v, an exact KKT solve
-  whose data.lambda_c has the textbook sign: M a + nle = tau + J^T lambda, J a + gamma = 0;
-- point coincidences (loop closures): ``RigidConstraintModel`` CONTACT_3D in LOCAL_WORLD_ALIGNED
-  with ``pin.constraintDynamics``. A planar loop gives 3 rows of which the out-of-plane one is
-  identically zero, so the Delassus matrix is singular and the plain Cholesky (mu = 0) returns
-  NaN; ProximalSettings(1e-12, 1e-8, 50) converges to the exact minimum-norm answer in 2-4
-  proximal iterations. contact_force is the force that joint2's body applies to joint1's body at
-  the anchor, world-oriented.
+- no constraints, or a minimal-coordinate tree (joint reactions from rnea): ``pin.aba``;
+- rows that are not point coincidences (x^2 + y^2 = L^2, the rheonomic moving support, the
+  nonholonomic knife edge): ``pin.forwardDynamics(model, data, q, v, tau, J, gamma)`` with the
+  textbook row J and gamma = Jdot v + (explicit time terms), an exact KKT solve whose
+  data.lambda_c has the textbook sign: M a + nle = tau + J^T lambda, J a + gamma = 0;
+- point coincidences (loop closures, free bodies held at points): ``RigidConstraintModel``
+  CONTACT_3D in LOCAL_WORLD_ALIGNED with ``pin.constraintDynamics``. A planar loop gives 3 rows
+  of which the out-of-plane one is identically zero, so the Delassus matrix is singular and the
+  plain Cholesky (mu = 0) returns NaN; ProximalSettings(1e-12, 1e-8, 50) (PROX_REDUNDANT)
+  converges to the exact minimum-norm answer in 3 proximal iterations. Full-rank 3-D rows use
+  the exact one-step Cholesky (PROX_EXACT). contact_force is the force that joint2's body
+  applies to joint1's body at the anchor, world-oriented.
+  Pinocchio's own ``prox.absolute_residual`` is NOT a KKT residual (it stays O(10) even when the
+  answer is exact to 1e-15) and ``relative_residual`` after one iteration is |lambda|_inf, so
+  forward() reports independent residuals: primal |J a + gamma|_inf (anchor classical
+  accelerations) and dual |rnea(q, v, a, f_ext) - tau|_inf (Pinocchio's inverse dynamics with
+  the constraint forces applied).
 
-Every EngineModel here also has ``mass_matrix(q)``, ``forcing(q, u)`` (the reference's f, where
-the coordinates map linearly) and ``simulate(...)`` (scipy's solve_ivp on Pinocchio's forward
-dynamics in the ENGINE's coordinates).
+Engine variants: Example 4 and Exercise 6.7 have two engine models each ("free": free bodies
+held by point constraints, the textbook's own form; "tree": ball joints, joint reactions from
+rnea). ``PinocchioAdapter.variants(name)`` lists them, the first is build's default, and
+``build(name, params, variant=...)`` selects one (forward's raw["variant"] says which).
+
+Every EngineModel here also has ``mass_matrix(q)`` and ``forcing(q, u, t)`` (the reference's M
+and f where the coordinates map linearly, else None), ``constraint_violation`` /
+``velocity_violation`` (engine-side drift measures) and ``simulate(...)`` (scipy's solve_ivp on
+Pinocchio's forward dynamics in the ENGINE's coordinates).
 """
 from __future__ import annotations
 
@@ -57,10 +75,11 @@ __all__ = ["PinocchioAdapter", "PinocchioTrajectory", "PROX_REDUNDANT", "PROX_EX
 # Proximal settings (absolute_accuracy, mu, max_iter).
 # Planar loops: the out-of-plane row of a CONTACT_3D closure is zero, the Delassus matrix is
 # singular; mu = 1e-8 regularizes each factorization and the proximal iterations remove its
-# O(mu) bias geometrically (stop when |d lambda|_inf <= 1e-12 or the residual <= 1e-12).
+# O(mu) bias geometrically (the 3-argument form sets absolute and relative accuracy to 1e-12:
+# stop when |d lambda|_inf <= 1e-12, 3 iterations on the slider-cranks).
 PROX_REDUNDANT = (1e-12, 1e-8, 50)
-# Full-rank rows (the 3-D double pendulum as free bodies): mu = 0 and one iteration is the plain
-# Cholesky KKT solve, exact to round-off.
+# Full-rank rows (the 3-D double pendulum and the top as free bodies): mu = 0 and one iteration
+# is the plain Cholesky KKT solve, exact to round-off.
 PROX_EXACT = (1e-12, 0.0, 1)
 
 _Y = np.array([0.0, 1.0, 0.0])
@@ -183,8 +202,13 @@ class _PinModel:
     def _multipliers(self, qe, ve, ae, lam_engine) -> np.ndarray:
         return np.zeros(0)
 
-    def _kkt_rows(self, qe, ve):
-        """(J, gamma) for the 'kkt' solver."""
+    def _applied(self, qe, ve, t) -> np.ndarray:
+        """Generalized applied forces tau in engine coordinates (constant unless overridden:
+        springs, dampers, loads that turn with a body)."""
+        return self.tau
+
+    def _kkt_rows(self, qe, ve, t):
+        """(J, gamma) for the 'kkt' solver: J a + gamma = 0 is the textbook's A u' = b."""
         raise NotImplementedError
 
     def _qdot(self, qe, ve) -> np.ndarray:
@@ -221,8 +245,9 @@ class _PinModel:
                 qe[iq + 3:iq + 7] /= np.linalg.norm(qe[iq + 3:iq + 7])
         return qe
 
-    def constraint_violation(self, qe) -> float:
-        """Position-level constraint violation in the engine (0 without constraints)."""
+    def constraint_violation(self, qe, t: float = 0.0) -> float:
+        """Position-level constraint violation in the engine, in length units: the largest
+        anchor mismatch of the point constraints (0 without constraints)."""
         if not len(self.cms):
             return 0.0
         pin.forwardKinematics(self.model, self.data, qe)
@@ -237,16 +262,17 @@ class _PinModel:
     _P: Optional[np.ndarray] = None
 
     # ---- engine-level dynamics -------------------------------------------------------------
-    def _solve(self, qe, ve):
+    def _solve(self, qe, ve, t=0.0):
         """Engine accelerations and the engine's raw constraint forces (array, maybe empty)."""
         m, d = self.model, self.data
+        tau = self._applied(qe, ve, t)
         if self.solver == "aba":
-            return pin.aba(m, d, qe, ve, self.tau).copy(), np.zeros(0)
+            return pin.aba(m, d, qe, ve, tau).copy(), np.zeros(0)
         if self.solver == "kkt":
-            J, gamma = self._kkt_rows(qe, ve)
-            a = pin.forwardDynamics(m, d, qe, ve, self.tau, J, gamma).copy()
+            J, gamma = self._kkt_rows(qe, ve, t)
+            a = pin.forwardDynamics(m, d, qe, ve, tau, J, gamma).copy()
             return a, d.lambda_c.copy()
-        a = pin.constraintDynamics(m, d, qe, ve, self.tau, self.cms, self.cds, self.prox).copy()
+        a = pin.constraintDynamics(m, d, qe, ve, tau, self.cms, self.cds, self.prox).copy()
         lam = np.concatenate([cd.contact_force.linear for cd in self.cds])
         return a, lam
 
@@ -271,7 +297,7 @@ class _PinModel:
         acc_local = a.linear + np.cross(v.angular, v.linear)
         return (self.data.oMi[joint] * placement).rotation @ acc_local
 
-    def _constraint_residuals(self, qe, ve, ae, lam):
+    def _constraint_residuals(self, qe, ve, ae, lam, t=0.0):
         """Independent checks of the engine's own solve.
 
         primal: |J a + gamma|_inf, here the mismatch of the two anchors' classical accelerations
@@ -281,11 +307,12 @@ class _PinModel:
         Returns (primal, dual, fext-augmented rnea data reaction forces computed).
         """
         m, d = self.model, self.data
+        tau = self._applied(qe, ve, t)
         if self.solver == "kkt":
-            J, gamma = self._kkt_rows(qe, ve)
+            J, gamma = self._kkt_rows(qe, ve, t)
             primal = float(np.max(np.abs(J @ ae + gamma)))
             tau_id = pin.rnea(m, d, qe, ve, ae)
-            dual = float(np.max(np.abs(tau_id - self.tau - J.T @ lam)))
+            dual = float(np.max(np.abs(tau_id - tau - J.T @ lam)))
             return primal, dual
         pin.forwardKinematics(m, d, qe, ve, ae)
         primal = 0.0
@@ -305,17 +332,40 @@ class _PinModel:
                 f_world = pin.Force(sign * f, np.cross(p, sign * f))
                 fext[joint] = fext[joint] + d.oMi[joint].actInv(f_world)
         tau_id = pin.rnea(m, d, qe, ve, ae, fext)
-        dual = float(np.max(np.abs(tau_id - self.tau)))
+        dual = float(np.max(np.abs(tau_id - tau)))
         return primal, dual
+
+    def _spring_potential(self, qe) -> float:
+        """Potential of the reference's springs in engine coordinates (0 without springs)."""
+        return 0.0
+
+    def velocity_violation(self, qe, ve, t: float = 0.0) -> float:
+        """Velocity-level constraint violation in the engine: |J v + a0| of the user rows, or
+        the largest anchor velocity mismatch of the point constraints (0 without constraints).
+        For a nonholonomic row this is the only level at which the constraint exists."""
+        if self.solver == "kkt":
+            return float(np.max(np.abs(self._velocity_rows(qe, ve, t))))
+        if not len(self.cms):
+            return 0.0
+        pin.forwardKinematics(self.model, self.data, qe, ve)
+        return max(float(np.max(np.abs(
+            self._anchor_velocity(cm.joint1_id, cm.joint1_placement)
+            - self._anchor_velocity(cm.joint2_id, cm.joint2_placement)))) for cm in self.cms)
+
+    def _velocity_rows(self, qe, ve, t):
+        """J v + a0 for the 'kkt' solver (J from _kkt_rows; scleronomic: a0 = 0)."""
+        J, _ = self._kkt_rows(qe, ve, t)
+        return J @ ve
 
     def _energy_engine(self, qe, ve) -> tuple[float, float]:
         """Kinetic energy from Pinocchio; potential -sum m_i g . c_i computed here from the body
-        positions, datum at the world origin = the reference's datum (the pivot, point A)."""
+        positions, datum at the world origin = the reference's datum (the pivot, point A), plus
+        the reference's springs (computePotentialEnergy has gravity only, same datum)."""
         m, d = self.model, self.data
         K = float(pin.computeKineticEnergy(m, d, qe, ve))
         pin.forwardKinematics(m, d, qe)
         gvec = m.gravity.linear
-        V = 0.0
+        V = self._spring_potential(qe)
         for i in range(1, m.njoints):
             Y = m.inertias[i]
             c = d.oMi[i].act(Y.lever)
@@ -323,9 +373,29 @@ class _PinModel:
         return K, V
 
     # ---- the EngineModel interface ---------------------------------------------------------
+    def _check(self, q, u=None, t: float = 0.0):
+        """Sizes and finiteness of a reference state, as the reference checks them."""
+        from reference.errors import ModelInputError
+
+        q = np.asarray(q, dtype=float).reshape(-1)
+        if q.size != self.nq_ref:
+            raise ModelInputError(f"{self.model_name} (pinocchio): expected {self.nq_ref} "
+                                  f"coordinates, got {q.size}")
+        if u is not None:
+            u = np.asarray(u, dtype=float).reshape(-1)
+            if u.size != self.n_ref:
+                raise ModelInputError(f"{self.model_name} (pinocchio): expected {self.n_ref} "
+                                      f"speeds, got {u.size}")
+        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
+                and math.isfinite(t)):
+            raise ModelInputError(f"{self.model_name} (pinocchio): state contains NaN or "
+                                  f"infinite values")
+        return q, u
+
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
+        q, u = self._check(q, u, t)
         qe, ve = self.to_engine_state(q, u)
-        ae, lam_e = self._solve(qe, ve)
+        ae, lam_e = self._solve(qe, ve, t)
         raw = {"engine_q": qe, "engine_v": ve, "engine_accelerations": ae,
                "engine_forces": lam_e, "solver": self.solver}
         if self.solver == "constraint":
@@ -339,7 +409,7 @@ class _PinModel:
         self._extra_raw(qe, ve, ae, lam_e, raw)
         if self.solver != "aba":
             raw["primal_residual"], raw["dual_residual"] = self._constraint_residuals(
-                qe, ve, ae, lam_e)
+                qe, ve, ae, lam_e, t)
         if self.variant is not None:
             raw["variant"] = self.variant
         return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw)
@@ -348,6 +418,7 @@ class _PinModel:
         pass
 
     def energy(self, q, u) -> tuple[float, float]:
+        q, u = self._check(q, u)
         qe, ve = self.to_engine_state(q, u)
         return self._energy_engine(qe, ve)
 
@@ -356,6 +427,7 @@ class _PinModel:
         coordinates are not a linear bijection of the reference's."""
         if self._P is None:
             return None
+        q, _ = self._check(q)
         qe, _ = self.to_engine_state(q, np.zeros(self.n_ref))
         Me = pin.crba(self.model, self.data, qe).copy()
         Me = np.triu(Me) + np.triu(Me, 1).T  # crba fills the upper triangle
@@ -366,45 +438,57 @@ class _PinModel:
         engine: P^T (tau - nle), or None where the coordinates do not map linearly."""
         if self._P is None:
             return None
+        q, u = self._check(q, u, t)
         qe, ve = self.to_engine_state(q, u)
         nle = pin.nonLinearEffects(self.model, self.data, qe, ve)
-        return self._P.T @ (self.tau - nle)
+        return self._P.T @ (self._applied(qe, ve, t) - nle)
 
     def simulate(self, q0, u0, t_end: float, rtol: float, atol: float, method: str = "DOP853",
                  t_eval=None) -> PinocchioTrajectory:
         """Integrate Pinocchio's forward dynamics with scipy's solve_ivp in engine coordinates.
 
-        No constraint stabilization (no projection, no Baumgarte): the constrained models drift
-        off their manifold at the integrator's tolerance level (index-1 drift), which is
-        recorded per output time in raw["violation"] so the report can show it.
+        The engine state is [q_e, v_e] (quaternions renormalized before every evaluation and
+        in the output; their rates from the local angular velocity, see _qdot); the output is
+        mapped to reference (q, u) at t_eval (default: 101 points on [0, t_end]).
+
+        No constraint stabilization (no projection, no Baumgarte, the RigidConstraintModel
+        correctors stay 0): run for 5 s from each model's initial state, the constraint drift
+        of every constrained model stayed within ~10x the integrator tolerance (tolerances 1e-8
+        and 1e-10, DOP853), the index-1 drift expected from the tolerance alone, so a
+        stabilization would only hide what the comparison should show. raw["violation"]
+        (position level) and raw["velocity_violation"] record it per output time, raw["energy"]
+        the engine's K + V.
         """
+        q0, u0 = self._check(q0, u0)
         qe0, ve0 = self.to_engine_state(q0, u0)
-        nq, nv = self.model.nq, self.model.nv
+        nq = self.model.nq
         y0 = np.concatenate([qe0, ve0])
 
-        def rhs(_t, y):
+        def rhs(t, y):
             qe = self._normalize(y[:nq])
             ve = y[nq:]
-            a, _ = self._solve(qe, ve)
+            a, _ = self._solve(qe, ve, t)
             return np.concatenate([self._qdot(qe, ve), a])
 
         if t_eval is None:
             t_eval = np.linspace(0.0, t_end, 101)
         sol = solve_ivp(rhs, (0.0, float(t_end)), y0, method=method, rtol=rtol, atol=atol,
                         t_eval=np.asarray(t_eval, dtype=float))
-        Q, U, viol, E = [], [], [], []
-        for y in sol.y.T:
+        Q, U, viol, vviol, E = [], [], [], [], []
+        for t, y in zip(sol.t, sol.y.T):
             qe = self._normalize(y[:nq])
             ve = y[nq:]
             q, u = self.from_engine_state(qe, ve)
             Q.append(q)
             U.append(u)
-            viol.append(self.constraint_violation(qe))
+            viol.append(self.constraint_violation(qe, t))
+            vviol.append(self.velocity_violation(qe, ve, t))
             E.append(sum(self._energy_engine(qe, ve)))
         return PinocchioTrajectory(
             t=sol.t, q=np.array(Q), u=np.array(U), nfev=int(sol.nfev), success=bool(sol.success),
             message=str(sol.message),
             raw={"engine_states": sol.y.T.copy(), "violation": np.array(viol),
+                 "velocity_violation": np.array(vviol),
                  "energy": np.array(E), "method": method, "rtol": rtol, "atol": atol,
                  "stabilization": "none"})
 
@@ -460,7 +544,7 @@ class PendulumXY(_PinModel):
         self.model.appendBodyToJoint(
             jy, pin.Inertia(self.params["m"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
 
-    def _kkt_rows(self, qe, ve):
+    def _kkt_rows(self, qe, ve, t):
         return qe.reshape(1, 2).copy(), np.array([ve @ ve])
 
     def to_engine_state(self, q, u):
@@ -478,7 +562,8 @@ class PendulumXY(_PinModel):
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         raw["rod_tension"] = float(-lam_e[0] * self.params["L"])
 
-    def constraint_violation(self, qe):
+    def constraint_violation(self, qe, t: float = 0.0):
+        """| |p| - L |: the rod's length error."""
         return abs(float(np.hypot(qe[0], qe[1])) - self.params["L"])
 
 
@@ -805,6 +890,7 @@ class DoublePendulumFree(_DoublePendulumBase):
         return np.concatenate([F_O - F_A, F_A])
 
     def mass_matrix(self, q):
+        q, _ = self._check(q)
         qe, _ = self.to_engine_state(q, np.zeros(12))
         Me = pin.crba(self.model, self.data, qe).copy()
         Me = np.triu(Me) + np.triu(Me, 1).T
@@ -1031,6 +1117,266 @@ class TopCartesianTree(_TopCartesianBase):
 
 
 # ======================================================================================
+# Supplements: the knife edge (nonholonomic) and the moving support (rheonomic)
+# ======================================================================================
+class KnifeEdge(_PinModel):
+    """Knife edge / Chaplygin sled (horizontal plane, no gravity). Engine tree: slides PX (x),
+    PY (y) carrying the contact point C, hinge RZ (theta) carrying the sled: mass center at
+    (a, 0, 0) on the blade axis, planar-lamina inertia from I_G. q_e = q_ref. The nonholonomic
+    row -S x' + C y' = 0 goes to forwardDynamics as the textbook row J = [-S, C, 0] with
+    gamma = Jdot v = -(C x' + S y') theta', so data.lambda_c is the textbook lambda (the lateral
+    force of the ground on the blade). Loads: P along the blade at C, tau = (P C, P S, 0), and T
+    about Z. The constraint has no position level: constraint_violation is 0 and
+    velocity_violation |-S x' + C y'| is the drift measure."""
+
+    nq_ref = n_ref = 3
+    solver = "kkt"
+    _P = np.eye(3)
+
+    def _build(self):
+        p = self.params
+        jx = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
+        jy = self.model.addJoint(jx, pin.JointModelPY(), pin.SE3.Identity(), "y")
+        jt = self.model.addJoint(jy, pin.JointModelRZ(), pin.SE3.Identity(), "theta")
+        self.model.appendBodyToJoint(
+            jt, pin.Inertia(p["m"], np.array([p["a"], 0.0, 0.0]), _lamina(p["I_G"])),
+            pin.SE3.Identity())
+
+    def _applied(self, qe, ve, t):
+        th = qe[2]
+        return np.array([self.params["P"] * math.cos(th), self.params["P"] * math.sin(th),
+                         self.params["T"]])
+
+    def _kkt_rows(self, qe, ve, t):
+        S, C = math.sin(qe[2]), math.cos(qe[2])
+        J = np.array([[-S, C, 0.0]])
+        return J, np.array([-(C * ve[0] + S * ve[1]) * ve[2]])
+
+    def to_engine_state(self, q, u):
+        return np.array(q, float).reshape(3).copy(), np.array(u, float).reshape(3).copy()
+
+    def from_engine_state(self, qe, ve):
+        return np.array(qe, float).copy(), np.array(ve, float).copy()
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return ae.copy()
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return lam_e.copy()
+
+    def constraint_violation(self, qe, t: float = 0.0):
+        return 0.0
+
+
+class MovingSupport(PendulumXY):
+    """Example 1(b) with the support moving x_s(t) = a sin(Omega t) along X (Y DOWN in the
+    reference, Y up in the engine as PendulumXY). Rheonomic row f = ((x - x_s)^2 + y^2 - L^2)/2
+    in engine coordinates: J = [x - x_s, y_e], and the acceleration-level row
+    J a + (x' - x_s')^2 + y_e'^2 - (x - x_s) x_s'' = 0 gives gamma, including the explicit time
+    terms; data.lambda_c is the textbook lambda (= -T/L). Velocity residual J v + a0 with
+    a0 = -(x - x_s) x_s'."""
+
+    def _support(self, t):
+        a, W = self.params["a"], self.params["Omega"]
+        return a * math.sin(W * t), a * W * math.cos(W * t), -a * W * W * math.sin(W * t)
+
+    def _kkt_rows(self, qe, ve, t):
+        xs, xsd, xsdd = self._support(t)
+        J = np.array([[qe[0] - xs, qe[1]]])
+        gamma = (ve[0] - xsd) ** 2 + ve[1] ** 2 - (qe[0] - xs) * xsdd
+        return J, np.array([gamma])
+
+    def _velocity_rows(self, qe, ve, t):
+        xs, xsd, _ = self._support(t)
+        return np.array([(qe[0] - xs) * (ve[0] - xsd) + qe[1] * ve[1]])
+
+    def constraint_violation(self, qe, t: float = 0.0):
+        xs, _, _ = self._support(t)
+        return abs(float(np.hypot(qe[0] - xs, qe[1])) - self.params["L"])
+
+
+# ======================================================================================
+# Exercises 6.1, 6.2, 6.4 (geometry as assumed in the reference's docstrings)
+# ======================================================================================
+class Exercise61(_PinModel):
+    """Exercise 6.1 (Y up): bar with end A on the X guide and end B on the Y guide, block P
+    fixed to B. Engine: root slide PX (x, the massless end slider A, spring k and damper c on
+    it), the bar hinged at A with its axis A -> B as the hinge frame's x axis (angle
+    phi = theta + pi/2 from +X, mass center at (l/2, 0, 0), planar-lamina inertia from
+    m l^2/12), root slide PY (y) carrying the block m_p with F pushing it down; loop closed at
+    B between the bar end (l, 0, 0) and the block (CONTACT_3D, PROX_REDUNDANT: the z row is 0).
+    q_e = (x, theta + pi/2, y). tau = (-k x - c x', 0, -F).
+
+    Multipliers: None. The reference's (lambda1, lambda2) are generalized forces conjugate to
+    its coordinates x and y in a relaxed system where the bar's mass center is (x/2, y/2)
+    (its docstring gives them no force meaning), not forces of the mechanism, so no engine
+    force maps onto them: the accelerations, the state map and the energy are compared.
+    mass_matrix is None for the same reason (the reference's M is that relaxed system's)."""
+
+    nq_ref = n_ref = 3
+    solver = "constraint"
+    prox_settings = PROX_REDUNDANT
+
+    def _build(self):
+        p = self.params
+        jA = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
+        jb = self.model.addJoint(jA, pin.JointModelRZ(), pin.SE3.Identity(), "bar")
+        self.model.appendBodyToJoint(
+            jb, pin.Inertia(p["m"], np.array([p["l"] / 2, 0.0, 0.0]),
+                            _lamina(p["m"] * p["l"] ** 2 / 12)), pin.SE3.Identity())
+        jP = self.model.addJoint(0, pin.JointModelPY(), pin.SE3.Identity(), "y")
+        self.model.appendBodyToJoint(
+            jP, pin.Inertia(p["m_p"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+        self.cms.append(pin.RigidConstraintModel(
+            pin.ContactType.CONTACT_3D, self.model, jb, _at(p["l"], 0, 0), jP,
+            pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+
+    def _applied(self, qe, ve, t):
+        p = self.params
+        return np.array([-p["k"] * qe[0] - p["c"] * ve[0], 0.0, -p["F"]])
+
+    def _spring_potential(self, qe):
+        return 0.5 * self.params["k"] * qe[0] ** 2
+
+    def to_engine_state(self, q, u):
+        x, y, th = np.asarray(q, float)
+        xd, yd, thd = np.asarray(u, float)
+        return np.array([x, th + math.pi / 2, y]), np.array([xd, thd, yd])
+
+    def from_engine_state(self, qe, ve):
+        return (np.array([qe[0], qe[2], qe[1] - math.pi / 2]),
+                np.array([ve[0], ve[2], ve[1]]))
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return np.array([ae[0], ae[2], ae[1]])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        return None
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        raw["multipliers_note"] = ("reference multipliers are generalized forces of a relaxed "
+                                   "parametrization with no engine counterpart")
+        raw["force_of_block_on_bar_at_B"] = lam_e[0:3].copy()
+
+
+class Exercise62(_PinModel):
+    """Exercise 6.2 (Y DOWN in the reference, Y up in the engine): block m1 on a root slide PX
+    (x; spring k, damper c and F on it), the slender bar hinged at A = the block's origin,
+    hanging along -Y_e at theta = 0 (mass center (0, -l/2, 0) in the hinge frame, so the hinge
+    angle is theta), planar-lamina inertia from m2 l^2/12. Engine q = (x, theta); the
+    reference's dependent (x_G, y_G) = G - A with y down: read from forwardKinematics
+    (x_G = dX, y_G = -dY_e), and their accelerations from the classical accelerations of G
+    and A. Multipliers: the force of the pin A on the bar = rnea's data.f of the bar joint
+    (parent on child) in world axes, Y flipped: (lambda1, lambda2) = (F_x, -F_y_e)."""
+
+    nq_ref = n_ref = 4
+    solver = "aba"
+
+    def _build(self):
+        p = self.params
+        jb = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
+        self.model.appendBodyToJoint(
+            jb, pin.Inertia(p["m1"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+        jr = self.model.addJoint(jb, pin.JointModelRZ(), pin.SE3.Identity(), "theta")
+        self.model.appendBodyToJoint(
+            jr, pin.Inertia(p["m2"], np.array([0.0, -p["l"] / 2, 0.0]),
+                            _lamina(p["m2"] * p["l"] ** 2 / 12)), pin.SE3.Identity())
+        self.G = _at(0, -p["l"] / 2, 0)
+
+    def _applied(self, qe, ve, t):
+        p = self.params
+        return np.array([p["F"] - p["c"] * ve[0] - p["k"] * qe[0], 0.0])
+
+    def _spring_potential(self, qe):
+        return 0.5 * self.params["k"] * qe[0] ** 2
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        return q[0:2].copy(), u[0:2].copy()
+
+    def from_engine_state(self, qe, ve):
+        pin.forwardKinematics(self.model, self.data, qe, ve)
+        dp = self._anchor_position(2, self.G) - self._anchor_position(1, pin.SE3.Identity())
+        dv = self._anchor_velocity(2, self.G) - self._anchor_velocity(1, pin.SE3.Identity())
+        return (np.array([qe[0], qe[1], dp[0], -dp[1]]),
+                np.array([ve[0], ve[1], dv[0], -dv[1]]))
+
+    def _acc_to_reference(self, qe, ve, ae):
+        pin.forwardKinematics(self.model, self.data, qe, ve, ae)
+        da = (self._anchor_classical_acc(2, self.G)
+              - self._anchor_classical_acc(1, pin.SE3.Identity()))
+        return np.array([ae[0], ae[1], da[0], -da[1]])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        d = self.data
+        pin.forwardKinematics(self.model, d, qe)
+        pin.rnea(self.model, d, qe, ve, ae)
+        F = d.oMi[2].rotation @ d.f[2].linear
+        return np.array([F[0], -F[1]])
+
+
+class Exercise64(_PinModel):
+    """Exercise 6.4 (Z up): disk D on a hinge RZ at O (phi; inertia diag(m_d R^2/4, m_d R^2/4,
+    m_d R^2/2), motor M_phi), the bar on a hinge RX at P = (0, R, 0) in the disk frame (theta;
+    M_theta, spring k and damper c act between D and B, i.e. on this joint), mass center at
+    (0, 0, -l/2) in the hinge frame, inertia diag(m l^2/12, m l^2/12, 0) exactly as the
+    reference (the disk keeps the mass matrix definite). Engine q = (phi, theta); (y_G, z_G)
+    are G's coordinates in the disk frame, from the hinge placement and rotation:
+    r = P + Rx(theta) c, r' = w x (Rx c), r'' = w' x (Rx c) + w x (w x Rx c), w = (theta', 0, 0).
+    Multipliers: force of the pin on the bar in disk axes: rnea's data.f[2] (parent on child,
+    bar-hinge frame) rotated by Rx(theta): (lambda1, lambda2) = its (y, z) components."""
+
+    nq_ref = n_ref = 4
+    solver = "aba"
+    up = np.array([0.0, 0.0, 1.0])
+
+    def _build(self):
+        p = self.params
+        jd = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "phi")
+        Id = p["m_d"] * p["R"] ** 2
+        self.model.appendBodyToJoint(
+            jd, pin.Inertia(p["m_d"], np.zeros(3), np.diag([Id / 4, Id / 4, Id / 2])),
+            pin.SE3.Identity())
+        jb = self.model.addJoint(jd, pin.JointModelRX(), _at(0, p["R"], 0), "theta")
+        Ib = p["m"] * p["l"] ** 2 / 12
+        self.model.appendBodyToJoint(
+            jb, pin.Inertia(p["m"], np.array([0.0, 0.0, -p["l"] / 2]), np.diag([Ib, Ib, 0.0])),
+            pin.SE3.Identity())
+
+    def _applied(self, qe, ve, t):
+        p = self.params
+        return np.array([p["M_phi"], p["M_theta"] - p["k"] * qe[1] - p["c"] * ve[1]])
+
+    def _spring_potential(self, qe):
+        return 0.5 * self.params["k"] * qe[1] ** 2
+
+    def _G_disk(self, th, thd, thdd):
+        c = self.model.inertias[2].lever
+        P = self.model.jointPlacements[2].translation
+        Rc = pin.utils.rotate("x", th) @ c
+        w, wd = np.array([thd, 0.0, 0.0]), np.array([thdd, 0.0, 0.0])
+        return (P + Rc, np.cross(w, Rc), np.cross(wd, Rc) + np.cross(w, np.cross(w, Rc)))
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        return q[0:2].copy(), u[0:2].copy()
+
+    def from_engine_state(self, qe, ve):
+        r, rd, _ = self._G_disk(qe[1], ve[1], 0.0)
+        return (np.array([qe[0], qe[1], r[1], r[2]]), np.array([ve[0], ve[1], rd[1], rd[2]]))
+
+    def _acc_to_reference(self, qe, ve, ae):
+        _, _, rdd = self._G_disk(qe[1], ve[1], ae[1])
+        return np.array([ae[0], ae[1], rdd[1], rdd[2]])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        d = self.data
+        pin.rnea(self.model, d, qe, ve, ae)
+        F = d.liMi[2].rotation @ d.f[2].linear  # disk axes
+        return np.array([F[1], F[2]])
+
+
+# ======================================================================================
 # Registry
 # ======================================================================================
 _MODELS = {
@@ -1044,6 +1390,11 @@ _MODELS = {
     "double_pendulum_3d": {"free": DoublePendulumFree, "tree": DoublePendulumTree},
     "top_euler": TopEuler,
     "top_cartesian": {"free": TopCartesianFree, "tree": TopCartesianTree},
+    "knife_edge": KnifeEdge,
+    "pendulum_moving_support": MovingSupport,
+    "exercise_6_1": Exercise61,
+    "exercise_6_2": Exercise62,
+    "exercise_6_4": Exercise64,
 }
 
 # models of the unit this engine cannot represent, with the reason shown in results
