@@ -104,7 +104,7 @@ def _formulation_records(name, nm, states):
     return out
 
 
-def _engine_records(name, nm, states, adapter, perturb):
+def _engine_records(name, nm, states, adapter, perturb, variant=None):
     formulation = nm.formulation
     params = dict(nm.params)
     for p, rel in perturb.items():
@@ -112,9 +112,13 @@ def _engine_records(name, nm, states, adapter, perturb):
             raise ModelInputError(f"--perturb: model {name!r} has no parameter {p!r}; valid: "
                                   f"{', '.join(params)}")
         params[p] *= 1.0 + rel
-    rec = lambda *a, **k: C.record(name, formulation, adapter.name, *a, **k)  # noqa: E731
+    def rec(*a, **k):
+        r = C.record(name, formulation, adapter.name, *a, **k)
+        if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
+            r["variant"] = variant
+        return r
     try:
-        em = adapter.build(name, params)
+        em = adapter.build(name, params, variant=variant) if variant else adapter.build(name, params)
     except EngineUnsupported as exc:
         return [rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
                 for q in ("accelerations", "multipliers")]
@@ -149,8 +153,8 @@ def _engine_records(name, nm, states, adapter, perturb):
                                       "(ABA / unconstrained step), no multipliers to compare")
             err_lam = 0.0
         elif ef.multipliers is None:
-            skipped["multipliers"] = ("the engine model is a minimal-coordinate tree with no "
-                                      "constraint rows; its joint reactions are reported in raw")
+            skipped["multipliers"] = raw.get("multipliers_note") or (
+                "the engine model has no constraint forces that map onto the reference's rows")
             err_lam = 0.0
         else:
             err_lam = C.scaled_error(ef.multipliers, ref.multipliers)
@@ -214,7 +218,10 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None):
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)
         for adapter in adapters:
-            records += _engine_records(name, nm, states, adapter, perturb.get(adapter.name, {}))
+            variants = adapter.variants(name) if hasattr(adapter, "variants") else (None,)
+            for variant in variants:
+                records += _engine_records(name, nm, states, adapter,
+                                           perturb.get(adapter.name, {}), variant)
         if progress:
             progress(name)
     return records
