@@ -38,10 +38,12 @@ MASS_MATRIX = Tolerance(
 ENERGY = Tolerance(
     1e-11, "kinetic plus potential energy from the engine's own routines against the "
            "reference's, same datum: round-off only")
-SOFT_PREDICTION_FACTOR = Tolerance(
-    3.0, "MuJoCo's raw (soft) answer must lie within 3x the error predicted from its "
-         "impedance: f = (A+R)^-1 A f_rigid with R = (1-d)/d diag(A); the prediction is a "
-         "first-order estimate, and 3x absorbs its neglected O((1-d)^2) terms")
+SOFT_PREDICTION = Tolerance(
+    1e-5, "MuJoCo's raw (soft) answer differs from the rigid one by the error its impedance "
+          "predicts (f = (A+R)^-1 A f_rigid, R = (1-d)/d diagA, d = 0.9999, i.e. ~1e-4 "
+          "relative). The prediction is exact up to the rigid floor: MuJoCo's soft solve stops "
+          "~1e-11..1e-10 from the exact soft solution, over a ~1e-4 error that is <= 1e-6; "
+          "1e-5 keeps a 10x margin (measured: 1e-7..6e-7)")
 RIGID_RECOVERY = Tolerance(
     1e-9, "rigid answer recovered from MuJoCo's own output (f + A^-1 R f): exact up to the "
           "conditioning of A = J M^-1 J^T (issue bound)")

@@ -104,6 +104,18 @@ def _formulation_records(name, nm, states):
     return out
 
 
+def _soft_check(worst, extras, quantity, raw_value, reference, predicted_error, i):
+    """MuJoCo's raw soft answer against the reference, and against the error its impedance
+    predicts: (raw - reference) should equal the predicted error up to the rigid floor."""
+    scale = max(float(np.max(np.abs(reference))) if reference.size else 0.0, 1.0)
+    actual = np.asarray(raw_value, float) - reference
+    pred = float(np.max(np.abs(predicted_error))) / scale if predicted_error.size else 0.0
+    miss = float(np.max(np.abs(actual - predicted_error))) / scale if actual.size else 0.0
+    worst[f"{quantity}_soft"].add(miss / pred if pred > 0 else (0.0 if miss == 0 else np.inf), i)
+    extras["predicted_rel_error"].append(pred)
+    extras["soft_error"].append(float(np.max(np.abs(actual))) / scale if actual.size else 0.0)
+
+
 def _engine_records(name, nm, states, adapter, perturb, variant=None):
     formulation = nm.formulation
     params = dict(nm.params)
@@ -124,9 +136,10 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
                 for q in ("accelerations", "multipliers")]
     worst = {k: C.WorstCase() for k in ("state_map", "mass_matrix", "accelerations",
                                         "multipliers", "energy", "accelerations_rigid",
-                                        "multipliers_rigid", "soft_vs_prediction")}
+                                        "multipliers_rigid", "accelerations_soft",
+                                        "multipliers_soft")}
     skipped: dict[str, str] = {}
-    extras: dict[str, list] = {"iterations": [], "predicted_rel_error": []}
+    extras: dict[str, list] = {"iterations": [], "predicted_rel_error": [], "soft_error": []}
     for i, (q, u) in enumerate(states):
         ref = nm.forward(q, u)
         qe, ve = em.to_engine_state(q, u)
@@ -146,7 +159,8 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
         Ke, Ve = em.energy(q, u)
         Kr, Vr = nm.energy(q, u)
         worst["energy"].add(abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0), i)
-        soft = "rigid_accelerations" in raw  # MuJoCo: soft answer + its rigid recovery
+        # MuJoCo with equality rows: a soft answer, its rigid recovery and the predicted error
+        soft = "rigid_accelerations" in raw and "predicted_acceleration_error" in raw
         err_acc = C.scaled_error(ef.accelerations, ref.accelerations)
         if nm.m == 0:
             skipped["multipliers"] = ("no constraints: the engine runs plain forward dynamics "
@@ -159,16 +173,18 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
         else:
             err_lam = C.scaled_error(ef.multipliers, ref.multipliers)
         if soft:
-            predicted = float(raw.get("predicted_rel_error", np.nan))
-            extras["predicted_rel_error"].append(predicted)
+            # MuJoCo: the rigid answer recovered from its own soft output must match exactly;
+            # the raw soft answer must lie within what its impedance predicts
             worst["accelerations_rigid"].add(
                 C.scaled_error(raw["rigid_accelerations"], ref.accelerations), i)
+            pred_acc = np.asarray(raw["predicted_acceleration_error"], float)
+            _soft_check(worst, extras, "accelerations", ef.accelerations, ref.accelerations,
+                        pred_acc, i)
             if "multipliers" not in skipped:
                 worst["multipliers_rigid"].add(
                     C.scaled_error(raw["rigid_multipliers"], ref.multipliers), i)
-            # the soft answer's error relative to its own prediction (1 = as predicted)
-            worst["soft_vs_prediction"].add(max(err_acc, err_lam) / predicted
-                                            if predicted > 0 else np.inf, i)
+                _soft_check(worst, extras, "multipliers", ef.multipliers, ref.multipliers,
+                            np.asarray(raw["predicted_multiplier_error"], float), i)
         else:
             worst["accelerations"].add(err_acc, i)
             if "multipliers" not in skipped:
@@ -183,20 +199,21 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
     out.append(rec("instantaneous", "energy", worst["energy"].error, C.ENERGY,
                    worst_state=worst["energy"].state))
     it = {"iterations_max": max(extras["iterations"])} if extras["iterations"] else {}
-    if "soft_vs_prediction" in {k for k, w in worst.items() if w.state is not None}:
-        pred = float(np.nanmax(extras["predicted_rel_error"]))
-        out.append(rec("instantaneous", "soft_vs_prediction", worst["soft_vs_prediction"].error,
-                       C.SOFT_PREDICTION_FACTOR, worst_state=worst["soft_vs_prediction"].state,
-                       predicted_rel_error=pred, **it))
-        out.append(rec("instantaneous", "accelerations", worst["accelerations_rigid"].error,
-                       C.RIGID_RECOVERY, worst_state=worst["accelerations_rigid"].state,
-                       answer="rigid recovered from the soft solution", **it))
-        if "multipliers" in skipped:
-            out.append(rec("instantaneous", "multipliers", None, None, skipped["multipliers"]))
-        else:
-            out.append(rec("instantaneous", "multipliers", worst["multipliers_rigid"].error,
-                           C.RIGID_RECOVERY, worst_state=worst["multipliers_rigid"].state,
-                           answer="rigid recovered from the soft solution", **it))
+    if extras["soft_error"]:
+        soft = {"predicted_rel_error_max": float(max(extras["predicted_rel_error"])),
+                "soft_rel_error_max": float(max(extras["soft_error"]))}
+        for q in ("accelerations", "multipliers"):
+            if q in skipped:
+                out.append(rec("instantaneous", q, None, None, skipped[q]))
+                continue
+            w = worst[f"{q}_rigid"]
+            out.append(rec("instantaneous", q, w.error, C.RIGID_RECOVERY, worst_state=w.state,
+                           answer="rigid, recovered from MuJoCo's soft solution", **soft, **it))
+            w = worst[f"{q}_soft"]
+            out.append(rec("instantaneous", f"{q}_soft_vs_predicted", w.error,
+                           C.SOFT_PREDICTION, worst_state=w.state,
+                           answer="raw soft answer: |(raw - reference) - predicted error| "
+                                  "over |predicted error|", **soft))
     else:
         out.append(rec("instantaneous", "accelerations", worst["accelerations"].error,
                        C.EXACT_KKT, worst_state=worst["accelerations"].state, **it))

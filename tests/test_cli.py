@@ -85,9 +85,10 @@ def test_singular_pose_is_refused(capsys):
     assert code == 2 and "singular" in err
 
 
-def test_run_fault_injection_fails(tmp_path, capsys):
-    code, out, err = _run(capsys, "run", "slider_crank", "--engines", "pinocchio",
-                          "--out", str(tmp_path), "--perturb", "pinocchio:m2=1e-6")
+@pytest.mark.parametrize("engine", ["pinocchio", "mujoco"])
+def test_run_fault_injection_fails(tmp_path, capsys, engine):
+    code, out, err = _run(capsys, "run", "slider_crank", "--engines", engine,
+                          "--out", str(tmp_path), "--perturb", f"{engine}:m2=1e-6")
     assert code == 1
     records = json.loads((tmp_path / "results.json").read_text())["records"]
     failed = {r["quantity"] for r in records if r["passed"] is False}
@@ -95,7 +96,7 @@ def test_run_fault_injection_fails(tmp_path, capsys):
 
 
 def test_run_clean_passes_and_records_contract(tmp_path, capsys):
-    code, out, err = _run(capsys, "run", "slider_crank", "--engines", "pinocchio",
+    code, out, err = _run(capsys, "run", "slider_crank", "--engines", "pinocchio,mujoco",
                           "--out", str(tmp_path))
     assert code == 0, err
     data = json.loads((tmp_path / "results.json").read_text())

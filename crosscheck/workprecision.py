@@ -1,0 +1,592 @@
+"""Work-precision benchmark: wall time against final-state error and constraint residual.
+
+One record per model x engine x method x setting:
+- reference: every method of reference.integrate over a tolerance ladder (rtol = atol), DOP853;
+- pinocchio: the adapter's simulate (scipy DOP853 on Pinocchio's forward dynamics, engine
+  coordinates, no stabilization) over the same ladder;
+- mujoco: the adapter's simulate (mj_step) over a time-step ladder per integrator.
+Fields: model, engine, method, integrator, setting (rtol = atol, or the time step), setting_kind,
+wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state - reference|,
+the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u + a0|,
+evaluated by the reference on the engine's mapped states), residual_position/_velocity,
+energy_drift (max |E - E0 - W| / |E| scale, None where not checked), nfev, t_end, and the
+reference's kind and estimated accuracy. A run that fails keeps its row with "failed": reason.
+
+Timings are medians over repeats and meaningful only as ratios within one run (crosscheck/timing).
+What is inside each wall_s: reference: simulate() from the projected initial state to t_end
+(outputs = every accepted step); pinocchio: simulate() including the mapping of its 21 output
+states; mujoco: its own loop timer (mj_step calls plus two recorded states).
+"""
+from __future__ import annotations
+
+import cProfile
+import io
+import math
+import os
+import pstats
+import statistics
+import tempfile
+import time
+from typing import Optional
+
+import numpy as np
+
+from reference import NumericModel, models
+from reference.integrate import METHODS, simulate
+from reference.minimal import reference_final_state
+
+# benchmark horizons [s]: the pendulum over ~6 periods (the exploratory study's 10 s), the
+# slider-crank over ~2.5 crank revolutions, the 3-D models over 1-2 s
+HORIZON = {"pendulum_angle": 10.0, "pendulum_xy": 10.0, "slider_crank": 2.0,
+           "slider_crank_split": 2.0, "slider_crank_free": 2.0, "top_euler": 1.0,
+           "top_cartesian": 1.0}
+DEFAULT_HORIZON = 2.0
+
+LADDER_FULL = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
+LADDER_QUICK = (1e-6, 1e-8, 1e-10, 1e-12)
+ENGINE_LADDER_FULL = (1e-6, 1e-8, 1e-10, 1e-12)
+ENGINE_LADDER_QUICK = (1e-6, 1e-8, 1e-10)
+MUJOCO_STEPS_FULL = {"Euler": (1e-2, 1e-3, 1e-4, 1e-5), "implicitfast": (1e-2, 1e-3, 1e-4, 1e-5),
+                     "RK4": (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)}
+MUJOCO_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4),
+                      "RK4": (1e-2, 1e-3, 1e-4)}
+# MuJoCo runs longer than this many steps are left out (quick: ~0.3 s per run on this machine)
+MUJOCO_MAX_STEPS = {True: 25_000, False: 1_000_000}
+QUICK_MODELS = ("pendulum_xy", "slider_crank")
+REPEATS_FULL, REPEATS_QUICK = 5, 3
+# a single run longer than this is not repeated (its timing noise is small against its length)
+REPEAT_BUDGET_S = 1.0
+RUN_BOUND_S = {True: 10.0, False: 60.0}  # max_wall_s of one reference run (quick, full)
+
+# ---- targets of issue 4 ----
+TARGET_ERROR, TARGET_RESIDUAL, TARGET_MUJOCO_ERROR = 1e-8, 1e-10, 1e-4
+TARGET_BATCH_SPEEDUP = 10.0
+
+
+def horizon(name: str) -> float:
+    return HORIZON.get(name, DEFAULT_HORIZON)
+
+
+def _timed(fn, repeats: int):
+    """(last result, median wall, min wall, runs): fn() returns (result, seconds)."""
+    walls, out = [], None
+    for k in range(repeats):
+        out, w = fn()
+        walls.append(w)
+        if w > REPEAT_BUDGET_S:
+            break
+    return out, statistics.median(walls), min(walls), len(walls)
+
+
+def _finite(x) -> Optional[float]:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool):
+    """error vs the reference, max residuals and energy drift of mapped states."""
+    res, en, p = nm._scalar["residuals"], nm._scalar["energy"], nm.p
+    rp = rv = 0.0
+    E = []
+    for t, q, u in zip(T, Q, U):
+        pos, vel = res(list(map(float, q)), list(map(float, u)), float(t), p)
+        rp = max([rp] + [abs(v) for v in pos])
+        rv = max([rv] + [abs(v) for v in vel])
+        if energy_conserved:
+            E.append(sum(en(list(map(float, q)), list(map(float, u)), float(t), p)[0][:2]))
+    err = float(np.max(np.abs(np.concatenate([Q[-1], U[-1]]) - ref_state)))
+    drift = None
+    if energy_conserved and E:
+        E = np.array(E)
+        drift = float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1e-300))
+    return err, rp, rv, drift
+
+
+def _base(name, engine, method, integrator, setting, kind, T, ref):
+    return {"model": name, "engine": engine, "method": method, "integrator": integrator,
+            "setting": setting, "setting_kind": kind, "t_end": T,
+            "reference_kind": ref.kind, "reference_accuracy": ref.accuracy}
+
+
+def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
+    T = horizon(name)
+    m = nm.model
+    out = []
+    ladder = ladder or (LADDER_QUICK if quick else LADDER_FULL)
+    repeats = REPEATS_QUICK if quick else REPEATS_FULL
+    for method in methods:
+        for tol in ladder:
+            rec = _base(name, "reference", method, "DOP853", tol, "rtol=atol", T, ref)
+            try:
+                def run():
+                    tr = simulate(nm, m.initial_q, m.initial_u, T, method, rtol=tol, atol=tol,
+                                  energy="auto", max_wall_s=RUN_BOUND_S[quick])
+                    return tr, tr.wall_s
+                tr, wall, wmin, n = _timed(run, repeats)
+                r = tr.max_residual()
+                rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
+                           error=_finite(np.max(np.abs(tr.final_state - ref.state))),
+                           residual=max(r["position"], r["velocity"]),
+                           residual_position=r["position"], residual_velocity=r["velocity"],
+                           energy_drift=_finite(tr.energy_drift()), nfev=tr.nfev,
+                           nsteps=tr.nsteps, bookkeeping=tr.settings["bookkeeping"])
+                if method == "nullspace":
+                    rec["partitions"] = tr.stats.get("partitions")
+            except Exception as exc:  # recorded, never hidden: the row stays, marked failed
+                rec.update(wall_s=None, error=None, residual=None,
+                           failed=f"{type(exc).__name__}: {exc}")
+            out.append(rec)
+    return out
+
+
+def pinocchio_records(name, quick, ref, nm, adapter):
+    T = horizon(name)
+    m = nm.model
+    out = []
+    try:
+        em = adapter.build(name, nm.params)
+    except Exception as exc:
+        return [{**_base(name, "pinocchio", "index1", "DOP853", None, "rtol=atol", T, ref),
+                 "skipped": f"{type(exc).__name__}: {exc}"}]
+    if not hasattr(em, "simulate"):
+        return [{**_base(name, "pinocchio", "index1", "DOP853", None, "rtol=atol", T, ref),
+                 "skipped": "the pinocchio engine model has no simulate()"}]
+    t_eval = np.linspace(0.0, T, 21)
+    for tol in (ENGINE_LADDER_QUICK if quick else ENGINE_LADDER_FULL):
+        rec = _base(name, "pinocchio", "index1", "DOP853", tol, "rtol=atol", T, ref)
+        try:
+            def run():
+                t0 = time.perf_counter()
+                tr = em.simulate(m.initial_q, m.initial_u, T, tol, tol, method="DOP853",
+                                 t_eval=t_eval)
+                return tr, time.perf_counter() - t0
+            tr, wall, wmin, n = _timed(run, REPEATS_QUICK if quick else REPEATS_FULL)
+            if not tr.success:
+                raise RuntimeError(tr.message)
+            err, rp, rv, drift = _state_metrics(nm, tr.t, tr.q, tr.u, ref.state,
+                                                m.energy_conserved)
+            rec.update(wall_s=wall, wall_s_min=wmin, repeats=n, error=_finite(err),
+                       residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
+                       energy_drift=_finite(drift), nfev=int(tr.nfev),
+                       note="residual and energy drift over 21 output states")
+        except Exception as exc:
+            rec.update(wall_s=None, error=None, residual=None,
+                       failed=f"{type(exc).__name__}: {exc}")
+        out.append(rec)
+    return out
+
+
+STAGES = {"Euler": 1, "implicitfast": 1, "implicit": 1, "RK4": 4}
+
+
+def mujoco_records(name, quick, ref, nm, adapter):
+    T = horizon(name)
+    m = nm.model
+    out = []
+    try:
+        em = adapter.build(name, nm.params)
+    except Exception as exc:
+        return [{**_base(name, "mujoco", None, None, None, "timestep", T, ref),
+                 "skipped": f"{type(exc).__name__}: {exc}"}]
+    if not hasattr(em, "simulate"):
+        return [{**_base(name, "mujoco", None, None, None, "timestep", T, ref),
+                 "skipped": "the mujoco engine model has no simulate()"}]
+    steps = MUJOCO_STEPS_QUICK if quick else MUJOCO_STEPS_FULL
+    for integ, hs in steps.items():
+        for h in hs:
+            rec = _base(name, "mujoco", integ, integ, h, "timestep", T, ref)
+            n = int(round(T / h))
+            if n > MUJOCO_MAX_STEPS[quick]:
+                continue
+            try:
+                def run():
+                    tr = em.simulate(m.initial_q, m.initial_u, T, h, integ, record_every=n)
+                    return tr, tr.wall_time
+                tr, wall, wmin, nrep = _timed(run, REPEATS_QUICK if quick else REPEATS_FULL)
+                # an untimed run that records ~100 states for the residual and the energy
+                trr = em.simulate(m.initial_q, m.initial_u, T, h, integ,
+                                  record_every=max(1, n // 100))
+                err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
+                                                    m.energy_conserved)
+                err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
+                rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep, error=_finite(err_timed),
+                           residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
+                           energy_drift=_finite(drift), nfev=n * STAGES.get(integ, 1),
+                           nsteps=n, engine_violation=_finite(np.max(trr.violation)),
+                           note="residual and energy drift over ~100 recorded states; nfev = "
+                                "steps x stages")
+                if err != err_timed:
+                    rec["error_recorded_run"] = _finite(err)
+            except Exception as exc:
+                rec.update(wall_s=None, error=None, residual=None,
+                           failed=f"{type(exc).__name__}: {exc}")
+            out.append(rec)
+    return out
+
+
+def _adapter(engine: str):
+    """The engine adapter object, or the reason it is unavailable."""
+    if hasattr(engine, "build"):
+        return engine, None
+    try:
+        if engine == "pinocchio":
+            from .engines.pinocchio_engine import PinocchioAdapter
+            return PinocchioAdapter(), None
+        if engine == "mujoco":
+            from .engines.mujoco_engine import MujocoAdapter
+            return MujocoAdapter(), None
+    except Exception as exc:  # ImportError while an adapter is being written
+        return None, f"{type(exc).__name__}: {exc}"
+    return None, f"unknown engine {engine!r}"
+
+
+def work_precision_records(model_names, quick: bool = False, engines=("pinocchio", "mujoco"),
+                           log=None) -> list[dict]:
+    """Records for every model x method over the ladder (see the module docstring).
+
+    `engines`: names or adapter objects. With `quick`, only QUICK_MODELS among `model_names`
+    (the slider-crank always, for every engine) on the short ladders."""
+    names = list(model_names)
+    if quick:
+        if set(QUICK_MODELS) <= set(names):  # the default (all models): the quick subset
+            names = list(QUICK_MODELS)
+        if "slider_crank" not in names:  # quick still covers the slider-crank for every engine
+            names.append("slider_crank")
+    adapters = []
+    for e in engines:
+        a, why = _adapter(e)
+        adapters.append((getattr(a, "name", e) if a is not None else e, a, why))
+    out = []
+    for name in names:
+        T = horizon(name)
+        try:
+            nm = NumericModel(models.get(name))
+            ref = reference_final_state(name, T)
+        except Exception as exc:
+            out.append({"model": name, "engine": "reference", "t_end": T,
+                        "skipped": f"{type(exc).__name__}: {exc}"})
+            continue
+        t0 = time.perf_counter()
+        out += reference_records(name, quick, ref, nm)
+        for ename, a, why in adapters:
+            if a is None:
+                out.append({"model": name, "engine": ename, "t_end": T,
+                            "skipped": f"engine adapter unavailable: {why}"})
+            elif ename == "pinocchio":
+                out += pinocchio_records(name, quick, ref, nm, a)
+            elif ename == "mujoco":
+                out += mujoco_records(name, quick, ref, nm, a)
+        if log:
+            log(f"work-precision {name}: {time.perf_counter() - t0:.1f} s")
+    return out
+
+
+# ---- targets ----------------------------------------------------------------------------------
+def _best(records, **cond):
+    """The fastest record satisfying cond (callables on the record) or None."""
+    ok = [r for r in records if r.get("wall_s") is not None and all(c(r) for c in cond.values())]
+    return min(ok, key=lambda r: r["wall_s"]) if ok else None
+
+
+def _brief(r):
+    if r is None:
+        return None
+    return {k: r.get(k) for k in ("engine", "method", "integrator", "setting", "wall_s", "error",
+                                  "residual", "nfev")}
+
+
+def _profile_run(fn, top=8) -> list[str]:
+    """cProfile of fn(): the top functions by internal time (for a missed target)."""
+    pr = cProfile.Profile()
+    pr.enable()
+    fn()
+    pr.disable()
+    s = io.StringIO()
+    pstats.Stats(pr, stream=s).sort_stats("tottime").print_stats(top)
+    return [ln.rstrip() for ln in s.getvalue().splitlines() if ln.strip()][-top - 1:]
+
+
+def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank") -> dict:
+    """Issue 4's three targets, as ratios of figures measured in this run."""
+    out = {}
+    # 1. reference to 1e-8 with residual 1e-10 vs MuJoCo to 1e-4
+    recs = [r for r in wp if r.get("model") == model]
+    ref_best = _best([r for r in recs if r["engine"] == "reference"],
+                     e=lambda r: r.get("error") is not None and r["error"] <= TARGET_ERROR,
+                     c=lambda r: r.get("residual") is not None and r["residual"] <= TARGET_RESIDUAL)
+    mj = [r for r in recs if r["engine"] == "mujoco" and r.get("wall_s") is not None]
+    mj_best = _best(mj, e=lambda r: r.get("error") is not None and r["error"] <= TARGET_MUJOCO_ERROR)
+    t1 = {"model": model, "t_end": horizon(model),
+          "statement": f"reference reaches error <= {TARGET_ERROR:g} with residual <= "
+                       f"{TARGET_RESIDUAL:g} in less wall time than MuJoCo needs for error <= "
+                       f"{TARGET_MUJOCO_ERROR:g}",
+          "reference": _brief(ref_best), "mujoco": _brief(mj_best)}
+    if ref_best is None:
+        t1.update(met=False, ratio=None,
+                  reason="no reference run on the ladder met both the error and the residual")
+    elif not mj:
+        t1.update(met=None, ratio=None, reason="no MuJoCo records in this run")
+    elif mj_best is None:
+        closest = min((r for r in mj if r.get("error") is not None), key=lambda r: r["error"],
+                      default=None)
+        t1.update(met=True, ratio=None, mujoco_closest=_brief(closest),
+                  reason=f"MuJoCo did not reach {TARGET_MUJOCO_ERROR:g} anywhere on its "
+                         f"time-step ladder (its soft equality constraints bound the error); "
+                         f"ratio_vs_closest = MuJoCo's most accurate run's wall / reference's",
+                  ratio_vs_closest=(closest["wall_s"] / ref_best["wall_s"]) if closest else None)
+    else:
+        ratio = mj_best["wall_s"] / ref_best["wall_s"]
+        t1.update(met=ratio > 1.0, ratio=ratio)
+    out["slider_crank_work_precision"] = t1
+
+    # 2./3. forward dynamics: single state vs Pinocchio, batched vs Pinocchio
+    def us(name, engine, path):
+        for r in forward:
+            if r.get("model") == name and r.get("engine") == engine and r.get("path") == path \
+                    and r.get("us_per_state") is not None:
+                return r["us_per_state"]
+        return None
+
+    constrained = sorted({r["model"] for r in forward if r.get("engine") == "pinocchio"
+                          and r.get("us_per_state") is not None})
+    single, batched = {}, {}
+    for name in constrained:
+        # the forward records time the adapter's forward() (engine call + mapping + the
+        # adapter's own residual checks); the fair figure is the engine call alone
+        adapter_us = us(name, "pinocchio", "engine:pinocchio")
+        pair = forward_pair(name)
+        solver = pair.get("pinocchio_solver")
+        pin_us = pair.get("pinocchio_call_us") or adapter_us
+        ref_us = pair.get("reference_us") or us(name, "reference", "single")
+        raw_us = pair.get("reference_raw_us") or us(name, "reference", "single-raw")
+        bat_us = us(name, "reference", "batched")
+        # the target is about Pinocchio's *constrained* call; where Pinocchio models the system
+        # as a minimal tree (solver aba) the row is informative and not counted
+        counted = solver in ("kkt", "constraint")
+        if pin_us and ref_us:
+            single[name] = {"pinocchio_call_us": pin_us, "pinocchio_solver": solver,
+                            "pinocchio_adapter_forward_us": adapter_us,
+                            "reference_us": ref_us, "reference_raw_us": raw_us,
+                            "ratio": pin_us / ref_us, "ratio_raw": pin_us / raw_us if raw_us else None,
+                            "counted": counted, "met": pin_us / ref_us >= 1.0}
+            if counted and pin_us < ref_us:
+                single[name]["what_bounds_it"] = pair.get("bound")
+        if pin_us and bat_us:
+            batched[name] = {"pinocchio_call_us": pin_us, "pinocchio_solver": solver,
+                             "reference_batched_us": bat_us, "ratio": pin_us / bat_us,
+                             "counted": counted, "met": pin_us / bat_us >= TARGET_BATCH_SPEEDUP}
+    out["forward_single_vs_pinocchio"] = {
+        "statement": "single-state reference forward dynamics (checked call) no slower than "
+                     "Pinocchio's constrained call on the same model (ratio = pin / ref >= 1); "
+                     "pinocchio_call_us times the engine call alone (pin.aba / forwardDynamics / "
+                     "constraintDynamics on the mapped state, the adapter's _solve)",
+        "models": single, "met": _all_met(single)}
+    out["forward_batched_vs_pinocchio"] = {
+        "statement": f"batched reference forward over 10^4 states at least "
+                     f"{TARGET_BATCH_SPEEDUP:g}x faster per state than Pinocchio's call",
+        "models": batched, "met": _all_met(batched)}
+    return out
+
+
+def _all_met(rows: dict):
+    counted = [v["met"] for v in rows.values() if v.get("counted")]
+    return all(counted) if counted else None
+
+
+def forward_pair(name: str, rounds: int = 3) -> dict:
+    """Reference forward (checked and raw) and Pinocchio's engine call timed back to back, in
+    interleaved rounds (medians), at the model's initial state: a ratio from the same moment of
+    this noisy machine. Also what bounds the reference: the straight-line Python it runs."""
+    from .timing import per_call_seconds
+    a, _why = _adapter("pinocchio")
+    out: dict = {}
+    try:
+        model = models.get(name)
+        nm = NumericModel(model)
+        q = np.asarray(model.initial_q, float)
+        u = np.asarray(model.initial_u, float)
+        ql, ul = q.tolist(), u.tolist()
+        em = a.build(name, None) if a is not None else None
+        solve = getattr(em, "_solve", None)
+        qe, ve = em.to_engine_state(q, u) if em is not None else (None, None)
+        ref, raw, pin = [], [], []
+        for _ in range(rounds):
+            ref.append(per_call_seconds(lambda: nm.forward(q, u), repeats=3)["median"])
+            raw.append(per_call_seconds(lambda: nm.forward_raw(ql, ul, 0.0), repeats=3)["median"])
+            if solve is not None:
+                pin.append(per_call_seconds(lambda: solve(qe, ve), repeats=3)["median"])
+        out.update(reference_us=statistics.median(ref) * 1e6,
+                   reference_raw_us=statistics.median(raw) * 1e6,
+                   pinocchio_call_us=statistics.median(pin) * 1e6 if pin else None,
+                   pinocchio_solver=getattr(em, "solver", None))
+        src = nm.source
+        body = src[src.index("def forward"):src.index("def matrices")]
+        lines = [ln for ln in body.splitlines()[1:] if ln.strip()]
+        ops = sum(ln.count("*") + ln.count("+") + ln.count("-") + ln.count("/")
+                  + ln.count("sqrt") + ln.count("sin") + ln.count("cos") for ln in lines)
+        out["bound"] = {
+            "generated_forward_lines": len(lines), "generated_forward_operations": ops,
+            "ns_per_operation": out["reference_raw_us"] * 1e3 / max(ops, 1),
+            "validation_overhead_us": out["reference_us"] - out["reference_raw_us"],
+            "explanation": "the compiled forward is straight-line Python on floats: its cost is "
+                           "the interpreter's ~20-40 ns per arithmetic operation times the "
+                           "operation count of the generated KKT solve; the checked call adds "
+                           "state validation and numpy conversion of the outputs. Pinocchio's "
+                           "call is C++ whose cost grows with the tree, not with the "
+                           "expression size."}
+    except Exception as exc:
+        out["error"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def pinocchio_call_us(name: str):
+    """(median microseconds of Pinocchio's own forward call (adapter._solve) at the model's
+    initial state, the adapter's solver name), or (None, None) where unavailable."""
+    from .timing import per_call_seconds
+    a, _why = _adapter("pinocchio")
+    if a is None:
+        return None, None
+    try:
+        model = models.get(name)
+        em = a.build(name, None)
+        solve = getattr(em, "_solve", None)
+        if solve is None:
+            return None, getattr(em, "solver", None)
+        qe, ve = em.to_engine_state(np.asarray(model.initial_q, float),
+                                    np.asarray(model.initial_u, float))
+        return per_call_seconds(lambda: solve(qe, ve))["median"] * 1e6, getattr(em, "solver", None)
+    except Exception:
+        return None, None
+
+
+def profile_for_missed(tg: dict, model: str = "slider_crank") -> None:
+    """Attach a cProfile of the winning reference run where target 1 was missed."""
+    t1 = tg.get("slider_crank_work_precision", {})
+    if t1.get("met") is False and t1.get("reference"):
+        r = t1["reference"]
+        nm = NumericModel(models.get(model))
+        m = nm.model
+        t1["profile"] = _profile_run(lambda: simulate(
+            nm, m.initial_q, m.initial_u, horizon(model), r["method"], rtol=r["setting"],
+            atol=r["setting"]))
+
+
+# ---- what skipping saves -------------------------------------------------------------------
+def _median_wall(fn, repeats):
+    ws = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        ws.append(time.perf_counter() - t0)
+    return statistics.median(ws)
+
+
+def skip_savings(quick: bool = False) -> dict:
+    """Measured savings of what a scene does not need (all figures from this run)."""
+    from .timing import per_call_seconds
+    rep = REPEATS_QUICK if quick else REPEATS_FULL
+    out = {}
+    # 1. no KKT without constraints: the same pendulum in theta and in (x, y)
+    a = NumericModel(models.get("pendulum_angle"))
+    b = NumericModel(models.get("pendulum_xy"))
+    qa, ua = list(a.model.initial_q), list(a.model.initial_u)
+    qb, ub = list(b.model.initial_q), list(b.model.initial_u)
+    fa = per_call_seconds(lambda: a.forward_raw(qa, ua, 0.0))["median"]
+    fb = per_call_seconds(lambda: b.forward_raw(qb, ub, 0.0))["median"]
+    T = horizon("pendulum_xy")
+    ref_a, ref_b = reference_final_state("pendulum_angle", T), reference_final_state("pendulum_xy", T)
+    runs = {}
+    for nm, ref, key in ((a, ref_a, "pendulum_angle"), (b, ref_b, "pendulum_xy")):
+        for method in ("index1", "projection"):
+            if key == "pendulum_angle" and method == "projection":
+                continue
+            tr = None
+
+            def go():
+                nonlocal tr
+                tr = simulate(nm, nm.model.initial_q, nm.model.initial_u, T, method,
+                              rtol=1e-10, atol=1e-10)
+            w = _median_wall(go, rep)
+            runs[f"{key}/{method}"] = {"wall_s": w, "nfev": tr.nfev,
+                                       "error": float(np.max(np.abs(tr.final_state - ref.state))),
+                                       "residual": max(tr.max_residual().values())}
+    out["no_kkt_without_constraints"] = {
+        "what": "pendulum in theta (no constraint: the compiled forward is a 1x1 solve, no Schur "
+                "complement) vs in (x, y) (KKT with one row); rtol = atol = 1e-10, 10 s",
+        "forward_us": {"pendulum_angle": fa * 1e6, "pendulum_xy": fb * 1e6,
+                       "ratio_xy_over_angle": fb / fa},
+        "simulate": runs,
+        "ratio_wall_xy_projection_over_angle": runs["pendulum_xy/projection"]["wall_s"]
+        / runs["pendulum_angle/index1"]["wall_s"]}
+
+    # 2. energy bookkeeping: the work integral W as an extra state, or nothing
+    sc = NumericModel(models.get("slider_crank"))
+    Tsc = horizon("slider_crank")
+    res = {}
+    for mode in ("work", "none"):
+        tr = None
+
+        def go():
+            nonlocal tr
+            tr = simulate(sc, sc.model.initial_q, sc.model.initial_u, Tsc, "projection",
+                          rtol=1e-10, atol=1e-10, energy=mode)
+        res[mode] = {"wall_s": _median_wall(go, rep), "nfev": tr.nfev, "nsteps": tr.nsteps,
+                     "final_state": tr.final_state.tolist()}
+    diff = float(np.max(np.abs(np.subtract(res["work"]["final_state"],
+                                           res["none"]["final_state"]))))
+    out["energy_bookkeeping"] = {
+        "what": "slider_crank, projection, rtol 1e-10: work integral W carried as an ODE state "
+                "(energy='work') vs none; W is excluded from error control, so the steps are "
+                "the same up to the rounding of the error norm",
+        "work": {k: v for k, v in res["work"].items() if k != "final_state"},
+        "none": {k: v for k, v in res["none"].items() if k != "final_state"},
+        "max_final_state_difference": diff,
+        "same_step_count": res["work"].get("nsteps") == res["none"].get("nsteps"),
+        "ratio_wall_work_over_none": res["work"]["wall_s"] / res["none"]["wall_s"]}
+
+    # 3. the derivation cache: NumericModel construction cold (empty cache dir) vs warm
+    cache = {}
+    names = ("pendulum_xy", "slider_crank") if quick else ("pendulum_xy", "slider_crank",
+                                                            "slider_crank_split")
+    old = os.environ.get("CROSSCHECK_CACHE_DIR")
+    try:
+        with tempfile.TemporaryDirectory(prefix="crosscheck-cache-") as tmp:
+            os.environ["CROSSCHECK_CACHE_DIR"] = tmp
+            for name in names:
+                model = models.get(name)
+                t0 = time.perf_counter()
+                NumericModel(model)
+                cold = time.perf_counter() - t0
+                warm = _median_wall(lambda: NumericModel(model), max(rep, 3))
+                cache[name] = {"cold_s": cold, "warm_s": warm, "ratio_cold_over_warm": cold / warm}
+    finally:
+        if old is None:
+            os.environ.pop("CROSSCHECK_CACHE_DIR", None)
+        else:
+            os.environ["CROSSCHECK_CACHE_DIR"] = old
+    out["derivation_cache"] = {
+        "what": "NumericModel construction with an empty CROSSCHECK_CACHE_DIR (derive, simplify, "
+                "generate code) vs the cached generated module (read, compile); the registry's "
+                "Model objects are built beforehand in both cases",
+        "models": cache}
+
+    # 4. projection: refresh the FSAL derivative after projecting, or reuse the unprojected one
+    ref = reference_final_state("slider_crank", Tsc)
+    pr = {}
+    for refresh in (True, False):
+        tr = None
+
+        def go():
+            nonlocal tr
+            tr = simulate(sc, sc.model.initial_q, sc.model.initial_u, Tsc, "projection",
+                          rtol=1e-10, atol=1e-10, energy="none", refresh=refresh)
+        pr["refresh" if refresh else "reuse"] = {
+            "wall_s": _median_wall(go, rep), "nfev": tr.nfev, "nsteps": tr.nsteps,
+            "error": float(np.max(np.abs(tr.final_state - ref.state)))}
+    out["projection_fsal_refresh"] = {
+        "what": "slider_crank, DOP853 + projection, rtol 1e-10: solver.f recomputed at the "
+                "projected point (one RHS call per step) vs kept from the unprojected point",
+        **pr, "ratio_wall_refresh_over_reuse": pr["refresh"]["wall_s"] / pr["reuse"]["wall_s"]}
+    return out
