@@ -272,6 +272,8 @@ class Content:
         return [r for r in self.work_precision if r.get("model", "?") == model]
 
     def series_note(self, model) -> str:
+        if self.results_path is None:
+            return "No trajectory shown: the report was made without a results.json."
         if self.series is None:
             return ("No trajectory was run: results.json has no \"series\" (the run recorded "
                     "instantaneous checks only).")
@@ -348,7 +350,7 @@ details pre{max-height:24em;overflow:auto;font-size:.85em}
 ol.notes{font-size:.8em;color:#444;margin-top:0}ol.notes li{margin:.15em 0}
 figure{margin:.6em 0 1.2em}figure img{max-width:100%;height:auto;border:1px solid #eee}
 figcaption{font-size:.82em;color:#555;max-width:60em}
-nav a{margin-right:.9em}
+nav{display:flex;flex-wrap:wrap;gap:.25em 1em;margin:.4em 0}
 footer{margin-top:3em;border-top:2px solid #ddd;padding-top:.6em;font-size:.85em;color:#333}
 pre{background:#f5f5f5;padding:8px 10px;overflow-x:auto;font-size:.92em}
 code{font-family:ui-monospace,"DejaVu Sans Mono",monospace}
@@ -513,7 +515,8 @@ def _model_html(c: Content, model: str) -> str:
     recs = c.records_of(model)
     head = f'<h2 id="{_anchor(model)}">{_e(model)}'
     if title or source:
-        head += f' <span class="sub">— {_e(title)}{" (" + _e(source) + ")" if source else ""}</span>'
+        src = f" ({_e(source)})" if source else ""
+        head += f' <span class="sub">— {_e(title)}{src}</span>'
     head += "</h2>"
     out = [head]
     n = {k: sum(1 for r in recs if status(r) == k) for k in ("pass", "fail", "skip")}
@@ -560,7 +563,11 @@ def _footer_html(c: Content) -> str:
 
 
 def render_html(c: Content) -> str:
-    from . import plots  # noqa: F401  (fail early, before any output, if matplotlib is missing)
+    try:  # fail before writing anything, with one line, if the plotting library is missing
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise ReportInputError("the report's plots need matplotlib (a dependency of this "
+                               "package: pip install -e .)")
     n = c.counts
     executed = n["pass"] + n["fail"]
     if c.records:
@@ -589,21 +596,25 @@ def render_html(c: Content) -> str:
                                        for m in c.models)
                      + ('<a href="#bench-more">more from bench.json</a>' if c.other_bench else "")
                      + '<a href="#footer">versions</a></nav>')
+    headers = ["model", "passed", "failed", "skipped", "engines"]
+    headers += ["trajectories"] if c.series is not None else []
+    headers += ["forward timings", "work-precision points"] if c.bench is not None else []
     overview = []
     for m in c.models:
         recs = c.records_of(m)
         k = {s: sum(1 for r in recs if status(r) == s) for s in ("pass", "fail", "skip")}
         engines = ", ".join(dict.fromkeys(r.get("engine", "?") for r in recs))
-        overview.append([f'<a href="#{_anchor(m)}">{_e(m)}</a>', str(k["pass"]),
-                         f'<b>{k["fail"]}</b>' if k["fail"] else "0", str(k["skip"]),
-                         _e(engines), str(len(c.series_of(m))),
-                         str(len(c.forward_of(m))), str(len(c.work_precision_of(m)))])
+        row = [f'<a href="#{_anchor(m)}">{_e(m)}</a>', str(k["pass"]),
+               f'<b>{k["fail"]}</b>' if k["fail"] else "0", str(k["skip"]), _e(engines)]
+        row += [str(len(c.series_of(m)))] if c.series is not None else []
+        row += ([str(len(c.forward_of(m))), str(len(c.work_precision_of(m)))]
+                if c.bench is not None else [])
+        overview.append(row)
     if overview:
         parts.append("<h3>Overview</h3>")
-        parts.append(_table(["model", "passed", "failed", "skipped", "engines", "trajectories",
-                             "forward timings", "work-precision points"], overview,
+        parts.append(_table(headers, overview,
                             ["fail" if "<b>" in row[2] else "" for row in overview],
-                            {1, 2, 3, 5, 6, 7}))
+                            {1, 2, 3} | set(range(5, len(headers)))))
     if c.failing:
         parts.append("<h3>Failing checks</h3><ul>")
         for r in c.failing:
@@ -740,7 +751,8 @@ def render_junit(c: Content) -> str:
         for k, v in _versions(meta).items():
             ET.SubElement(props, "property", name=k, value=str(v))
         for r in recs:
-            tc = ET.SubElement(suite, "testcase", classname=f"crosscheck.{m}.{r.get('engine', '?')}",
+            tc = ET.SubElement(suite, "testcase",
+                               classname=f"crosscheck.{m}.{r.get('engine', '?')}",
                                name=f"{r.get('formulation', '?')}.{r.get('check', '?')}."
                                     f"{r.get('quantity', '?')}", time="0")
             st = status(r)
