@@ -60,18 +60,25 @@ def scaled_error(value, reference) -> float:
     return float(np.max(np.abs(value - reference)) / max(float(np.max(np.abs(reference))), 1.0))
 
 
+METRICS = {
+    "scaled_error": "max |value - reference| / max(max |reference|, 1)",
+    "relative_miss": "max |(raw - reference) - predicted| / max |predicted|, both scaled as "
+                     "scaled_error",
+}
+
+
 def record(model, formulation, engine, check, quantity, error, tolerance: Tolerance | None,
-           reason: str = "", **details) -> dict:
+           reason: str = "", metric: str = "scaled_error", **details) -> dict:
     """One results.json record. A record with tolerance None is a skip, with the reason."""
+    base = {"model": model, "formulation": formulation, "engine": engine, "check": check,
+            "quantity": quantity}
     if tolerance is None:
-        return {"model": model, "formulation": formulation, "engine": engine, "check": check,
-                "quantity": quantity, "error": None, "tolerance": None, "passed": None,
-                "skipped": True, "reason": reason, **details}
+        return {**base, "error": None, "tolerance": None, "passed": None, "skipped": True,
+                "reason": reason, **details}
     passed = bool(error is not None and np.isfinite(error) and error <= tolerance.value)
-    return {"model": model, "formulation": formulation, "engine": engine, "check": check,
-            "quantity": quantity, "error": None if error is None else float(error),
+    return {**base, "error": None if error is None else float(error),
             "tolerance": tolerance.value, "passed": passed, "skipped": False,
-            "reason": reason or tolerance.reason, **details}
+            "reason": reason or tolerance.reason, "metric": metric, **details}
 
 
 class WorstCase:

@@ -211,7 +211,7 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
                            answer="rigid, recovered from MuJoCo's soft solution", **soft, **it))
             w = worst[f"{q}_soft"]
             out.append(rec("instantaneous", f"{q}_soft_vs_predicted", w.error,
-                           C.SOFT_PREDICTION, worst_state=w.state,
+                           C.SOFT_PREDICTION, worst_state=w.state, metric="relative_miss",
                            answer="raw soft answer: |(raw - reference) - predicted error| "
                                   "over |predicted error|", **soft))
     else:
@@ -264,7 +264,10 @@ def cmd_run(args) -> int:
         bar.close()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    result = {"meta": meta(sys.argv[1:]), "records": records}
+    result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
+                       "state_seed": "crc32 of the model name (crosscheck.run.consistent_states)",
+                       "metrics": C.METRICS},
+              "records": records}
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True))
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
