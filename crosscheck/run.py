@@ -116,14 +116,20 @@ def _soft_check(worst, extras, quantity, raw_value, reference, predicted_error, 
     extras["soft_error"].append(float(np.max(np.abs(actual))) / scale if actual.size else 0.0)
 
 
-def _engine_records(name, nm, states, adapter, perturb, variant=None):
-    formulation = nm.formulation
-    params = dict(nm.params)
+def perturbed(name, params: dict, perturb: dict) -> dict:
+    """The parameters with the relative perturbations of one engine applied (fault injection)."""
+    params = dict(params)
     for p, rel in perturb.items():
         if p not in params:
             raise ModelInputError(f"--perturb: model {name!r} has no parameter {p!r}; valid: "
                                   f"{', '.join(params)}")
         params[p] *= 1.0 + rel
+    return params
+
+
+def _engine_records(name, nm, states, adapter, perturb, variant=None):
+    formulation = nm.formulation
+    params = perturbed(name, nm.params, perturb)
     def rec(*a, **k):
         r = C.record(name, formulation, adapter.name, *a, **k)
         if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
@@ -225,10 +231,13 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
     return out
 
 
-def run(model_names, engine_names, n_states=6, perturb=None, progress=None):
+def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
+        trajectories=True, t_end=5.0):
+    """All records (and trajectory series) for the models; see the module docstring."""
+    from .trajectory import trajectory_records
     perturb = perturb or {}
     adapters = [engine_adapter(e) for e in engine_names]
-    records = []
+    records, series = [], []
     for name in model_names:
         model = models.get(name)
         nm = NumericModel(model)
@@ -239,9 +248,19 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None):
             for variant in variants:
                 records += _engine_records(name, nm, states, adapter,
                                            perturb.get(adapter.name, {}), variant)
+        if trajectories:
+            engine_params = {a.name: perturbed(name, nm.params, perturb.get(a.name, {}))
+                             for a in adapters}
+            recs, ser = trajectory_records(name, nm, adapters, t_end, engine_params)
+            records += recs
+            series += ser
+        else:  # skipped on request: visible in the results, not silently absent
+            records.append(C.record(name, nm.formulation, "reference", "trajectory",
+                                    "state_error", None, None,
+                                    "instantaneous checks only (--instantaneous)"))
         if progress:
             progress(name)
-    return records
+    return records, series
 
 
 def cmd_run(args) -> int:
@@ -258,8 +277,9 @@ def cmd_run(args) -> int:
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
         from tqdm import tqdm
         bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
-    records = run(names, engine_names, args.states, perturb,
-                  progress=(lambda n: bar.update(1)) if bar else None)
+    records, series = run(names, engine_names, args.states, perturb,
+                          progress=(lambda n: bar.update(1)) if bar else None,
+                          trajectories=not args.instantaneous, t_end=args.t_end)
     if bar:
         bar.close()
     out = Path(args.out)
@@ -267,7 +287,7 @@ def cmd_run(args) -> int:
     result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
                        "state_seed": "crc32 of the model name (crosscheck.run.consistent_states)",
                        "metrics": C.METRICS},
-              "records": records}
+              "records": records, "series": series}
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True))
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
@@ -287,4 +307,7 @@ def register(sub):
     r.add_argument("--out", default="out")
     r.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL")
     r.add_argument("--states", type=int, default=6, help="consistent states per model")
+    r.add_argument("--instantaneous", action="store_true",
+                   help="only the checks at consistent states, no trajectories")
+    r.add_argument("--t-end", type=float, default=5.0, help="trajectory length [s]")
     r.set_defaults(func=cmd_run)

@@ -1,0 +1,207 @@
+"""Trajectories: the same initial state run T seconds in the reference and in each engine.
+
+- reference: DOP853 with coordinate projection at rtol = atol = 1e-12 (reference.integrate),
+  its own accuracy measured in the same run against rtol = atol = 1e-13;
+- Pinocchio: its forward dynamics integrated by the same scipy DOP853 at rtol = atol = 1e-10 in
+  its own coordinates, no stabilization (index-1 drift is part of what is measured);
+- MuJoCo: its own RK4 on a time-step ladder (h and h/2).
+Each run yields records (state error against the reference, constraint drift, energy drift)
+and a series for the report's plots.
+
+State error: max over the output times of max |x - x_ref| / max(max |x_ref|, 1), x = (q, u) in
+the reference's coordinates. Angles are unwrapped in time and a whole-turn offset at t = 0 is
+removed, so a coordinate reported modulo 2 pi does not count as an error.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from reference import NumericModel
+from reference.errors import ModelInputError
+from reference.integrate import simulate
+
+from . import compare as C
+from .engines.base import EngineUnsupported
+
+T_END = 5.0
+N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots
+REF_RTOL, REF_CHECK_RTOL = 1e-12, 1e-13
+PIN_RTOL = 1e-10
+MUJOCO_STEPS = (1e-3, 5e-4)
+
+REFERENCE_ACCURACY = C.Tolerance(
+    1e-8, "the reference trajectory (rtol 1e-12) against a tighter one (rtol 1e-13): the "
+          "engines are judged against it, so its own error must sit far below the 1e-6..1e-2 "
+          "they are held to")
+PROJECTED_DRIFT = C.Tolerance(
+    1e-11, "coordinate projection after every step holds f(q, t) = 0 to its Gauss-Newton "
+           "tolerance (~1e-15 relative) on unit-size coordinates")
+INDEX1_DRIFT = C.Tolerance(
+    1e-7, "no stabilization: the position drift follows the integrator's error, ~10..100x its "
+          "tolerance over 5..10 s (NUMERICS.md 1.1; Pinocchio adapter docstring); 1e3x rtol")
+SOFT_STATE = C.Tolerance(
+    5e-2, "characterization, not a physics bound: MuJoCo's equality constraints are soft "
+          "(solref 0.02 s, d = 0.9999), so its trajectory follows slightly different dynamics; "
+          "measured 6e-6 (pendulum) .. 1.1e-2 (top spinning at 60 rad/s) over 5 s, independent "
+          "of the step. The instantaneous rigid-recovery check is the exact one; the gate "
+          "tracks this figure against its baseline")
+SOFT_DRIFT = C.Tolerance(
+    1e-5, "MuJoCo's soft constraints settle at a violation set by solref (time constant "
+          "0.02 s): measured 5e-7..2.2e-6 here, 2.6e-6 in ENGINES.md 3.5")
+SOFT_ENERGY = C.Tolerance(
+    1e-2, "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
+          "characterization (ENGINES.md 3.5: 6e-4 J of 7 J for the slider-crank, RK4)")
+
+
+def state_error(q, u, ref_q, ref_u) -> np.ndarray:
+    """Scaled state error at every output time (angles unwrapped, whole-turn offset removed)."""
+    qa, qb = np.unwrap(np.asarray(q), axis=0), np.unwrap(np.asarray(ref_q), axis=0)
+    offset = 2 * np.pi * np.round((qa[0] - qb[0]) / (2 * np.pi))
+    diff = np.hstack([qa - qb - offset, np.asarray(u) - np.asarray(ref_u)])
+    scale = max(float(np.max(np.abs(np.hstack([ref_q, ref_u])))), 1.0)
+    return np.max(np.abs(diff), axis=1) / scale
+
+
+def _residual_series(nm: NumericModel, t, q, u) -> np.ndarray:
+    out = []
+    for ti, qi, ui in zip(t, q, u):
+        pos, vel = nm.residuals(qi, ui, ti)
+        out.append(float(np.max(np.abs(pos))) if pos.size else 0.0)
+    return np.array(out)
+
+
+def _energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
+    return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u)])
+
+
+def _energy_drift(E: np.ndarray) -> float:
+    return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
+
+
+def _series(model, engine, formulation, label, t, err, res, E, variant=None):
+    s = {"model": model, "engine": engine, "formulation": formulation, "label": label,
+         "t": np.asarray(t).tolist(), "state_error": np.asarray(err).tolist(),
+         "residual": np.asarray(res).tolist(), "energy": np.asarray(E).tolist(),
+         "energy_kind": "total energy K + V (reference datum)",
+         "state_error_kind": "max |x - x_ref| / max(max |x_ref|, 1), x = (q, u)",
+         "reference_label": f"reference DOP853+projection rtol={REF_RTOL:g}"}
+    if variant:
+        s["variant"] = variant
+    return s
+
+
+def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
+                       engine_params: dict | None = None):
+    """Records and plot series for one model: the reference, then every engine variant."""
+    model = nm.model
+    f = nm.formulation
+    grid = np.linspace(0.0, t_end, N_OUT)
+    q0, u0 = nm.project(model.initial_q, model.initial_u)
+    records, series = [], []
+    ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL, t_eval=grid)
+    tight = simulate(nm, q0, u0, t_end, "projection", rtol=REF_CHECK_RTOL, atol=REF_CHECK_RTOL,
+                     t_eval=grid)
+    ref_acc = float(np.max(state_error(ref.q, ref.u, tight.q, tight.u)))
+    # conserved at these parameters: declared so, or no load does work along the reference
+    # run (a driving torque or damper whose parameter is 0) and no constraint moves
+    from reference.constraints import is_rheonomic
+    conserved = model.energy_conserved or (not is_rheonomic(model) and all(
+        nm.power_balance(qi, ui, ti)["load_power"] == 0.0
+        for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10])))
+    no_energy = ("energy is not conserved (driving or damping loads, or moving constraints); "
+                 "the reference's work-energy balance is checked instantaneously in the tests "
+                 "and integrated in `crosscheck bench`")
+    E_ref = _energy_series(nm, ref.t, ref.q, ref.u)
+    res_ref = _residual_series(nm, ref.t, ref.q, ref.u)
+    rec = lambda engine, qty, err, tol, reason="", **k: C.record(  # noqa: E731
+        name, f, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k)
+    records.append(rec("reference", "state_error", ref_acc, REFERENCE_ACCURACY,
+                       label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
+                       nfev=ref.nfev))
+    if nm.m:
+        records.append(rec("reference", "constraint_drift", float(res_ref.max()),
+                           PROJECTED_DRIFT, label="DOP853+projection"))
+    if conserved:
+        records.append(rec("reference", "energy_drift", _energy_drift(E_ref), C.Tolerance(
+            1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
+                  "(projection does not conserve energy exactly, NUMERICS.md 1.3)")))
+    series.append(_series(name, "reference", f, f"DOP853+projection rtol={REF_RTOL:g}",
+                          ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref))
+
+    # the reference's own global error at the engines' tolerance, for Pinocchio's bound
+    loose = simulate(nm, q0, u0, t_end, "index1", rtol=PIN_RTOL, atol=PIN_RTOL, t_eval=grid)
+    loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
+    loose_E = _energy_drift(_energy_series(nm, loose.t, loose.q, loose.u))
+
+    for adapter in adapters:
+        variants = adapter.variants(name) if hasattr(adapter, "variants") else (None,)
+        for variant in variants:
+            params = (engine_params or {}).get(adapter.name, nm.params)
+            try:
+                em = adapter.build(name, params, variant=variant) if variant else \
+                    adapter.build(name, params)
+            except EngineUnsupported as exc:
+                records.append(rec(adapter.name, "state_error", None, None,
+                                   f"engine cannot represent the model: {exc}"))
+                continue
+            extra = {"variant": variant} if variant else {}
+            runs = []
+            if adapter.name == "pinocchio":
+                tr = em.simulate(q0, u0, t_end, rtol=PIN_RTOL, atol=PIN_RTOL, t_eval=grid)
+                label = f"DOP853 rtol={PIN_RTOL:g} (no stabilization)"
+                state_tol = C.Tolerance(
+                    10 * loose_err + 1e-10,
+                    f"the same DOP853 at the same rtol {PIN_RTOL:g}: its global error, measured "
+                    f"on the reference in this run ({loose_err:.1e}), times 10 for another "
+                    f"choice of coordinates")
+                drift_tol = INDEX1_DRIFT
+                energy_tol = C.Tolerance(10 * loose_E + 1e-10,
+                                         f"10x the reference's energy drift at rtol "
+                                         f"{PIN_RTOL:g} without stabilization ({loose_E:.1e})")
+                runs.append((label, tr.t, tr.q, tr.u, {"nfev": tr.nfev}))
+            else:
+                soft = getattr(getattr(em, "m", None), "neq", 0) > 0
+                trs = {}
+                for h in MUJOCO_STEPS:
+                    every = max(1, int(round((t_end / (N_OUT - 1)) / h)))
+                    trs[h] = em.simulate(q0, u0, t_end, h, "RK4", record_every=every)
+                    runs.append((f"RK4 h={h:g}", trs[h].t, trs[h].q, trs[h].u,
+                                 {"steps": trs[h].n_steps}))
+                h0, h1 = MUJOCO_STEPS
+                halving = float(np.max(state_error(trs[h0].q, trs[h0].u, trs[h1].q, trs[h1].u)))
+                if soft:
+                    state_tol, drift_tol, energy_tol = SOFT_STATE, SOFT_DRIFT, SOFT_ENERGY
+                else:
+                    state_tol = C.Tolerance(
+                        10 * halving + 1e-10,
+                        f"no constraint rows in MuJoCo's model: RK4's global error, estimated "
+                        f"in this run by halving the step ({halving:.1e}), times 10, plus the "
+                        f"reference's own accuracy")
+                    drift_tol = INDEX1_DRIFT
+                    E0 = _energy_drift(_energy_series(nm, trs[h0].t, trs[h0].q, trs[h0].u))
+                    E1 = _energy_drift(_energy_series(nm, trs[h1].t, trs[h1].q, trs[h1].u))
+                    energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
+                                             "RK4's energy error estimated by halving the step "
+                                             f"({abs(E0 - E1):.1e}), times 10")
+            for k, (label, t, q, u, info) in enumerate(runs):
+                if len(t) != len(ref.t) or np.max(np.abs(np.asarray(t) - ref.t)) > 1e-9:
+                    raise ModelInputError(f"{adapter.name} trajectory of {name} is not on the "
+                                          f"reference's output grid")
+                err = state_error(q, u, ref.q, ref.u)
+                res = _residual_series(nm, t, q, u)
+                E = _energy_series(nm, t, q, u)
+                series.append(_series(name, adapter.name, f, label, t, err, res, E, variant))
+                if k:  # records for the first rung; the others feed the estimate and plots
+                    continue
+                records.append(rec(adapter.name, "state_error", float(err.max()), state_tol,
+                                   label=label, **info, **extra))
+                if nm.m:
+                    records.append(rec(adapter.name, "constraint_drift", float(res.max()),
+                                       drift_tol, label=label, **extra))
+                if conserved:
+                    records.append(rec(adapter.name, "energy_drift", _energy_drift(E),
+                                       energy_tol, label=label, **extra))
+                else:
+                    records.append(rec(adapter.name, "energy_drift", None, None, no_energy,
+                                       **extra))
+    return records, series
