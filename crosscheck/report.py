@@ -274,7 +274,7 @@ class Content:
     def series_note(self, model) -> str:
         if self.results_path is None:
             return "No trajectory shown: the report was made without a results.json."
-        if self.series is None:
+        if not self.series:
             return ("No trajectory was run: results.json has no \"series\" (the run recorded "
                     "instantaneous checks only).")
         if not self.series_of(model):

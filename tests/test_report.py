@@ -46,6 +46,7 @@ def results_of(tmp_path_factory, kind: str) -> Path:
         out = tmp_path_factory.mktemp(kind)
         extra = ["--perturb", "pinocchio:m2=1e-6"] if kind == "faulty" else []
         p = crosscheck("run", "slider_crank", "--engines", "pinocchio", "--states", "2",
+                       "--instantaneous",
                        *extra, "--out", out)
         assert p.returncode == (1 if kind == "faulty" else 0), p.stdout + p.stderr
         _RUNS[kind] = out / "results.json"
@@ -279,7 +280,7 @@ def test_clean_run_without_series_or_bench_says_so(runs, tmp_path):
     shutil.copy(runs["clean"], tmp_path / "results.json")
     assert main(["report", "--results", str(tmp_path / "results.json")]) == 0
     html = (tmp_path / "index.html").read_text()  # default --out: beside the results
-    assert "All 8 executed checks pass (1 skipped)" in html
+    assert "All 8 executed checks pass (2 skipped)" in html
     assert "No trajectory was run" in html
     assert "Work-precision" not in html  # no bench given, none beside the results
     assert "FAIL" not in "".join(r["cells"][0] for r in check_rows(parse_page(
