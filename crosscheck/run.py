@@ -289,6 +289,10 @@ def cmd_run(args) -> int:
                        "metrics": C.METRICS},
               "records": records, "series": series}
     (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True))
+    if not args.no_report:  # the main job leaves a report a person can open
+        from .report import generate
+        bench = out / "bench.json"
+        generate(str(out / "results.json"), str(bench) if bench.exists() else None, str(out))
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
     passed = sum(1 for r in records if r["passed"])
@@ -296,7 +300,7 @@ def cmd_run(args) -> int:
         print(f"FAIL {r['model']} {r['engine']} {r['check']} {r['quantity']}: error "
               f"{r['error']:.3e} > {r['tolerance']:.1e}", file=sys.stderr)
     print(f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
-          f"-> {out / 'results.json'}")
+          f"-> {out / 'results.json'}" + ("" if args.no_report else f", {out / 'index.html'}"))
     return 1 if failed else 0
 
 
@@ -310,4 +314,6 @@ def register(sub):
     r.add_argument("--instantaneous", action="store_true",
                    help="only the checks at consistent states, no trajectories")
     r.add_argument("--t-end", type=float, default=5.0, help="trajectory length [s]")
+    r.add_argument("--no-report", action="store_true",
+                   help="write results.json only (no index.html / report.md / junit.xml)")
     r.set_defaults(func=cmd_run)
