@@ -47,7 +47,8 @@ EPS_SOFT = (1 - SOLIMP[0]) / SOLIMP[0]  # (1 - d)/d = 1.0001e-4
 CASES = [("pendulum_angle", None), ("pendulum_xy", None), ("slider_crank", None),
          ("slider_crank_split", None), ("slider_crank_free", None),
          ("double_pendulum_3d", "free"), ("double_pendulum_3d", "tree"),
-         ("top_euler", None), ("top_cartesian", None), ("frame_bar", None)]
+         ("top_euler", None), ("top_cartesian", None), ("frame_bar", None),
+         ("exercise_6_1", None), ("exercise_6_2", None), ("exercise_6_4", None)]
 IDS = [n if v is None else f"{n}[{v}]" for n, v in CASES]
 DETERMINISTIC = settings(derandomize=True, max_examples=15, deadline=None, database=None,
                          suppress_health_check=[HealthCheck.too_slow])
@@ -113,6 +114,22 @@ def state_from_primaries(name, nm, a, b, seed):
             q, u = [th1, th2 + 1e-3], [w1, w2 + 0.1]
         else:  # free: any (theta1, theta2)
             q, u = [th1, th2 + 0.7 * a], [w1, w2 + 3.0 * b]
+    elif name.startswith("exercise_6_"):  # the mechanism's own coordinates, then dependent ones
+        rng = np.random.default_rng(seed)
+        th, w = math.pi * a, 4.0 * b
+        S, C = math.sin(th), math.cos(th)
+        if name == "exercise_6_1":  # any bar angle: x = l S, y = l C (slightly off: projected)
+            l = p["l"]
+            q = [l * S + 1e-3, l * C, th]
+            u = [l * C * w, -l * S * w + 0.1, w]
+        elif name == "exercise_6_2":  # block x, bar angle; G - A = (l/2)(S, C)
+            h = p["l"] / 2
+            x, xd = rng.uniform(-0.5, 0.5), rng.uniform(-2, 2)
+            q, u = [x, th, h * S, h * C - 1e-3], [xd, w, h * C * w, -h * S * w]
+        else:  # exercise_6_4: disk angle and rate, bar angle; G = (R + (l/2) S, -(l/2) C)
+            h, R = p["l"] / 2, p["R"]
+            phi, phid = rng.uniform(-math.pi, math.pi), rng.uniform(-5, 5)
+            q, u = [phi, th, R + h * S, -h * C], [phid, w, h * C * w + 0.1, h * S * w]
     else:
         q, u = nm.model.state_sampler(np.random.default_rng(seed), p)
     return nm.project(q, u)
@@ -440,15 +457,167 @@ def test_sign_frame_bar():
     assert reference("frame_bar").forward(q, u).multipliers[0] == pytest.approx(lam, rel=1e-12)
 
 
+def test_sign_exercise_6_1():
+    """Static equilibrium of the ladder with default parameters: at rest the reduced equation
+    (reference docstring, part b) holds with theta'' = 0 when k l C = (m/2 + m_p) g + F. There
+    the block presses the bar's end B down, F_B = (k l S, -(m_p g + F)) (F_Bx balances the
+    spring at A), the slider pushes the bar at A with F_A = (-k l S, (m + m_p) g + F), and
+    lambda = ((F_Bx - F_Ax)/2, (F_Ay - F_By)/2) = (k l S, (m/2 + m_p) g + F), the reference's
+    rows 1 and 2 at rest (k x = lambda1, (m/2 + m_p) g = lambda2 - F)."""
+    p = _params("exercise_6_1")
+    m, m_p, l, k, c, F, g = (p[n] for n in ("m", "m_p", "l", "k", "c", "F", "g"))
+    th = math.acos(((m / 2 + m_p) * g + F) / (k * l))
+    S, C = math.sin(th), math.cos(th)
+    q, u = [l * S, l * C, th], [0.0, 0.0, 0.0]
+    lam = [k * l * S, (m / 2 + m_p) * g + F]
+    fw = engine("exercise_6_1", None).forward(q, u)
+    raw = fw.raw
+    assert raw["rigid_accelerations"] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
+    assert raw["rigid_multipliers"] == pytest.approx(lam, rel=1e-10)
+    assert raw["rigid_engine_forces"] == pytest.approx([k * l * S, -(m_p * g + F), 0.0],
+                                                       rel=1e-10, abs=1e-10)
+    assert raw["spring_damper_force"] == pytest.approx(-k * l * S, rel=1e-14)
+    # the slider's force on the bar (cfrc_int) at MuJoCo's own (soft) answer, ~1e-4 off
+    assert raw["pin_A_force_cfrc"] == pytest.approx([-k * l * S, (m + m_p) * g + F, 0.0],
+                                                    rel=1e-3, abs=1e-9)
+    assert fw.multipliers == pytest.approx(lam, rel=1e-3)
+    assert reference("exercise_6_1").forward(q, u).multipliers == pytest.approx(lam, rel=1e-12)
+    # moving: the damper opposes x' (qfrc_passive = -k x - c x'), and the slider transmits it
+    # to the bar (cfrc_int = the Newton-derived F_A at MuJoCo's answer; light slider: 1e-12)
+    w = 1.3
+    fm = engine("exercise_6_1", None).forward([l * S, l * C, th], [l * C * w, -l * S * w, w])
+    assert fm.raw["spring_damper_force"] == pytest.approx(-k * l * S - c * l * C * w, rel=1e-14)
+    assert fm.raw["pin_A_force_cfrc"][0] == pytest.approx(fm.raw["spring_damper_force"],
+                                                          rel=1e-10)
+    assert fm.raw["pin_A_force_cfrc"] == pytest.approx(fm.raw["pin_A_force"], rel=1e-10,
+                                                       abs=1e-10)
+
+
+def test_sign_exercise_6_2():
+    """Y down. Hanging at rest with the spring holding F (k x = F): q'' = 0 and the pin holds
+    the bar UP, lambda = (0, -m2 g) (the reference's m2 y_G'' - m2 g = lambda2). Moving at the
+    bottom with the block held still by the spring alone is not static, so the second case
+    checks the load signs through MuJoCo's own generalized forces: qfrc_passive(x) = -k x -
+    c x', qfrc_applied(x) = +F."""
+    p = _params("exercise_6_2")
+    m2, l, k, c, F, g = (p[n] for n in ("m2", "l", "k", "c", "F", "g"))
+    em = engine("exercise_6_2", None)
+    q, u = [F / k, 0.0, 0.0, l / 2], [0.0, 0.0, 0.0, 0.0]
+    fw = em.forward(q, u)
+    assert fw.accelerations == pytest.approx(np.zeros(4), abs=1e-12)
+    assert fw.multipliers == pytest.approx([0.0, -m2 * g], rel=1e-13, abs=1e-13)
+    assert fw.raw["pin_force_on_bar"] == pytest.approx([0.0, -m2 * g, 0.0], abs=1e-12)
+    assert reference("exercise_6_2").forward(q, u).multipliers == pytest.approx(
+        [0.0, -m2 * g], abs=1e-12)
+    x, xd = 0.2, -0.7
+    em.forward([x, 0.0, 0.0, l / 2], [xd, 0.0, 0.0, 0.0])
+    assert em.d.qfrc_passive[0] == pytest.approx(-k * x - c * xd, rel=1e-14)
+    assert em.d.qfrc_applied[0] == F
+
+
+def test_sign_exercise_6_4():
+    """Z up, no motor torques. (a) Hanging at rest: the pin holds the bar up, lambda =
+    (0, m g). (b) Hanging, the disk spinning at Omega, theta' = 0: the bar is flung outward,
+    theta'' = 3 R Omega^2 / (2 l) (moment balance about P with the radial pin force), and the
+    pin pulls it INWARD, lambda1 = m y_G'' - m R Omega^2 = -m R Omega^2 / 4, lambda2 = m g;
+    phi'' = 0. (c) The torsional spring and damper act on theta: qfrc_passive = -k theta -
+    c theta'."""
+    p = _params("exercise_6_4", M_phi=0.0, M_theta=0.0)
+    m, R, l, k, c, g = (p[n] for n in ("m", "R", "l", "k", "c", "g"))
+    em = ADAPTER.build("exercise_6_4", {"M_phi": 0.0, "M_theta": 0.0})
+    nm = NumericModel(get("exercise_6_4"), None, {"M_phi": 0.0, "M_theta": 0.0})
+    q = [0.3, 0.0, R, -l / 2]
+    fw = em.forward(q, [0.0] * 4)
+    assert fw.accelerations == pytest.approx(np.zeros(4), abs=1e-12)
+    assert fw.multipliers == pytest.approx([0.0, m * g], rel=1e-13, abs=1e-13)
+    W = 2.5
+    fw = em.forward(q, [W, 0.0, 0.0, 0.0])
+    thdd = 3 * R * W * W / (2 * l)
+    assert fw.accelerations == pytest.approx([0.0, thdd, l / 2 * thdd, 0.0], rel=1e-11,
+                                             abs=1e-11)
+    assert fw.multipliers == pytest.approx([-m * R * W * W / 4, m * g], rel=1e-11)
+    assert nm.forward(q, [W, 0.0, 0.0, 0.0]).multipliers == pytest.approx(
+        [-m * R * W * W / 4, m * g], rel=1e-12)
+    th, thd = 0.4, -1.1
+    em.forward([0.3, th, R + l / 2 * math.sin(th), -l / 2 * math.cos(th)],
+               [0.0, thd, l / 2 * math.cos(th) * thd, l / 2 * math.sin(th) * thd])
+    assert em.d.qfrc_passive[1] == pytest.approx(-k * th - c * thd, rel=1e-14)
+
+
+@pytest.mark.parametrize("name", ["exercise_6_1", "exercise_6_2", "exercise_6_4"])
+def test_energy_includes_the_joint_springs(name):
+    """d.energy[0] holds the joint springs' 1/2 k (q - springref)^2 (not only gravity): with
+    the stiffness zeroed in the compiled model the potential drops by exactly the reference's
+    spring term k x^2/2 (6.1, 6.2) or k theta^2/2 (6.4). So the adapter's V needs no spring
+    correction (the light bodies' energy aside)."""
+    nm = reference(name)
+    em = engine(name, None)
+    no_springs = ADAPTER.build(name)
+    assert np.count_nonzero(no_springs.m.jnt_stiffness) == 1
+    no_springs.m.jnt_stiffness[:] = 0.0
+    for q, u in random_states(name, 3, seed=8):
+        _, V = nm.energy(q, u)
+        spring = 0.5 * nm.params["k"] * (q[1] if name == "exercise_6_4" else q[0]) ** 2
+        assert spring > 1e-6
+        assert em.energy(q, u)[1] == pytest.approx(V, abs=1e-12 * (1 + abs(V)))
+        assert no_springs.energy(q, u)[1] == pytest.approx(V - spring, abs=1e-12 * (1 + abs(V)))
+
+
+@pytest.mark.parametrize("name", ["exercise_6_2", "exercise_6_4"])
+def test_exercise_mass_matrix_on_the_manifold(name):
+    """mass_matrix is None (the reference's M belongs to its relaxed coordinates), but on the
+    constraint manifold the two must agree: with u = Z(q) v_e (Z = d u / d v_e, the speed map
+    from the engine's minimal speeds), Z^T M_ref Z = M_engine (less the 6.4 bar's 1e-12 axial
+    inertia)."""
+    nm = reference(name)
+    em = engine(name, None)
+    assert em.mass_matrix(nm.model.initial_q) is None
+    for q, u in random_states(name, 4, seed=9):
+        qe, ve = em.to_engine_state(q, u)
+        Z = np.column_stack([em.from_engine_state(qe, e)[1] - em.from_engine_state(qe, 0 * e)[1]
+                             for e in np.eye(len(ve))])
+        M, *_ = nm.matrices(q, u)
+        em.d.qpos[:], em.d.qvel[:] = qe, ve
+        mujoco.mj_forward(em.m, em.d)
+        Me = np.zeros((em.m.nv, em.m.nv))
+        mujoco.mj_fullM(em.m, em.d, Me)
+        assert maxabs(Z.T @ M @ Z - Me) <= TOL_MASS * maxabs(Me), (name, Z.T @ M @ Z, Me)
+
+
+# ======================================================================================
+# timing hook for `crosscheck bench`
+# ======================================================================================
+@pytest.mark.parametrize("name,variant", CASES, ids=IDS)
+def test_timed_forward_is_forwards_engine_call(name, variant):
+    """timed_forward(q, u) returns a callable doing only qpos/qvel + mj_forward: its qacc is
+    bit-for-bit forward()'s raw engine accelerations, at every call, also after other states
+    were evaluated on the same MjData."""
+    em = engine(name, variant)
+    states = random_states(name, 2, seed=10)
+    (q, u), (q2, u2) = states
+    fn = em.timed_forward(q, u)
+    a1 = np.array(fn())
+    fw = em.forward(q, u)
+    assert np.array_equal(a1, fw.raw["engine_accelerations"])
+    em.forward(q2, u2)  # the same MjData moved elsewhere
+    assert np.array_equal(np.array(fn()), a1)
+
+
 # ======================================================================================
 # the checks can fail
 # ======================================================================================
-@pytest.mark.parametrize("name", ["slider_crank", "slider_crank_split", "double_pendulum_3d"])
-def test_perturbed_parameter_fails_the_rigid_comparison(name):
-    """m2 * (1 + 1e-6) in MuJoCo's model only: the de-regularized answer moves by ~1e-7
+PERTURBED = [("slider_crank", "m2"), ("slider_crank_split", "m2"), ("double_pendulum_3d", "m2"),
+             ("exercise_6_1", "m_p"), ("exercise_6_1", "c"), ("exercise_6_2", "m2"),
+             ("exercise_6_2", "k"), ("exercise_6_4", "m"), ("exercise_6_4", "k")]
+
+
+@pytest.mark.parametrize("name,param", PERTURBED, ids=[f"{n}:{p}" for n, p in PERTURBED])
+def test_perturbed_parameter_fails_the_rigid_comparison(name, param):
+    """One parameter * (1 + 1e-6) in MuJoCo's model only (a mass, or the spring/damper that
+    MuJoCo applies as joint stiffness/damping): the de-regularized answer moves by ~1e-7
     relative, far outside TOL_RIGID, while the nominal model passes."""
     nm = reference(name)
-    bad = ADAPTER.build(name, {"m2": nm.params["m2"] * (1 + 1e-6)})
+    bad = ADAPTER.build(name, {param: nm.params[param] * (1 + 1e-6)})
     good = engine(name, None)
     s_acc, s_lam = scales(name)
     worst = 0.0
@@ -544,6 +713,26 @@ def test_simulate_constrained_drift(integrator):
     E = tr.energy.sum(axis=1)
     assert E[0] == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-12)
     assert maxabs(E - E[0]) <= (0.5 if integrator != "RK4" else 5e-3)
+
+
+@pytest.mark.parametrize("name,limit", [("exercise_6_1", 1e-5), ("exercise_6_2", 1e-9),
+                                        ("exercise_6_4", 1e-9)])
+def test_simulate_exercises_against_reference(name, limit):
+    """1 s of MuJoCo RK4 (dt = 1e-3) from the model's initial state against the reference
+    (projection method, tolerance 1e-12). The trees (6.2, 6.4: springs and dampers as joint
+    stiffness/damping, motor torques as qfrc_applied) stay within RK4's ~1e-11; the ladder's
+    error follows its connect drift (solref 0.02: ~1e-6 here), so its bound is 1e-5."""
+    from reference.integrate import simulate
+
+    nm = reference(name)
+    q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
+    tr = engine(name, None).simulate(q0, u0, 1.0, 1e-3, "RK4", record_every=1000)
+    ref = simulate(nm, q0, u0, 1.0, "projection", rtol=1e-12, atol=1e-12)
+    assert tr.t[-1] == pytest.approx(ref.t[-1])
+    assert maxabs(tr.q[-1] - ref.q[-1]) <= limit
+    assert maxabs(tr.violation) <= limit
+    E0 = sum(nm.energy(q0, u0))
+    assert tr.energy[0].sum() == pytest.approx(E0, abs=1e-12 * (1 + abs(E0)))
 
 
 # ======================================================================================

@@ -1,13 +1,23 @@
 """Pinocchio 4.1 adapter: the reference models built in code, solved by Pinocchio's own algorithms.
 
-Why in code and not from the MJCF the MuJoCo adapter uses (ENGINES.md section 2.4, re-checked
-where this module relies on it): Pinocchio's MJCF parser ignores ``<option gravity>`` (every
-planar model here needs gravity along -Y), silently drops spatial tendons and tendon equalities
-(the (x, y) pendulum's distance constraint would vanish), returns the equality constraints sorted
-by name instead of in file order (the multiplier order would change with a rename), and parses
-only the first body subtree under ``<worldbody>`` (the slider-crank's slider is a sibling of the
-crank). Each of these would have to be patched after parsing; building the few joints by hand is
-shorter and leaves nothing implicit.
+Why in code and not from the MJCF the MuJoCo adapter uses: checked file by file in
+tests/test_pinocchio_mjcf.py (pin 4.1.0). With gravity set by hand (the parser ignores
+``<option gravity>``: always (0, 0, -9.81)) and the springs and dampers passed as tau (joint
+stiffness is not parsed; damping lands in model.damping, which aba does not apply), the parser
+is right on every tree file (pendulum_angle, slider_crank_free, double_pendulum_3d_tree,
+frame_bar, top_euler, exercise_6_2, exercise_6_4: aba equals MuJoCo on the same file to 1e-12
+and this module's models to the files' 1e-12 light bodies) and, through
+``buildModelAndLegacyConstraintsFromMJCF`` (CONTACT_3D in the LOCAL frame) and
+constraintDynamics, on slider_crank, slider_crank_split, exercise_6_1 and top_cartesian
+(accelerations and forces as here). It is wrong where it matters elsewhere: with two free
+bodies (double_pendulum_3d_free) it parses only the first top-level body and rebinds the
+connects silently (sorted by name, the missing body and a world site becoming the universe
+with an uninitialized placement); a site-based connect to a world site crashes it (SIGSEGV);
+and pendulum_xy's light rod, which the file needs because MuJoCo's tendon equality lacks
+J-dot v, parses right but makes the Delassus matrix so ill-conditioned (1e12) that
+constraintDynamics is 1e-4 off. The models stay built in code, with the textbook rows where a
+file has a workaround, so nothing depends on patching a parse; the tests keep the parser
+honest and fail when an upgrade changes any of the above.
 
 Engine frames and coordinates (the maps are written out in each class's docstring):
 - Planar models use the engine world with X right, Y UP, gravity (0, -g, 0), hinges about +Z.
@@ -55,8 +65,10 @@ rnea). ``PinocchioAdapter.variants(name)`` lists them, the first is build's defa
 
 Every EngineModel here also has ``mass_matrix(q)`` and ``forcing(q, u, t)`` (the reference's M
 and f where the coordinates map linearly, else None), ``constraint_violation`` /
-``velocity_violation`` (engine-side drift measures) and ``simulate(...)`` (scipy's solve_ivp on
-Pinocchio's forward dynamics in the ENGINE's coordinates).
+``velocity_violation`` (engine-side drift measures), ``simulate(...)`` (scipy's solve_ivp on
+Pinocchio's forward dynamics in the ENGINE's coordinates) and ``timed_forward(q, u)``, the hook
+``crosscheck bench`` times (the state mapped once; the callable makes only forward()'s native
+Pinocchio call, shared with forward through ``_engine_call``).
 """
 from __future__ import annotations
 
@@ -262,19 +274,39 @@ class _PinModel:
     _P: Optional[np.ndarray] = None
 
     # ---- engine-level dynamics -------------------------------------------------------------
-    def _solve(self, qe, ve, t=0.0):
-        """Engine accelerations and the engine's raw constraint forces (array, maybe empty)."""
+    def _engine_call(self, qe, ve, t=0.0):
+        """The engine's native forward call at the engine state (qe, ve) as a zero-argument
+        callable; its inputs (tau, and J, gamma for the 'kkt' solver) are evaluated here, once.
+        _solve and timed_forward both go through it, so the timed call is forward()'s call."""
         m, d = self.model, self.data
         tau = self._applied(qe, ve, t)
         if self.solver == "aba":
-            return pin.aba(m, d, qe, ve, tau).copy(), np.zeros(0)
+            return lambda: pin.aba(m, d, qe, ve, tau)
         if self.solver == "kkt":
             J, gamma = self._kkt_rows(qe, ve, t)
-            a = pin.forwardDynamics(m, d, qe, ve, tau, J, gamma).copy()
-            return a, d.lambda_c.copy()
-        a = pin.constraintDynamics(m, d, qe, ve, tau, self.cms, self.cds, self.prox).copy()
-        lam = np.concatenate([cd.contact_force.linear for cd in self.cds])
-        return a, lam
+            return lambda: pin.forwardDynamics(m, d, qe, ve, tau, J, gamma)
+        cms, cds, prox = self.cms, self.cds, self.prox
+        return lambda: pin.constraintDynamics(m, d, qe, ve, tau, cms, cds, prox)
+
+    def _solve(self, qe, ve, t=0.0):
+        """Engine accelerations and the engine's raw constraint forces (array, maybe empty)."""
+        a = self._engine_call(qe, ve, t)().copy()
+        if self.solver == "aba":
+            return a, np.zeros(0)
+        if self.solver == "kkt":
+            return a, self.data.lambda_c.copy()
+        return a, np.concatenate([cd.contact_force.linear for cd in self.cds])
+
+    def timed_forward(self, q, u, t: float = 0.0):
+        """Timing hook for `crosscheck bench`: checks and maps the reference state once and
+        returns a zero-argument callable that performs only forward()'s native Pinocchio call
+        at that state (aba, forwardDynamics(J, gamma) or constraintDynamics, with tau and the
+        rows evaluated once). It returns Pinocchio's acceleration array as the call gives it
+        (it may alias data.ddq: copy it to keep it); it equals forward()'s
+        raw["engine_accelerations"]. No mapping, residuals or force recovery inside."""
+        q, u = self._check(q, u, t)
+        qe, ve = self.to_engine_state(q, u)
+        return self._engine_call(np.array(qe, float), np.array(ve, float), t)
 
     def _anchor_position(self, joint, placement) -> np.ndarray:
         if joint == 0:
