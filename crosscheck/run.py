@@ -153,8 +153,9 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
         worst["state_map"].add(max(C.scaled_error(q2, q), C.scaled_error(u2, u)), i)
         M_e = em.mass_matrix(q) if hasattr(em, "mass_matrix") else None
         if M_e is None:
-            skipped["mass_matrix"] = ("engine coordinates do not map one to one onto the "
-                                      "reference's, so their mass matrices are not comparable")
+            skipped["mass_matrix"] = getattr(em, "mass_matrix_note", None) or (
+                "engine coordinates do not map one to one onto the reference's, so their mass "
+                "matrices are not comparable")
         else:
             M_r, *_ = nm.matrices(q, u)
             worst["mass_matrix"].add(C.scaled_error(M_e, M_r), i)
