@@ -52,9 +52,9 @@ def model() -> Model:
     )
     return Model(
         name="knife_edge",
-        source="Supplement (not in Unit 6): knife edge / Chaplygin sled, a nonholonomic motion "
-               "constraint",
-        title="Knife edge / Chaplygin sled on a horizontal plane, coordinates (x, y, theta)",
+        source="Supplement (nonholonomic)",
+        title="Knife edge / Chaplygin sled on a horizontal plane, coordinates (x, y, theta): a "
+              "nonholonomic motion constraint (not in Unit 6)",
         parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(sled,),
         loads=loads,
         motion_constraints=(-sp.sin(th) * xd + sp.cos(th) * yd,),

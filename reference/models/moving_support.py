@@ -51,9 +51,9 @@ def model() -> Model:
     s0, c0 = math.sin(THETA0), math.cos(THETA0)
     return Model(
         name="pendulum_moving_support",
-        source="Supplement (not in Unit 6): Example 1(b) with a support moving "
-               "x_s(t) = a sin(Omega t), a rheonomic constraint",
-        title="Pendulum (x, y) whose support moves x_s(t) = a sin(Omega t)",
+        source="Supplement (rheonomic)",
+        title="Example 1(b) with a support moving x_s(t) = a sin(Omega t): a rheonomic "
+              "constraint (not in Unit 6)",
         parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(bob,),
         gravity=GRAVITY,
         configuration_constraints=(((x - xs)**2 + y**2 - L**2) / 2,), constraint_names=("rod",),
