@@ -110,7 +110,8 @@ def forward_records(names, quick=False, engines=()):
                 em = engine.build(name, nm.params)
             except Exception as exc:  # EngineUnsupported and friends: recorded, not hidden
                 recs.append({"model": name, "engine": engine.name, "path": "engine",
-                             "batch": 1, "us_per_state": None, "skipped": str(exc)})
+                             "batch": 1, "us_per_state": None, "skipped": True,
+                             "reason": str(exc)})
                 continue
             timed = getattr(em, "timed_forward", None)
             fn = timed(q, u) if timed else (lambda: em.forward(q, u))
@@ -139,7 +140,8 @@ def meta(argv) -> dict:
             versions[key] = __import__(mod).__version__
         except ImportError:
             versions[key] = None
-    return {"command": "crosscheck " + " ".join(argv), "versions": versions,
+    import shlex
+    return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
             "machine": {"platform": platform.platform(), "processor": platform.machine(),
                         "cpus": __import__("os").cpu_count()},
             "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
@@ -176,7 +178,7 @@ def cmd_bench(args) -> int:
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)
     result["stress"] = stress_records(args.quick, log=log)
-    tg = targets(result["forward"], result["work_precision"])
+    tg = targets(result["forward"], result["work_precision"], quick=args.quick)
     profile_for_missed(tg)
     result["targets"] = tg
     result["skips"] = skip_savings(args.quick)
@@ -187,13 +189,14 @@ def cmd_bench(args) -> int:
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "
-              + (f"{t:10.3f} us/state" if t is not None else f"skipped: {r.get('skipped')}"))
+              + (f"{t:10.3f} us/state" if t is not None
+                 else f"skipped: {r.get('reason') or r.get('skipped')}"))
     print("\nwork-precision (model engine method setting: wall, error, residual)")
     for r in result["work_precision"]:
         head = (f"{r['model']:20s} {r['engine']:10s} {str(r.get('method')):12s} "
                 f"{str(r.get('setting')):8s}")
         if r.get("wall_s") is None:
-            print(f"{head} {r.get('skipped') or r.get('failed')}")
+            print(f"{head} {'skipped: ' + str(r.get('reason')) if r.get('skipped') else r.get('failed')}")
         else:
             err, res = r.get("error"), r.get("residual")
             print(f"{head} {r['wall_s'] * 1e3:9.2f} ms  err {err if err is None else f'{err:.1e}'}"
@@ -205,8 +208,15 @@ def cmd_bench(args) -> int:
             print(f"      - {why[:160]}")
     print("\ntargets")
     for key, t in tg.items():
-        print(f"  {key}: met={t.get('met')} ratio={t.get('ratio')}"
-              + (f" ({t['reason']})" if t.get("reason") else ""))
+        if "models" in t:
+            print(f"  {key}: met={t.get('met')}"
+                  + (f" met_raw={t['met_raw']}" if "met_raw" in t else ""))
+            for name, v in t["models"].items():
+                raw = f" (unchecked path {v['ratio_raw']:.2f})" if v.get("ratio_raw") else ""
+                print(f"      {name:20s} pinocchio/reference = {v['ratio']:.2f}{raw}")
+        else:
+            print(f"  {key}: met={t.get('met')} ratio={t.get('ratio')}"
+                  + (f" ({t['reason']})" if t.get("reason") else ""))
     print(f"\nwrote {out / 'bench.json'} in {result['meta']['wall_s']:.1f} s")
     return 0
 

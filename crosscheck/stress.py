@@ -98,7 +98,7 @@ def slider_crank_rank_loss(quick: bool = True) -> dict:
                         "min_pivot_ratio": tr.stats.get("min_pivot_ratio"),
                         "max_abs_sin_theta1_plus_theta2": left,
                         "final_q": tr.q[-1].tolist(), "final_u": tr.u[-1].tolist(),
-                        "nsteps": tr.nsteps}
+                        "nsteps": tr.nsteps, "warnings": tr.warnings}
             run = _run(rec, label, go)
             if run["outcome"] != "completed":
                 continue

@@ -1,0 +1,114 @@
+"""Stress scenes (crosscheck.stress) end flagged or within tolerance, never failed or hung; the
+work-precision records carry every field the benchmark promises. The full-length scenes and the
+whole `crosscheck bench --quick` are marked slow."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from crosscheck import stress, workprecision
+
+
+def _statuses(rec):
+    return rec["status"], "; ".join(rec["reasons"])
+
+
+def test_slider_crank_rank_loss_is_refused_or_flagged_never_silent():
+    rec = stress.slider_crank_rank_loss(quick=True)
+    assert rec["status"] == "flagged", _statuses(rec)
+    assert rec["wall_s"] < rec["bound_s"] * len(rec["runs"])
+    for run in rec["runs"]:
+        # each run either refused with SingularSystemError or crossed the pose and was flagged
+        if run["outcome"] == "refused":
+            assert run["error"] == "SingularSystemError" and "at t =" in run["message"]
+        else:
+            assert run["outcome"] == "completed" and run["crossings_t"]
+            assert any(run["run"] in r and "rank-deficient pose" in r for r in rec["reasons"])
+
+
+def test_redundant_constraints_are_refused_naming_the_row():
+    rec = stress.redundant_constraints(quick=True)
+    assert rec["status"] == "ok", _statuses(rec)
+    (run,) = rec["runs"]
+    assert run["outcome"] == "refused"
+    assert run["error"] in ("RedundantConstraintError", "SingularSystemError")
+    assert "rod_twice" in run["message"] or run["error"] == "SingularSystemError"
+
+
+def test_pendulum_drift_growth_flags_only_the_unstabilized_form():
+    rec = stress.pendulum_long(quick=True)
+    assert rec["status"] == "flagged", _statuses(rec)
+    assert all(r.startswith("index1") for r in rec["reasons"]), rec["reasons"]
+    runs = {r["run"]: r for r in rec["runs"]}
+    assert runs["index1"]["growth_per_decade"] > 1.5  # quadratic drift-off
+    for m in ("projection", "nullspace", "baumgarte"):
+        assert runs[m]["growth_per_decade"] <= stress.PENDULUM_GROWTH_MAX
+
+
+def test_mass_ratio_within_tolerance():
+    rec = stress.mass_ratio(quick=True)
+    assert rec["status"] == "ok", _statuses(rec)
+
+
+def test_top_spinning_fast_within_tolerance():
+    rec = stress.top_fast_spin(quick=True)
+    assert rec["status"] in ("ok", "skipped"), _statuses(rec)
+
+
+def test_double_pendulum_near_the_313_pole():
+    rec = stress.double_pendulum_313(quick=True)
+    assert rec["status"] in ("ok", "skipped"), _statuses(rec)
+    if rec["status"] == "ok":
+        assert rec["closest_sin_theta12"] < 1e-3  # the scene really passes near the pole
+
+
+def test_a_scene_that_breaks_is_recorded_not_raised(monkeypatch):
+    def broken(quick):
+        raise RuntimeError("boom")
+    monkeypatch.setattr(stress, "SCENES", {"broken": broken})
+    (rec,) = stress.stress_records(quick=True)
+    assert rec["status"] == "failed" and "boom" in rec["reasons"][0]
+
+
+def test_work_precision_records_have_the_promised_fields(monkeypatch):
+    monkeypatch.setattr(workprecision, "LADDER_QUICK", (1e-6, 1e-10))
+    monkeypatch.setattr(workprecision, "REPEATS_QUICK", 1)
+    recs = workprecision.work_precision_records(["slider_crank"], quick=True, engines=("nope",))
+    ref = [r for r in recs if r["engine"] == "reference"]
+    assert {r["method"] for r in ref} == {"index1", "baumgarte", "projection", "nullspace"}
+    for r in ref:
+        for key in ("model", "engine", "method", "setting", "wall_s", "error", "residual",
+                    "energy_drift", "nfev", "reference_accuracy"):
+            assert key in r, key
+        assert r["error"] is not None and r["wall_s"] > 0
+    skipped = [r for r in recs if r["engine"] == "nope"]
+    assert skipped and skipped[0]["skipped"] is True and "unknown engine" in skipped[0]["reason"]
+    tg = workprecision.targets([], recs)
+    t1 = tg["slider_crank_work_precision"]
+    assert t1["reference"]["engine"] == "reference"
+    assert t1["reference"]["error"] <= 1e-8 and t1["reference"]["residual"] <= 1e-10
+    assert t1["met"] is None  # no MuJoCo rows in this run: not decided
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", list(stress.SCENES))
+def test_full_scenes(scene):
+    rec = stress.SCENES[scene](quick=False)
+    assert rec["status"] != "failed", _statuses(rec)
+
+
+@pytest.mark.slow
+def test_bench_quick_writes_every_section(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "crosscheck.cli", "bench", "--quick", "--out",
+                        str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    data = json.loads((tmp_path / "bench.json").read_text())
+    for key in ("forward", "work_precision", "stress", "targets", "skips"):
+        assert data[key], key
+    engines = {rec["engine"] for rec in data["work_precision"] if rec["model"] == "slider_crank"}
+    assert {"reference", "pinocchio", "mujoco"} <= engines
+    assert all(s["status"] != "failed" for s in data["stress"])
+    assert data["meta"]["wall_s"] < 180
