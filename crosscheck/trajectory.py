@@ -78,6 +78,11 @@ def _energy_drift(E: np.ndarray) -> float:
     return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
 
 
+def _balance(E: np.ndarray, W: np.ndarray) -> float:
+    """max |E(t) - E(0) - W(t)| / max(max |E|, 1)."""
+    return float(np.max(np.abs(E - E[0] - W)) / max(float(np.max(np.abs(E))), 1.0))
+
+
 def _series(model, engine, formulation, label, t, err, res, E, variant=None):
     s = {"model": model, "engine": engine, "formulation": formulation, "label": label,
          "t": np.asarray(t).tolist(), "state_error": np.asarray(err).tolist(),
@@ -108,9 +113,9 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
     conserved = model.energy_conserved or (not is_rheonomic(model) and all(
         nm.power_balance(qi, ui, ti)["load_power"] == 0.0
         for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10])))
-    no_energy = ("energy is not conserved (driving or damping loads, or moving constraints); "
-                 "the reference's work-energy balance is checked instantaneously in the tests "
-                 "and integrated in `crosscheck bench`")
+    # where energy is not conserved, the work-energy balance: E(t) - E(0) = W(t), the work of
+    # the applied loads and moving constraints, integrated exactly alongside the reference run
+    work = ref.work if ref.work is not None else np.zeros(len(ref.t))
     E_ref = _energy_series(nm, ref.t, ref.q, ref.u)
     res_ref = _residual_series(nm, ref.t, ref.q, ref.u)
     rec = lambda engine, qty, err, tol, reason="", **k: C.record(  # noqa: E731
@@ -121,17 +126,22 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
     if nm.m:
         records.append(rec("reference", "constraint_drift", float(res_ref.max()),
                            PROJECTED_DRIFT, label="DOP853+projection"))
+    ref_energy_tol = C.Tolerance(
+        1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
+              "(projection does not conserve energy exactly, NUMERICS.md 1.3)")
     if conserved:
-        records.append(rec("reference", "energy_drift", _energy_drift(E_ref), C.Tolerance(
-            1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
-                  "(projection does not conserve energy exactly, NUMERICS.md 1.3)")))
+        records.append(rec("reference", "energy_drift", _energy_drift(E_ref), ref_energy_tol))
+    else:
+        records.append(rec("reference", "work_energy_balance", _balance(E_ref, work),
+                           ref_energy_tol, label="E(t) - E(0) - W(t), W integrated with the run"))
     series.append(_series(name, "reference", f, f"DOP853+projection rtol={REF_RTOL:g}",
                           ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref))
 
     # the reference's own global error at the engines' tolerance, for Pinocchio's bound
     loose = simulate(nm, q0, u0, t_end, "index1", rtol=PIN_RTOL, atol=PIN_RTOL, t_eval=grid)
     loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
-    loose_E = _energy_drift(_energy_series(nm, loose.t, loose.q, loose.u))
+    E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
+    loose_E = _energy_drift(E_loose) if conserved else _balance(E_loose, work)
 
     for adapter in adapters:
         variants = adapter.variants(name) if hasattr(adapter, "variants") else (None,)
@@ -157,7 +167,8 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                 drift_tol = INDEX1_DRIFT
                 energy_tol = C.Tolerance(10 * loose_E + 1e-10,
                                          f"10x the reference's energy drift at rtol "
-                                         f"{PIN_RTOL:g} without stabilization ({loose_E:.1e})")
+                                         f"{PIN_RTOL:g} without stabilization ({loose_E:.1e}; "
+                                       f"the work-energy balance where energy is not conserved)")
                 runs.append((label, tr.t, tr.q, tr.u, {"nfev": tr.nfev}))
             else:
                 soft = getattr(getattr(em, "m", None), "neq", 0) > 0
@@ -178,8 +189,9 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                         f"in this run by halving the step ({halving:.1e}), times 10, plus the "
                         f"reference's own accuracy")
                     drift_tol = INDEX1_DRIFT
-                    E0 = _energy_drift(_energy_series(nm, trs[h0].t, trs[h0].q, trs[h0].u))
-                    E1 = _energy_drift(_energy_series(nm, trs[h1].t, trs[h1].q, trs[h1].u))
+                    E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
+                    E0, E1 = ((_energy_drift(E0), _energy_drift(E1)) if conserved
+                              else (_balance(E0, work), _balance(E1, work)))
                     energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
                                              "RK4's energy error estimated by halving the step "
                                              f"({abs(E0 - E1):.1e}), times 10")
@@ -202,6 +214,12 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                     records.append(rec(adapter.name, "energy_drift", _energy_drift(E),
                                        energy_tol, label=label, **extra))
                 else:
-                    records.append(rec(adapter.name, "energy_drift", None, None, no_energy,
-                                       **extra))
+                    balance_tol = energy_tol if energy_tol is SOFT_ENERGY else C.Tolerance(
+                        energy_tol.value + 10 * state_tol.value,
+                        "the engine's energy change against the work done along the "
+                        "reference's run: they differ by the engine's energy error plus the "
+                        "work along the trajectory difference, bounded by the state tolerance "
+                        "(x10 for the size of grad E)")
+                    records.append(rec(adapter.name, "work_energy_balance", _balance(E, work),
+                                       balance_tol, label=label, **extra))
     return records, series

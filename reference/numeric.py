@@ -59,6 +59,8 @@ def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str,
 def _floats(x) -> list[float]:
     """Values as a list of Python floats (the compiled code is fastest on plain floats)."""
     if type(x) is np.ndarray:
+        if x.ndim == 1 and x.dtype == np.float64:  # the common case, kept cheap
+            return x.tolist()
         return x.astype(float, copy=False).reshape(-1).tolist()
     return [float(v) for v in x]
 

@@ -21,7 +21,6 @@ Tolerances (one per quantity, with the reason):
 from __future__ import annotations
 
 import math
-import time
 from functools import lru_cache
 
 import mujoco
@@ -674,9 +673,7 @@ def test_simulate_rk4_matches_reference_and_energy_is_read_after_forward():
     em = engine("pendulum_angle", None)
     nm = reference("pendulum_angle")
     q0, u0 = [1.2], [0.5]
-    t0 = time.perf_counter()
     tr = em.simulate(q0, u0, 1.0, 1e-3, "RK4", record_every=100)
-    assert time.perf_counter() - t0 < 5.0
     assert tr.n_steps == 1000 and tr.t[-1] == pytest.approx(1.0) and len(tr.t) == 11
     sol = solve_ivp(lambda t, y: [y[1], nm.forward([y[0]], [y[1]]).accelerations[0]],
                     (0, tr.t[-1]), [q0[0], u0[0]], t_eval=tr.t, rtol=1e-12, atol=1e-12,

@@ -8,7 +8,9 @@ What is checked, model by model and (for the 3-D models) engine variant by varia
   by hand below (and the rod tension of Example 1 in motion);
 - that the comparison can fail: m2 * (1 + 1e-6) in the engine breaks the agreement;
 - Pinocchio's own solve (iterations, primal/dual residuals), the proximal settings chosen for
-  redundant planar rows, and short trajectories.
+  redundant planar rows, and short trajectories;
+- the timing hook `crosscheck bench` uses (timed_forward): forward()'s own engine call (its
+  speed is measured by the benchmark, not asserted here).
 
 States: hypothesis draws an integer seed, a numpy Generator makes a random (q, u) and
 NumericModel.project puts it on the constraint manifold. Every @settings has derandomize=True,
@@ -98,9 +100,9 @@ MANIFOLD_LIMITED_MAP = {("exercise_6_2", None), ("exercise_6_4", None), ("top_eu
 # Coordinates that are angles of a rotation recovered from a matrix: compared modulo 2 pi.
 ANGLE_MODELS = {"double_pendulum_3d"}
 # Models whose reference multipliers have no engine force (multipliers None), with the reason
-# in the adapter: the top's normalization (formulation-dependent) and Exercise 6.1's
-# generalized forces of a relaxed parametrization.
-NO_ENGINE_MULTIPLIERS = {"top_euler", "exercise_6_1"}
+# in the adapter: the top's normalization (formulation-dependent). (Exercise 6.1's generalized
+# forces of a relaxed parametrization do map: test_exercise_6_1_end_forces_and_multipliers.)
+NO_ENGINE_MULTIPLIERS = {"top_euler"}
 # (model, variant) pairs: every engine variant of every mapped model
 CASES = [(m, v) for m in MODELS for v in ADAPTER.variants(m)]
 CASES_FORM = [(m, v, f) for m, v in CASES for f in get(m).formulations]
@@ -279,7 +281,8 @@ def test_redundant_planar_rows_need_the_proximal_settings():
 @pytest.mark.parametrize("case", CASES, ids=_id)
 def test_mass_matrix_and_forcing(case):
     """Where the coordinates map linearly the engine's M (crba) and f = tau - nle equal the
-    reference's M and f of every formulation; elsewhere the adapter says None."""
+    reference's M and f of every formulation; elsewhere the adapter says None, and says why
+    in the class attribute mass_matrix_note (one sentence, shown in results)."""
     model_name, variant = case
     em = engine(model_name, variant)
     for seed in range(4):
@@ -297,6 +300,11 @@ def test_mass_matrix_and_forcing(case):
     assert (em.mass_matrix(q) is not None) == (model_name in expected_M
                                                or (model_name, variant) ==
                                                ("double_pendulum_3d", "free"))
+    note = type(em).mass_matrix_note
+    if em.mass_matrix(q) is None:
+        assert isinstance(note, str) and len(note) > 20 and "\n" not in note
+    else:
+        assert note is None
 
 
 @lru_cache(maxsize=None)
@@ -471,6 +479,52 @@ def test_top_upright_socket_force(variant):
     assert np.allclose(e.raw["socket_force"], [0.0, 0.0, m * g], rtol=0, atol=1e-13 * m * g)
 
 
+def test_exercise_6_1_end_forces_and_multipliers():
+    """Exercise 6.1 (Y up) at rest in static equilibrium: the reduced equation (reference
+    docstring, part b) has theta'' = 0 at rest where k l C = (m/2 + m_p) g + F. By hand, with
+    F_A, F_B the forces on the bar at A and B: the block is at rest, so the bar holds it up
+    against m_p g + F: F_By = -(m_p g + F); the massless slider passes the spring's force,
+    F_Ax = -k x = -k l S; the bar's balance gives F_Bx = -F_Ax = k l S and
+    F_Ay = m g - F_By = (m + m_p) g + F; its moments about A,
+    l S (m_p g + F) - l C k l S + m g l S / 2 = l S ((m/2 + m_p) g + F - k l C), vanish at
+    that angle. Mapped: lambda = ((F_Bx - F_Ax)/2, (F_Ay - F_By)/2) = (k l S,
+    (m/2 + m_p) g + F), the reference's rows 1 and 2 at rest (k x = lambda1,
+    (m/2 + m_p) g = lambda2 - F). Then in motion at the same pose: the damper's sign
+    (tau_x = -k x - c x', passed by the slider to the bar: rnea's F_Ax), F_A from rnea equals
+    the bar's momentum balance, and the engine's own accelerations and mapped multipliers
+    satisfy all three of the reference's printed equations."""
+    p = params_of("exercise_6_1")
+    m, m_p, l, k, c, F, g = (p[n] for n in ("m", "m_p", "l", "k", "c", "F", "g"))
+    th = math.acos(((m / 2 + m_p) * g + F) / (k * l))
+    S, C = math.sin(th), math.cos(th)
+    e, r, _ = _both("exercise_6_1", [l * S, l * C, th], [0.0, 0.0, 0.0])
+    lam = np.array([k * l * S, (m / 2 + m_p) * g + F])
+    scale = float(np.max(lam))
+    for got in (e.multipliers, r.multipliers):
+        assert np.max(np.abs(got - lam)) <= 1e-13 * scale
+    assert np.max(np.abs(e.accelerations)) <= 1e-13
+    assert np.max(np.abs(r.accelerations)) <= 1e-13
+    F_B = np.array([k * l * S, -(m_p * g + F), 0.0])
+    F_A = np.array([-k * l * S, (m + m_p) * g + F, 0.0])
+    assert np.max(np.abs(e.raw["force_of_block_on_bar_at_B"] - F_B)) <= 1e-13 * scale
+    assert np.max(np.abs(e.raw["pin_A_force_rnea"] - F_A)) <= 1e-13 * scale
+    assert np.max(np.abs(e.raw["pin_A_force_momentum"] - F_A)) <= 1e-13 * scale
+    # moving through the same pose
+    w = 1.3
+    e, r, _ = _both("exercise_6_1", [l * S, l * C, th], [l * C * w, -l * S * w, w])
+    xd = l * C * w
+    assert abs(e.raw["spring_damper_force"] - (-k * l * S - c * xd)) <= 1e-14 * scale
+    F_A = e.raw["pin_A_force_rnea"]
+    assert abs(F_A[0] - e.raw["spring_damper_force"]) <= 1e-13 * scale
+    assert np.max(np.abs(F_A - e.raw["pin_A_force_momentum"])) <= 1e-13 * scale
+    (xdd, ydd, thdd), (lam1, lam2) = e.accelerations, e.multipliers
+    assert abs(m / 4 * xdd + c * xd + k * l * S - lam1) <= 1e-13 * scale
+    assert abs((m / 4 + m_p) * ydd + (m / 2 + m_p) * g - (lam2 - F)) <= 1e-13 * scale
+    assert abs(m * l**2 / 12 * thdd - l * (-lam1 * C + lam2 * S)) <= 1e-13 * scale
+    assert rel_err(e.multipliers, r.multipliers) <= LAM_RTOL
+    assert rel_err(e.accelerations, r.accelerations) <= ACC_RTOL
+
+
 def test_euler_parameters_are_pinocchio_quaternions():
     """The reference's R(eps) and omega = 2 E eps' are Pinocchio's quaternion (x, y, z, w) =
     (eps1, eps2, eps3, eps4) rotation and LOCAL angular velocity: checked through the engine's
@@ -533,15 +587,18 @@ def test_moving_support_tension(seed):
 
 
 # ---- the checks can fail ----------------------------------------------------------------
-@pytest.mark.parametrize("case", [("slider_crank", None), ("slider_crank_split", None),
-                                  ("double_pendulum_3d", "free"),
-                                  ("double_pendulum_3d", "tree")], ids=_id)
+@pytest.mark.parametrize("case", [("slider_crank", None, "m2"), ("slider_crank_split", None, "m2"),
+                                  ("double_pendulum_3d", "free", "m2"),
+                                  ("double_pendulum_3d", "tree", "m2"),
+                                  ("exercise_6_1", None, "m_p")], ids=_id)
 def test_perturbed_parameter_breaks_agreement(case):
-    """m2 * (1 + 1e-6) in the engine only: accelerations and multipliers move by ~1e-7
-    relative, far outside ACC_RTOL / LAM_RTOL, at every state tried."""
-    model_name, variant = case
+    """A mass * (1 + 1e-6) in the engine only (m2; Exercise 6.1's block m_p): accelerations and
+    multipliers move by ~1e-7 relative, far outside ACC_RTOL / LAM_RTOL, at every state
+    tried."""
+    model_name, variant, param = case
     p = params_of(model_name)
-    bad = ADAPTER.build(model_name, {**PARAMS.get(model_name, {}), "m2": p["m2"] * (1 + 1e-6)},
+    bad = ADAPTER.build(model_name,
+                        {**PARAMS.get(model_name, {}), param: p[param] * (1 + 1e-6)},
                         variant=variant)
     nm = reference(model_name, get(model_name).formulations[0])
     for seed in range(3):
@@ -572,6 +629,22 @@ def test_build_errors():
     em = ADAPTER.build("pendulum_angle", {"m": 2.0})
     assert em.engine == "pinocchio" and em.model_name == "pendulum_angle"
     assert em.params["m"] == 2.0 and em.params["L"] == get("pendulum_angle").parameters[1].default
+
+
+# ---- the timing hook (crosscheck bench) --------------------------------------------------
+@pytest.mark.parametrize("case", CASES, ids=_id)
+def test_timed_forward_is_forwards_engine_call(case):
+    """timed_forward(q, u) returns a callable doing only forward()'s native call (aba,
+    forwardDynamics(J, gamma) or constraintDynamics): its accelerations are bit-for-bit
+    forward()'s raw engine accelerations, also after the data was used at another state."""
+    model_name, variant = case
+    em = ADAPTER.build(model_name, PARAMS.get(model_name, {}), variant=variant)
+    (q, u), (q2, u2) = random_state(model_name, 5), random_state(model_name, 6)
+    fn = em.timed_forward(q, u)
+    a1 = np.array(fn(), float)
+    assert np.array_equal(a1, em.forward(q, u).raw["engine_accelerations"])
+    em.forward(q2, u2)
+    assert np.array_equal(np.array(fn(), float), a1)
 
 
 # ---- trajectories -----------------------------------------------------------------------

@@ -1,5 +1,6 @@
-"""Pinocchio 4.1.0's MJCF parser on the MuJoCo adapter's files (crosscheck/engines/mjcf/), and
-the Pinocchio adapter's timing hook. Real Pinocchio and MuJoCo, no mocks.
+"""Pinocchio 4.1.0's MJCF parser on the MuJoCo adapter's files (crosscheck/engines/mjcf/).
+Real Pinocchio and MuJoCo, no mocks. (The Pinocchio adapter's timing hook is tested in
+tests/test_engine_pinocchio.py.)
 
 The issue asks for one MJCF per model, fed to MuJoCo and to Pinocchio through its MJCF parser
 where that parser is right. Here every file is parsed (pin.buildModelFromMJCF for the trees,
@@ -28,10 +29,8 @@ Tolerances (relative to max(1, max|reference value|)):
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
-import time
 from functools import lru_cache
 
 import mujoco
@@ -307,8 +306,7 @@ def test_loop_parsed_model_agrees(name, variant, stem):
         assert rel(acc_ref, fp.accelerations) <= TOL_INCODE, (stem, q, u)
         assert rel(acc_ref, fr.accelerations) <= TOL_INCODE, (stem, q, u)
         assert rel(lam_ref, fr.multipliers) <= TOL_INCODE, (stem, q, u)
-        if fp.multipliers is not None:  # Exercise 6.1: the in-code adapter maps none
-            assert rel(lam_ref, fp.multipliers) <= TOL_INCODE, (stem, q, u)
+        assert rel(lam_ref, fp.multipliers) <= TOL_INCODE, (stem, q, u)
 
 
 # ======================================================================================
@@ -393,44 +391,3 @@ def test_light_rod_pendulum_parses_but_is_ill_conditioned_for_constraintDynamics
         a = pin.constraintDynamics(pm, pd, qp, vp, np.zeros(pm.nv), cms, cds, prox)
         worst = max(worst, rel(a[0:2], nm.forward(q, u).accelerations))
     assert worst > 1e-6, worst
-
-
-# ======================================================================================
-# the Pinocchio adapter's timing hook (crosscheck bench)
-# ======================================================================================
-PIN_CASES = [(n, v) for n in PIN.supported() for v in PIN.variants(n)]
-
-
-@pytest.mark.parametrize("name,variant", PIN_CASES,
-                         ids=[n if v is None else f"{n}[{v}]" for n, v in PIN_CASES])
-def test_pinocchio_timed_forward_is_forwards_engine_call(name, variant):
-    """timed_forward(q, u) returns a callable doing only forward()'s native call (aba,
-    forwardDynamics(J, gamma) or constraintDynamics): its accelerations are bit-for-bit
-    forward()'s raw engine accelerations, also after the data was used at another state."""
-    epn = PIN.build(name, None, variant)
-    (q, u), (q2, u2) = states(name, 2, seed=5)
-    fn = epn.timed_forward(q, u)
-    a1 = np.array(fn(), float)
-    assert np.array_equal(a1, epn.forward(q, u).raw["engine_accelerations"])
-    epn.forward(q2, u2)
-    assert np.array_equal(np.array(fn(), float), a1)
-
-
-def test_timed_forward_is_cheaper_than_forward():
-    """The hook times the engine call only: on the slider-crank it costs a fraction of the
-    adapter's forward() (mapping, residuals, force recovery), in both engines. Loose factor
-    (2x) on this noisy machine; the bench reports the actual figures."""
-    q, u = states("slider_crank", 1, seed=6)[0]
-    for em in engines("slider_crank", None):
-        fn = em.timed_forward(q, u)
-
-        def per_call(f, n=300):
-            best = math.inf
-            for _ in range(3):
-                t0 = time.perf_counter()
-                for _ in range(n):
-                    f()
-                best = min(best, (time.perf_counter() - t0) / n)
-            return best
-
-        assert 2 * per_call(fn) < per_call(lambda: em.forward(q, u)), em.engine

@@ -951,6 +951,10 @@ class SliderCrank(_SliderCrankBase):
     vertically; the two kinetic energies agree on the constraint manifold only."""
 
     nq_ref = n_ref = 2
+    mass_matrix_note = ("the engine's coordinates (theta1, phi2, x) do not map one to one onto "
+                        "the reference's (theta1, theta2): x follows from the loop closure, and "
+                        "the reference's M carries the vertical motion of m3 that the engine's "
+                        "guide removes")
 
     def _xml(self, **kw):
         return _xml_slider_crank(self.params, "closed", **kw)
@@ -1099,6 +1103,9 @@ class DoublePendulumTree(_DoublePendulumBase):
     F_A = cfrc_int[link2], lambda = [F_O - F_A, F_A]."""
 
     variant = "tree"
+    mass_matrix_note = ("the reference's twelve speeds (w1, w2, v_G1, v_G2) are dependent (six "
+                        "point-constraint rows) and do not map one to one onto the ball-joint "
+                        "tree's six relative angular velocities")
 
     def _xml(self, **kw):
         return _xml_double_pendulum(self.params, "tree", **kw)
@@ -1194,6 +1201,9 @@ class TopEuler(_TopBase):
     None; raw["socket_force"] is the force of the socket on the top (cfrc_int, world)."""
 
     nq_ref = n_ref = 4
+    mass_matrix_note = ("the reference's M is over the four Euler-parameter rates, tied by the "
+                        "normalization, which do not map one to one onto the ball joint's three "
+                        "angular velocity components")
 
     def _xml(self, **kw):
         return _xml_top(self.params, "euler", **kw)
@@ -1235,6 +1245,9 @@ class TopCartesian(_TopBase):
     that identity (not an independent engine output; raw["lambda4_from_identity"] = True)."""
 
     nq_ref = n_ref = 7
+    mass_matrix_note = ("the reference's seven speeds (x', eps') include the four Euler-parameter "
+                        "rates tied by the normalization and do not map one to one onto the free "
+                        "joint's six (x', omega)")
 
     def _xml(self, **kw):
         return _xml_top(self.params, "cartesian", **kw)
@@ -1283,6 +1296,9 @@ class FrameBar(_MjModel):
 
     nq_ref, n_ref = 2, 3
     light_bodies = ("F",)
+    mass_matrix_note = ("the reference's three body-fixed angular velocity components are "
+                        "dependent speeds (tied by omega1 C + omega3 S = 0) and do not map one "
+                        "to one onto the engine's two joint rates (phi', theta')")
 
     def _xml(self, **kw):
         return _xml_frame_bar(self.params, **kw)
@@ -1353,6 +1369,9 @@ class _ExerciseBase(_MjModel):
     model of the mechanism has."""
 
     _loads: tuple[tuple[str, str, float], ...] = ()  # (joint, parameter, sign) -> qfrc_applied
+    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates (the "
+                        "bar's mass-center coordinates free of the bar angle), which no engine "
+                        "model of the mechanism has")
 
     def _dof(self, joint: str) -> int:
         return int(self.m.jnt_dofadr[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT,

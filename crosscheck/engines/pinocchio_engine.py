@@ -177,6 +177,8 @@ class _PinModel:
     prox_settings = PROX_REDUNDANT
     variant: Optional[str] = None
     up = np.array([0.0, 1.0, 0.0])  # engine world "up"; gravity is -g up (g = 0 if no "g")
+    # why mass_matrix returns None (one sentence, shown in results), set on every such class
+    mass_matrix_note: Optional[str] = None
 
     def __init__(self, model_name: str, params: dict[str, float]):
         self.model_name = model_name
@@ -348,14 +350,28 @@ class _PinModel:
             return primal, dual
         pin.forwardKinematics(m, d, qe, ve, ae)
         primal = 0.0
+        for cm in self.cms:
+            a1 = self._anchor_classical_acc(cm.joint1_id, cm.joint1_placement)
+            a2 = self._anchor_classical_acc(cm.joint2_id, cm.joint2_placement)
+            primal = max(primal, float(np.max(np.abs(a1 - a2))))
+        tau_id = self._rnea_with_constraint_forces(qe, ve, ae, lam)
+        dual = float(np.max(np.abs(tau_id - tau)))
+        return primal, dual
+
+    def _rnea_with_constraint_forces(self, qe, ve, ae, lam) -> np.ndarray:
+        """Pinocchio's inverse dynamics rnea(q, v, a, f_ext) with the point constraints' forces
+        applied as external forces: lam[3k:3k+3] (contact_force of constraint k, world axes)
+        on joint1's body at its anchor and its opposite on joint2's body at its anchor.
+        Returns tau (a copy); afterwards data.f[i] is the wrench that body i's parent applies
+        to it through joint i (local frame of joint i), i.e. the joint reactions, and
+        data.oMi holds the placements at qe."""
+        m, d = self.model, self.data
+        pin.forwardKinematics(m, d, qe, ve, ae)
         fext = pin.StdVec_Force()
         for _ in range(m.njoints):
             fext.append(pin.Force.Zero())
         for k, cm in enumerate(self.cms):
-            a1 = self._anchor_classical_acc(cm.joint1_id, cm.joint1_placement)
-            a2 = self._anchor_classical_acc(cm.joint2_id, cm.joint2_placement)
-            primal = max(primal, float(np.max(np.abs(a1 - a2))))
-            f = lam[3 * k:3 * k + 3]  # on joint1's body at its anchor, world-oriented
+            f = np.asarray(lam[3 * k:3 * k + 3], float)
             for joint, placement, sign in ((cm.joint1_id, cm.joint1_placement, 1.0),
                                            (cm.joint2_id, cm.joint2_placement, -1.0)):
                 if joint == 0:
@@ -363,9 +379,7 @@ class _PinModel:
                 p = self._anchor_position(joint, placement)
                 f_world = pin.Force(sign * f, np.cross(p, sign * f))
                 fext[joint] = fext[joint] + d.oMi[joint].actInv(f_world)
-        tau_id = pin.rnea(m, d, qe, ve, ae, fext)
-        dual = float(np.max(np.abs(tau_id - tau)))
-        return primal, dual
+        return pin.rnea(m, d, qe, ve, ae, fext).copy()
 
     def _spring_potential(self, qe) -> float:
         """Potential of the reference's springs in engine coordinates (0 without springs)."""
@@ -676,6 +690,10 @@ class SliderCrank(_SliderCrankBase):
     nq_ref = n_ref = 2
     solver = "constraint"
     prox_settings = PROX_REDUNDANT
+    mass_matrix_note = ("the engine's coordinates (theta1, phi2, x_slider) do not map one to one "
+                        "onto the reference's (theta1, theta2): x_slider follows from the loop "
+                        "closure, and the reference's M carries the vertical motion of m3 that "
+                        "the engine's guide removes")
 
     def _build(self):
         p = self.params
@@ -712,21 +730,12 @@ class SliderCrank(_SliderCrankBase):
         return np.array([lam_e[1] + self.params["m3"] * self.params["g"]])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
-        m, d = self.model, self.data
-        pin.forwardKinematics(m, d, qe, ve, ae)
-        fext = pin.StdVec_Force()
-        for _ in range(m.njoints):
-            fext.append(pin.Force.Zero())
-        f = lam_e[0:3]
-        pC = self._anchor_position(self.j_rod, self.cms[0].joint1_placement)
-        fext[self.j_rod] = d.oMi[self.j_rod].actInv(pin.Force(f, np.cross(pC, f)))
-        pS = d.oMi[self.j_slider].translation
-        fext[self.j_slider] = d.oMi[self.j_slider].actInv(pin.Force(-f, np.cross(pS, -f)))
-        pin.rnea(m, d, qe, ve, ae, fext)
+        d = self.data
+        self._rnea_with_constraint_forces(qe, ve, ae, lam_e)
         # transmitted force of the world on the slider through the PX joint, world axes
         N = d.oMi[self.j_slider].rotation @ d.f[self.j_slider].linear
         raw["guide_force_rnea"] = float(N[1])
-        raw["force_on_rod_at_C"] = f.copy()
+        raw["force_on_rod_at_C"] = lam_e[0:3].copy()
 
 
 class SliderCrankSplit(_SliderCrankBase):
@@ -795,6 +804,9 @@ class FrameBar(_PinModel):
 
     nq_ref, n_ref = 2, 3
     solver = "aba"
+    mass_matrix_note = ("the reference's three body-fixed angular velocity components are "
+                        "dependent speeds (tied by omega1 C + omega3 S = 0) and do not map one "
+                        "to one onto the engine's two joint rates (phi', theta')")
 
     def _build(self):
         p = self.params
@@ -945,6 +957,9 @@ class DoublePendulumTree(_DoublePendulumBase):
 
     variant = "tree"
     solver = "aba"
+    mass_matrix_note = ("the reference's twelve speeds (w1, w2, v_G1, v_G2) are dependent (six "
+                        "point-constraint rows) and do not map one to one onto the ball-joint "
+                        "tree's six relative angular velocities")
 
     def _build(self):
         p = self.params
@@ -1032,6 +1047,9 @@ class TopEuler(_TopBase):
 
     nq_ref = n_ref = 4
     solver = "aba"
+    mass_matrix_note = ("the reference's M is over the four Euler-parameter rates, tied by the "
+                        "normalization, which do not map one to one onto the ball joint's three "
+                        "angular velocity components")
 
     def _build(self):
         j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
@@ -1085,6 +1103,9 @@ class TopCartesianFree(_TopCartesianBase):
     variant = "free"
     solver = "constraint"
     prox_settings = PROX_EXACT
+    mass_matrix_note = ("the reference's seven speeds (x', eps') include the four Euler-parameter "
+                        "rates tied by the normalization and do not map one to one onto the free "
+                        "body's six (R^T x', omega)")
 
     def _build(self):
         j = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "top")
@@ -1118,6 +1139,9 @@ class TopCartesianTree(_TopCartesianBase):
 
     variant = "tree"
     solver = "aba"
+    mass_matrix_note = ("the reference's seven speeds (x', eps') are dependent (point and "
+                        "normalization rows) and do not map one to one onto the ball joint's "
+                        "three angular velocity components")
 
     def _build(self):
         j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
@@ -1239,15 +1263,32 @@ class Exercise61(_PinModel):
     B between the bar end (l, 0, 0) and the block (CONTACT_3D, PROX_REDUNDANT: the z row is 0).
     q_e = (x, theta + pi/2, y). tau = (-k x - c x', 0, -F).
 
-    Multipliers: None. The reference's (lambda1, lambda2) are generalized forces conjugate to
-    its coordinates x and y in a relaxed system where the bar's mass center is (x/2, y/2)
-    (its docstring gives them no force meaning), not forces of the mechanism, so no engine
-    force maps onto them: the accelerations, the state map and the energy are compared.
-    mass_matrix is None for the same reason (the reference's M is that relaxed system's)."""
+    Multipliers. The reference's (lambda1, lambda2) are generalized forces conjugate to x and
+    y in its relaxed coordinates (the bar's mass center G = (x/2, y/2), theta free), yet they
+    are fixed by the mechanism's forces. Let F_A, F_B be the forces on the bar at A and B
+    (world axes). The bar's Newton equations m x''/2 = F_Ax + F_Bx, m y''/2 = F_Ay + F_By - m g,
+    the massless slider's F_Ax = -k x - c x' and the block's m_p y'' = -F_By - m_p g - F, put
+    into the reference's rows (1/4) m x'' + c x' + k x = lambda1 and
+    ((1/4) m + m_p) y'' + ((1/2) m + m_p) g = lambda2 - F, give
+        lambda1 = (F_Bx - F_Ax) / 2,   lambda2 = (F_Ay - F_By) / 2,
+    and these satisfy its theta row too: the moment of F_A, F_B about G (A - G = (l/2)(S, -C),
+    B - G = -(A - G)) is (l/2)(S (F_Ay - F_By) - C (F_Bx - F_Ax)) = l (-lambda1 C + lambda2 S).
+    In the engine F_B = contact_force (the block's force on the bar at B) and F_A is the
+    slider's force on the bar through the hinge: rnea's data.f of the bar joint with the
+    closure force applied as an external force (_rnea_with_constraint_forces), rotated to
+    world axes. raw["pin_A_force_momentum"] is F_A recomputed independently from the bar's
+    momentum balance m a_G - m g_vec - F_B (a_G from forwardKinematics) and
+    raw["spring_damper_force"] is tau_x = -k x - c x' (= F_Ax: the slider is massless).
+
+    mass_matrix is None: the reference's M is that of its relaxed coordinates."""
 
     nq_ref = n_ref = 3
     solver = "constraint"
     prox_settings = PROX_REDUNDANT
+    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates "
+                        "(x, y, theta independent, the bar's mass center at (x/2, y/2)), which "
+                        "no engine model of the mechanism has: the engine's (x, bar angle, y) "
+                        "are tied by the closure at B")
 
     def _build(self):
         p = self.params
@@ -1262,6 +1303,8 @@ class Exercise61(_PinModel):
         self.cms.append(pin.RigidConstraintModel(
             pin.ContactType.CONTACT_3D, self.model, jb, _at(p["l"], 0, 0), jP,
             pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+        self.j_bar = jb
+        self.G = _at(p["l"] / 2, 0, 0)
 
     def _applied(self, qe, ve, t):
         p = self.params
@@ -1282,13 +1325,27 @@ class Exercise61(_PinModel):
     def _acc_to_reference(self, qe, ve, ae):
         return np.array([ae[0], ae[2], ae[1]])
 
+    def _end_forces(self, qe, ve, ae, lam_e):
+        """(F_A, F_B), the forces on the bar at A (the slider's, rnea) and at B (the block's,
+        contact_force), world axes."""
+        self._rnea_with_constraint_forces(qe, ve, ae, lam_e)
+        d = self.data
+        F_A = d.oMi[self.j_bar].rotation @ d.f[self.j_bar].linear
+        return F_A, np.array(lam_e[0:3], float)
+
     def _multipliers(self, qe, ve, ae, lam_e):
-        return None
+        F_A, F_B = self._end_forces(qe, ve, ae, lam_e)
+        return np.array([0.5 * (F_B[0] - F_A[0]), 0.5 * (F_A[1] - F_B[1])])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
-        raw["multipliers_note"] = ("reference multipliers are generalized forces of a relaxed "
-                                   "parametrization with no engine counterpart")
-        raw["force_of_block_on_bar_at_B"] = lam_e[0:3].copy()
+        F_A, F_B = self._end_forces(qe, ve, ae, lam_e)
+        raw["force_of_block_on_bar_at_B"] = F_B
+        raw["pin_A_force_rnea"] = F_A
+        pin.forwardKinematics(self.model, self.data, qe, ve, ae)
+        a_G = self._anchor_classical_acc(self.j_bar, self.G)
+        mb = self.params["m"]
+        raw["pin_A_force_momentum"] = mb * a_G - mb * self.model.gravity.linear - F_B
+        raw["spring_damper_force"] = float(self._applied(qe, ve, 0.0)[0])
 
 
 class Exercise62(_PinModel):
@@ -1303,6 +1360,9 @@ class Exercise62(_PinModel):
 
     nq_ref = n_ref = 4
     solver = "aba"
+    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates "
+                        "(x, theta, x_G, y_G with the bar's mass center free of the bar angle), "
+                        "which no engine model of the mechanism has: the engine has (x, theta)")
 
     def _build(self):
         p = self.params
@@ -1361,6 +1421,10 @@ class Exercise64(_PinModel):
     nq_ref = n_ref = 4
     solver = "aba"
     up = np.array([0.0, 0.0, 1.0])
+    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates "
+                        "(phi, theta, y_G, z_G with the bar's mass center free of the bar "
+                        "angle), which no engine model of the mechanism has: the engine has "
+                        "(phi, theta)")
 
     def _build(self):
         p = self.params

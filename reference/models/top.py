@@ -33,8 +33,6 @@ radius ~4 cm), spun at 60 rad/s about e3 with its axis tilted ~0.5 rad from the 
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import sympy as sp
 
