@@ -108,3 +108,18 @@ def test_run_clean_passes_and_records_contract(tmp_path, capsys):
         for key in ("model", "formulation", "engine", "check", "quantity", "error",
                     "tolerance", "passed", "reason"):
             assert key in r
+
+
+def test_two_runs_give_identical_results(tmp_path, capsys):
+    """Results are deterministic: only meta's date (and command) may differ between runs."""
+    data = []
+    for k in range(2):
+        out = tmp_path / f"r{k}"
+        code, _, err = _run(capsys, "run", "slider_crank", "top_euler", "--out", str(out),
+                            "--no-report")
+        assert code == 0, err
+        data.append(json.loads((out / "results.json").read_text()))
+    assert data[0]["records"] == data[1]["records"]
+    assert data[0]["series"] == data[1]["series"]
+    meta = [{k: v for k, v in d["meta"].items() if k not in ("date", "command")} for d in data]
+    assert meta[0] == meta[1]
