@@ -61,7 +61,12 @@ class GateInputError(ReportInputError):
 
 # ---- matching -----------------------------------------------------------------------------
 def record_key(r: dict) -> str:
-    return "/".join(str(r.get(k, "?")) for k in KEY_FIELDS)
+    """model/formulation/engine[variant]/check/quantity: an engine with several models of one
+    reference model (Example 4 as free bodies and as a ball-joint tree) has one record each."""
+    parts = [str(r.get(k, "?")) for k in KEY_FIELDS]
+    if r.get("variant"):
+        parts[2] += f"[{r['variant']}]"
+    return "/".join(parts)
 
 
 def index(rows: list[dict], keyfn) -> dict[str, dict]:
