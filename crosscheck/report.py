@@ -40,6 +40,11 @@ class ReportInputError(ModelInputError):
 
 
 # ---- inputs ----------------------------------------------------------------------------------
+
+def engine_label(r: dict) -> str:
+    """The engine, with its variant where it has several models of one system."""
+    return f"{r.get('engine', '')} [{r['variant']}]" if r.get("variant") else str(r.get("engine", ""))
+
 def load_json(path: str | Path, what: str) -> dict:
     path = Path(path)
     if not path.is_file():
@@ -418,7 +423,7 @@ def _checks_html(c: Content, model: str, recs: list[dict]) -> str:
         extra = details(r)
         label = {"pass": "PASS", "fail": "FAIL", "skip": "SKIP"}[st]
         rows.append([f'<span class="badge {st}">{label}</span>', _e(r.get("formulation", "")),
-                     _e(r.get("engine", "")), _e(r.get("check", "")), _e(r.get("quantity", "")),
+                     _e(engine_label(r)), _e(r.get("check", "")), _e(r.get("quantity", "")),
                      _e(fmt(r.get("error"))), _e(fmt_tol(r.get("tolerance"))),
                      _e(fmt(ratio_to_tolerance(r), 1)) if st != "skip" else "—",
                      why + (("<br>" if why else "") + f'<span class="note">{_e(extra)}</span>'
@@ -675,7 +680,7 @@ def render_md(c: Content) -> str:
                         notes.append(reason)
                     why = f"[{notes.index(reason) + 1}]" if reason else ""
                 extra = details(r)
-                rows.append([st.upper(), r.get("formulation", ""), r.get("engine", ""),
+                rows.append([st.upper(), r.get("formulation", ""), engine_label(r),
                              r.get("check", ""), r.get("quantity", ""), fmt(r.get("error")),
                              fmt_tol(r.get("tolerance")),
                              fmt(ratio_to_tolerance(r), 1) if st != "skip" else "—",
