@@ -25,10 +25,11 @@ class Tolerance:
 
 
 EXACT_KKT = Tolerance(
-    1e-11, "exact KKT solve in the engine (Pinocchio's Cholesky, or its proximal iterations "
-           "converged to 1e-12) against the reference's: both round-off limited (~1e-14 of the "
-           "largest term); 1e-11 is the issue's bound and leaves room for the ~1e-12 "
-           "amplification by small axial inertias in Example 4")
+    1e-11, "an exact answer in the engine (a tree or an unconstrained model, Pinocchio's KKT "
+           "solve, or its proximal iterations converged to 1e-12) against the reference's: both "
+           "round-off limited (~1e-14 of the largest term); 1e-11 is the issue's bound and "
+           "leaves room for the ~1e-12 amplification by small axial inertias (Example 4) and "
+           "MuJoCo's 1e-12 light bodies")
 STATE_MAP = Tolerance(
     1e-12, "reference -> engine -> reference state map: trigonometric and quaternion round "
            "trips lose a few ulps")
