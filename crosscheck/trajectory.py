@@ -176,8 +176,10 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                 for h in MUJOCO_STEPS:
                     every = max(1, int(round((t_end / (N_OUT - 1)) / h)))
                     trs[h] = em.simulate(q0, u0, t_end, h, "RK4", record_every=every)
-                    runs.append((f"RK4 h={h:g}", trs[h].t, trs[h].q, trs[h].u,
-                                 {"steps": trs[h].n_steps}))
+                    info = {"steps": trs[h].n_steps}
+                    if trs[h].raw.get("warnings"):  # an unstable step reset MuJoCo's state
+                        info["engine_warnings"] = trs[h].raw["warnings"]
+                    runs.append((f"RK4 h={h:g}", trs[h].t, trs[h].q, trs[h].u, info))
                 h0, h1 = MUJOCO_STEPS
                 halving = float(np.max(state_error(trs[h0].q, trs[h0].u, trs[h1].q, trs[h1].u)))
                 if soft:

@@ -221,6 +221,10 @@ def mujoco_records(name, quick, ref, nm, adapter):
                                 "steps x stages")
                 if err != err_timed:
                     rec["error_recorded_run"] = _finite(err)
+                warnings = {**tr.raw.get("warnings", {}), **trr.raw.get("warnings", {})}
+                if warnings:  # MuJoCo reset an unstable state and went on: not a trajectory
+                    rec.update(warnings=warnings, flagged="MuJoCo reported an unstable "
+                               f"simulation ({', '.join(warnings)}) and reset its state")
             except Exception as exc:
                 rec.update(wall_s=None, error=None, residual=None,
                            failed=f"{type(exc).__name__}: {exc}")

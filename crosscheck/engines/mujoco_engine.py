@@ -471,6 +471,20 @@ def _kkt_lstsq(M, J, rhs_c):
     return sol[:nv], sol[nv:], int(rank)
 
 
+def _warnings(d) -> dict:
+    """MuJoCo's warning counters that fired during a run (name -> count). An unstable step
+    (mjWARN_BADQACC) makes MuJoCo reset the state and go on, so a trajectory that hit one is
+    not a trajectory of the model: callers must flag it, not compare it silently."""
+    out = {}
+    for name, w in mujoco.mjtWarning.__members__.items():
+        if name == "mjNWARNING":
+            continue
+        n = int(d.warning[int(w)].number)
+        if n:
+            out[name] = n
+    return out
+
+
 @dataclass
 class MujocoTrajectory:
     """Output of EngineModel.simulate, in reference coordinates at the recorded steps.
@@ -804,7 +818,8 @@ class _MjModel:
         return MujocoTrajectory(t=np.array(T), q=np.array(Q), u=np.array(U), n_steps=n_steps,
                                 integrator=integrator, timestep=float(timestep),
                                 energy=np.array(E), violation=np.array(Vi), wall_time=wall,
-                                raw={"solref": self.solref, "solimp": self.solimp})
+                                raw={"solref": self.solref, "solimp": self.solimp,
+                                     "warnings": _warnings(d)})
 
 
 # ======================================================================================
