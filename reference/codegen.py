@@ -31,7 +31,7 @@ from sympy.printing.lambdarepr import LambdaPrinter
 from .eom import EquationsOfMotion
 from .formulations.lagrange import kinetic_energy, potential_energy
 
-CODEGEN_VERSION = "8"
+CODEGEN_VERSION = "9"
 
 
 def cache_dir() -> Path:
@@ -216,7 +216,10 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
             Mc[i][j] = Mc[j][i]
     fc = [mat(c) for c in fc]
     Ac = [[mat(c) for c in row] for row in Ac]
-    bc = [mat(c) for c in bc]
+    # A u' = b + _db: the caller's offset of the constraint rows' right side (zeros, or the
+    # Baumgarte terms -2 alpha (A u + a0) - beta^2 f), so stabilization costs no extra solve
+    bc = [w.assign(f"{c} + _db[{k}]") if c != "0" else w.assign(f"_db[{k}]")
+          for k, c in enumerate(bc)]
     if augment and mc:
         # rho scales A^T A to the size of M so the augmented matrix stays well conditioned
         trM = " + ".join(Mc[i][i] for i in range(n) if Mc[i][i] != "0") or "1"
@@ -257,7 +260,8 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     else:
         lam, ud = [], y
     piv = f"_min({', '.join(pivots)})" if len(pivots) > 1 else (pivots[0] if pivots else "1.0")
-    src += [h.replace("_p):", "_p, _sref):") for h in _header("forward", eom)] + w.lines
+    src += [h.replace("_p):", "_p, _sref, _db=_ZEROS):") for h in _header("forward", eom)]
+    src += w.lines
     src.append(f"    return [{', '.join(ud)}], [{', '.join(lam)}], {piv}")
     src.append("")
 
@@ -283,15 +287,22 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     return "\n".join(src) + "\n"
 
 
+class _Zeros:
+    """Default offset of b in forward: zero for every row."""
+
+    def __getitem__(self, k):
+        return 0.0
+
+
 def _namespace(batched: bool) -> dict:
     if batched:
         from functools import reduce
         return {"sin": np.sin, "cos": np.cos, "tan": np.tan, "sqrt": np.sqrt, "exp": np.exp,
                 "log": np.log, "atan2": np.arctan2, "pi": np.pi, "abs": np.abs,
-                "_min": lambda *a: reduce(np.minimum, a)}
+                "_min": lambda *a: reduce(np.minimum, a), "_ZEROS": _Zeros()}
     return {"sin": math.sin, "cos": math.cos, "tan": math.tan, "sqrt": math.sqrt,
             "exp": math.exp, "log": math.log, "atan2": math.atan2, "pi": math.pi, "abs": abs,
-            "_min": min}
+            "_min": min, "_ZEROS": _Zeros()}
 
 
 def load_compiled(eom_factory, model, formulation: str, params: dict):

@@ -19,8 +19,8 @@ the right-hand side or to the accepted step:
     MapleSim's documented range is 1-10; larger omega0 makes an explicit integrator
     step-limited, eigenvalues ~ -omega0). Guarantee: the residual stays bounded at a
     tolerance-dependent level (measured: tests/test_integrate.py); energy is not conserved.
-    The stabilized KKT system is solved here from `matrices` (the compiled forward has b fixed),
-    so one RHS call costs a matrices + residuals call and a small dense solve.
+    The stabilizing terms are passed to the compiled forward as an offset of b, so one RHS call
+    costs a residuals call more than index1.
 
 ``projection``
     Coordinate projection after every accepted step (Hairer-Wanner II Sec. VII.2; Eich 1993
@@ -202,41 +202,7 @@ class Trajectory:
                 **{k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))}}
 
 
-# ---- small dense linear algebra on Python lists (n <= SMALL is faster than numpy) -------------
-SMALL = 8
-
-
-def _solve_small(a: list[list[float]], n: int) -> list[float]:
-    """Solve the augmented system a = [K | r] (n rows, modified in place) by Gaussian elimination
-    with partial pivoting; a zero pivot gives NaNs (the caller's pivot monitor catches them)."""
-    for c in range(n):
-        p, best = c, abs(a[c][c])
-        for i in range(c + 1, n):
-            v = abs(a[i][c])
-            if v > best:
-                p, best = i, v
-        if p != c:
-            a[c], a[p] = a[p], a[c]
-        rowc = a[c]
-        piv = rowc[c]
-        if piv == 0.0:
-            return [math.nan] * n
-        for i in range(c + 1, n):
-            rowi = a[i]
-            fct = rowi[c] / piv
-            if fct != 0.0:
-                for j in range(c + 1, n + 1):
-                    rowi[j] -= fct * rowc[j]
-    x = [0.0] * n
-    for i in range(n - 1, -1, -1):
-        row = a[i]
-        s = row[n]
-        for j in range(i + 1, n):
-            s -= row[j] * x[j]
-        x[i] = s / row[i]
-    return x
-
-
+# ---- small dense linear algebra ------------------------------------------------------------
 def _min_norm_correction(J: list[float], rows: int, cols: int, r: list[float]) -> list[float]:
     """-J^T (J J^T)^-1 r for a flat row-major J (rows x cols): the minimum-norm step."""
     if rows == 1:
@@ -384,51 +350,33 @@ class _Baumgarte(_Problem):
         if alpha < 0 or beta < 0:
             raise ModelInputError(f"Baumgarte gains must be >= 0, got alpha={alpha}, beta={beta}")
         self.alpha, self.beta = float(alpha), float(beta)
-        nq, n, m, mc, p = self.nq, self.n, self.m, self.mc, self.p
-        mat, res = self.mat, self.res
-        rates, work = self.rates, self.work
+        nq, n, m, mc, p, fr = self.nq, self.n, self.m, self.mc, self.p, self.fr
+        res = self.res
+        rates, work, singular = self.rates, self.work, self.singular
         two_a, b2 = 2.0 * self.alpha, self.beta ** 2
-        N = n + m
-        zm = [0.0] * m
+        PMIN, pmin = PIVOT_RATIO_MIN, self.pmin
 
         def fun(t, y):
             yl = y.tolist()
             q, u = yl[:nq], yl[nq:nq + n]
-            M, f, A, b = mat(q, u, t, p)
             pos, vel = res(q, u, t, p)
-            bs = [b[j] - two_a * vel[j] - (b2 * pos[j] if j < mc else 0.0) for j in range(m)]
-            if N <= SMALL:
-                K = [M[i * n:(i + 1) * n] + [-A[j * n + i] for j in range(m)] + [f[i]]
-                     for i in range(n)]
-                K += [A[j * n:(j + 1) * n] + zm + [bs[j]] for j in range(m)]
-                x = _solve_small(K, N)
-            else:
-                K = np.zeros((N, N))
-                K[:n, :n] = np.reshape(M, (n, n))
-                if m:
-                    Am = np.reshape(A, (m, n))
-                    K[:n, n:] = -Am.T
-                    K[n:, :n] = Am
-                x = np.linalg.solve(K, np.concatenate([f, bs])).tolist()
+            # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only
+            db = [-two_a * vel[j] - (b2 * pos[j] if j < mc else 0.0) for j in range(m)]
+            try:
+                ud, lam, piv = fr(q, u, t, db)
+            except (ZeroDivisionError, ValueError):
+                ud, lam, piv = None, None, -1.0
+            if not piv > PMIN:
+                singular(t, q, piv)
+            if piv < pmin[0]:
+                pmin[0] = piv
             out = list(u) if rates else self.qdot(q, u, t)
-            out += x[:n]
+            out += ud
             if work:
-                out.append(self.power(q, u, t, x[n:]))
+                out.append(self.power(q, u, t, lam))
             return np.array(out)
 
         self.fun = fun
-
-    def after_step(self, solver):
-        # the stabilized solve has no pivot monitor of its own: check the KKT once per step
-        q, u, _ = self.full(solver.t, solver.y)
-        try:
-            _, _, piv = self.fr(q, u, solver.t)
-        except (ZeroDivisionError, ValueError):
-            piv = -1.0
-        self.stats["min_pivot_ratio"] = min(self.stats["min_pivot_ratio"], piv)
-        if not piv > PIVOT_RATIO_MIN:
-            self.singular(solver.t, q, piv)
-        return False
 
 
 class _Projection(_Index1):

@@ -90,6 +90,7 @@ class NumericModel:
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]
         self.sref = self._schur_reference()
+        self._no_db = (0.0,) * self.m
 
     def _schur_reference(self) -> tuple[float, ...]:
         """Diagonal of S = A M^-1 A^T at the model's initial state: the scale against which
@@ -137,16 +138,18 @@ class NumericModel:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
         q, u, t = self._state(q, u, t)
         try:
-            ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref)
+            ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
             piv = -1.0
         if not piv > PIVOT_RATIO_MIN:
             raise SingularSystemError(self._singular_message(q, piv))
         return Forward(np.array(ud, dtype=float), np.array(lam, dtype=float), float(piv))
 
-    def forward_raw(self, q: list, u: list, t: float):
-        """Unchecked fast path for integrators: lists in, (u', lambda, pivot ratio) out."""
-        return self._scalar["forward"](q, u, t, self.p, self.sref)
+    def forward_raw(self, q: list, u: list, t: float, db=None):
+        """Unchecked fast path for integrators: lists in, (u', lambda, pivot ratio) out.
+        `db` offsets the constraint rows' right side: A u' = b + db (Baumgarte)."""
+        return self._scalar["forward"](q, u, t, self.p, self.sref,
+                                       self._no_db if db is None else db)
 
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
@@ -252,7 +255,7 @@ class NumericModel:
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
         with np.errstate(invalid="ignore", divide="ignore"):
-            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref)
+            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref, self._no_db)
         UD = np.empty((N, self.n))
         for i, c in enumerate(ud):
             UD[:, i] = c
