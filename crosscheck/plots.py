@@ -196,7 +196,10 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     lines = [s for s in series if s.get("t")]
     if not lines:
         return None
-    panels = [(k, t) for k, t in TRAJECTORY_PANELS if any(s.get(k) for s in lines)]
+    def drawable(key):  # a panel where every line is exactly 0 has nothing to draw on log y
+        return any(s.get(key) and any(_num(x) != 0 for x in s[key]) for s in lines) or (
+            key == "energy" and any(len(set(s.get(key) or [])) > 1 for s in lines))
+    panels = [(k, t) for k, t in TRAJECTORY_PANELS if drawable(k)]
     if not panels:
         return None
     styles = line_styles([_series_key(s) for s in lines])
@@ -228,14 +231,24 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
             ax.text(0.01, 0.02, "exactly 0 throughout: " + "; ".join(zeros), fontsize=7,
                     color="#555555", transform=ax.transAxes, va="bottom")
     axes[-1].set_xlabel("t [s]", fontsize=8)
-    axes[0].legend(fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    # one legend under the panels (beside them, long labels squeeze the axes to nothing)
+    handles = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    if handles:
+        fig.legend(list(handles.values()), list(handles), fontsize=7.5, frameon=False,
+                   loc="outside lower center", ncols=2)
+        fig.set_figheight(fig.get_figheight() + 0.22 * ((len(handles) + 1) // 2))
     if title:
         axes[0].set_title(title, fontsize=10, loc="left")
     return _svg(fig)
 
 
 def _series_key(s: dict) -> tuple:
-    return (s.get("label", ""), s.get("engine", "?"), s.get("formulation", ""))
+    """(method label and engine variant: one colour; engine: one line style; formulation)."""
+    variant = f" [{s['variant']}]" if s.get("variant") else ""
+    return (s.get("label", "") + variant, s.get("engine", "?"), s.get("formulation", ""))
 
 
 def line_styles(keys: list[tuple]) -> dict:
@@ -249,7 +262,7 @@ def line_styles(keys: list[tuple]) -> dict:
 
 
 def series_label(s: dict) -> str:
-    parts = [s.get("engine", "?")]
+    parts = [s.get("engine", "?") + (f" [{s['variant']}]" if s.get("variant") else "")]
     if s.get("formulation"):
         parts.append(s["formulation"])
     if s.get("label"):
@@ -314,4 +327,75 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
     fig.legend(handles, labels, fontsize=7.5, loc="outside right upper", frameon=False)
     if title:
         fig.suptitle(title, fontsize=10, x=0.02, ha="left")
+    return _svg(fig)
+
+
+# ---- sweeps (crosscheck sweep) ----------------------------------------------------------------
+def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
+    """Error histograms of one model's sweep, one panel per quantity, one step line per engine
+    (and variant), from the log10 histograms in sweep.json; each engine's tolerance is a dashed
+    line in its colour.
+    Exact zeros, values outside the binned range and non-finite values are counted in the
+    legend (a log axis cannot place them)."""
+    rows = [r for r in rows if isinstance(r.get("histogram"), dict) and r.get("count")]
+    if not rows:
+        return None
+    quantities = list(dict.fromkeys(r.get("quantity", "?") for r in rows))
+    engines = list(dict.fromkeys(r.get("engine", "?") for r in rows))
+    ncols = 2 if len(quantities) > 1 else 1
+    nrows = math.ceil(len(quantities) / ncols)
+    height = 0.6 + 2.1 * nrows
+    from matplotlib.backends.backend_svg import FigureCanvasSVG
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(8.6, height))  # fixed margins: constrained layout doubles the cost
+    FigureCanvasSVG(fig)
+    top = 0.35 + (0.25 if title else 0.0)
+    fig.subplots_adjust(left=0.075, right=0.985, top=1 - top / height, bottom=0.45 / height,
+                        hspace=0.5, wspace=0.2)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    styles = ["-", "--", ":", "-."]
+    for ax in axes.flat[len(quantities):]:
+        ax.set_visible(False)
+    for ax, qn in zip(axes.flat, quantities):
+        _style(ax)
+        ax.set_xscale("log")
+        ax.set_title(qn, fontsize=8.5, loc="left")
+        tols = set()
+        span: list[float] = []  # edges of the non-empty bins, to zoom on them
+        variants: dict[str, list] = {}
+        for r in (r for r in rows if r.get("quantity") == qn):
+            h = r["histogram"]
+            lo, step = _num(h.get("log10_lo")), _num(h.get("log10_step"))
+            counts = [int(c) for c in h.get("counts", [])]
+            eng = r.get("engine", "?")
+            var = r.get("variant")
+            vlist = variants.setdefault(eng, [])
+            if var not in vlist:
+                vlist.append(var)
+            edges = [10 ** (lo + k * step) for k in range(len(counts) + 1)]
+            span += [edges[k] for k, c in enumerate(counts) if c]
+            span += [edges[k + 1] for k, c in enumerate(counts) if c]
+            extra = [f"{h[k]} {k}" for k in ("zero", "below", "above", "nonfinite")
+                     if h.get(k)]
+            label = eng + (f"/{var}" if var else "") + f" (n={r.get('count')}"
+            label += (", " + ", ".join(extra) if extra else "") + ")"
+            ax.stairs(counts, edges, color=engine_color(eng, engines), linewidth=1.4,
+                      linestyle=styles[vlist.index(var) % len(styles)], label=label)
+            tol = _num(r.get("tolerance"))
+            if math.isfinite(tol) and tol > 0:
+                tols.add((tol, eng))
+        for tol, eng in sorted(tols):  # in the engine's colour: engines may differ (rigid recovery)
+            ax.axvline(tol, color=engine_color(eng, engines), linestyle="--", linewidth=1.0)
+        span += sorted(t for t, _ in tols)
+        if span:
+            ax.set_xlim(min(span) / 10, max(span) * 10)
+        from matplotlib.ticker import LogLocator, NullLocator
+        ax.xaxis.set_major_locator(LogLocator(numticks=6))  # few labels: text is the cost here
+        ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_ylabel("samples", fontsize=7.5)
+        ax.legend(fontsize=6.5, loc="upper left", frameon=False)
+    for ax in axes[-1]:
+        ax.set_xlabel("error (log; dashed: the engine's tolerance)", fontsize=7.5)
+    if title:
+        fig.suptitle(title, fontsize=10, x=0.01, y=1 - 0.05 / height, ha="left", va="top")
     return _svg(fig)
