@@ -176,17 +176,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _optional_commands():
-    """Subcommands living in their own modules (run, bench, report, gate), when present."""
-    out = []
-    for mod in ("crosscheck.run", "crosscheck.bench", "crosscheck.report", "crosscheck.gate"):
-        try:
-            module = __import__(mod, fromlist=["register"])
-        except ModuleNotFoundError as exc:
-            if exc.name != mod:
-                raise
-            continue
-        out.append(module.register)
-    return out
+    """Subcommands that live in their own modules: each has a register(subparsers)."""
+    from importlib import import_module
+    return [import_module(f"crosscheck.{name}").register
+            for name in ("run", "bench", "report", "gate", "sweep")]
 
 
 def main(argv=None) -> int:

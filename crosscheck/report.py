@@ -83,6 +83,16 @@ def check_bench(data: dict, path) -> dict:
     return data
 
 
+def check_sweep(data: dict, path) -> dict:
+    rows = data.get("results")
+    if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows) \
+            or not isinstance(data.get("status"), dict):
+        raise ReportInputError(f"sweep file {str(path)!r} has no \"results\" list of objects "
+                               f"and \"status\" object (is it a sweep.json written by "
+                               f"`crosscheck sweep`?)")
+    return data
+
+
 # ---- small helpers ---------------------------------------------------------------------------
 def status(r: dict) -> str:
     if r.get("skipped") or r.get("passed") is None:
@@ -243,7 +253,10 @@ def _series_stats(s: dict) -> dict:
 # ---- the report's content, shared by the HTML and the Markdown -------------------------------
 class Content:
     def __init__(self, results: dict | None, bench: dict | None, command: str,
-                 results_path: str | None = None, bench_path: str | None = None):
+                 results_path: str | None = None, bench_path: str | None = None,
+                 sweep: dict | None = None, sweep_path: str | None = None):
+        self.sweep = sweep  # sweep.json of `crosscheck sweep` (its own section)
+        self.sweep_path = sweep_path
         self.results = results or {}
         self.bench = bench
         self.command = command
@@ -308,6 +321,8 @@ class Content:
             out.append(("results", self.results.get("meta") or {}))
         if self.bench is not None:
             out.append(("bench", self.bench.get("meta") or {}))
+        if self.sweep is not None:
+            out.append(("sweep", self.sweep.get("meta") or {}))
         return out
 
     def regenerate(self) -> list[str]:
@@ -582,6 +597,8 @@ def render_html(c: Content) -> str:
         else:
             banner = (f'<div class="banner ok">All {executed} executed checks pass '
                       f'({n["skip"]} skipped)</div>')
+    elif c.sweep is not None and c.bench is None:
+        banner = '<div class="banner ok">No cross-check results given: sweep only</div>'
     else:
         banner = '<div class="banner ok">No cross-check results given: benchmarks only</div>'
     sources = []
@@ -591,6 +608,9 @@ def render_html(c: Content) -> str:
     if c.bench_path is not None:
         sources.append(f"bench <code>{_e(c.bench_path)}</code> "
                        f"({_e((c.bench.get('meta') or {}).get('date', 'undated'))})")
+    if c.sweep_path is not None:
+        sources.append(f"sweep <code>{_e(c.sweep_path)}</code> "
+                       f"({_e((c.sweep.get('meta') or {}).get('date', 'undated'))})")
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              '<meta name="viewport" content="width=device-width, initial-scale=1">',
              "<title>multibody-crosscheck report</title>", f"<style>{CSS}</style></head>",
@@ -600,6 +620,7 @@ def render_html(c: Content) -> str:
         parts.append("<nav>" + "".join(f'<a href="#{_anchor(m)}">{_e(m)}</a>'
                                        for m in c.models)
                      + ('<a href="#bench-more">more from bench.json</a>' if c.other_bench else "")
+                     + ('<a href="#sweep">sweep</a>' if c.sweep is not None else "")
                      + '<a href="#footer">versions</a></nav>')
     headers = ["model", "passed", "failed", "skipped", "engines"]
     headers += ["trajectories"] if c.series is not None else []
@@ -634,9 +655,149 @@ def render_html(c: Content) -> str:
         for key, section in c.other_bench.items():
             parts.append(f"<h3>{_e(key)}</h3>")
             parts.append(_named_items_html(section))
+    if c.sweep is not None:
+        parts.append(_sweep_html(c))
     parts.append(_footer_html(c))
     parts.append("</main></body></html>")
     return "\n".join(p for p in parts if p) + "\n"
+
+
+# ---- sweep section (sweep.json of `crosscheck sweep`) ----------------------------------------
+def _sweep_label(r: dict) -> str:
+    return engine_label(r)
+
+
+def _sweep_verdict(sw: dict) -> tuple[bool, str]:
+    st = sw.get("status") or {}
+    done = sum((st.get("completed") or {}).values())
+    asked = sum((st.get("requested") or {}).values())
+    ok = bool(st.get("passed"))
+    text = (f"{done} of {asked} samples, {st.get('outside_tolerance', '?')} outside tolerance, "
+            f"{st.get('faults', '?')} faults")
+    if st.get("stopped"):
+        text += f"; stopped: {st['stopped']}"
+    return ok, text
+
+
+def _sweep_rows(sw: dict, model: str) -> list[list]:
+    """[label, quantity, count, max, q0.5, q0.99, tolerance, outside, worst index, status]."""
+    out = []
+    for r in sw.get("results", []):
+        if r.get("model") != model:
+            continue
+        if r.get("skipped"):
+            out.append([_sweep_label(r), r.get("quantity", "?"), 0, None, None, None, None,
+                        None, None, "skip: " + str(r["skipped"])])
+            continue
+        q = r.get("quantiles") or {}
+        worst = (r.get("worst") or [{}])[0]
+        outside = r.get("outside_tolerance")
+        st = "—" if outside is None else ("fail" if outside else "pass")
+        out.append([_sweep_label(r), r.get("quantity", "?"), r.get("count"), r.get("max"),
+                    q.get("0.5"), q.get("0.99"), r.get("tolerance"), outside,
+                    worst.get("index"), st])
+    return out
+
+
+def _sweep_models(sw: dict) -> list[str]:
+    return list(dict.fromkeys([r.get("model", "?") for r in sw.get("results", [])]
+                              + [r.get("model", "?") for r in sw.get("series", [])]))
+
+
+def _sweep_html(c: Content) -> str:
+    from . import plots
+    sw = c.sweep
+    meta = sw.get("meta") or {}
+    ok, verdict = _sweep_verdict(sw)
+    out = ['<h2 id="sweep">Sweep</h2>',
+           f'<p class="sub">seed {_e(meta.get("seed", "?"))}, {_e(meta.get("samples", "?"))} '
+           f'samples per model from index {_e(meta.get("index", 0))}; sampler: '
+           f'{_e(meta.get("sampler", "not recorded"))}</p>',
+           f'<div class="banner {"ok" if ok else "bad"}">{_e(verdict)}</div>']
+    headers = ["engine", "quantity", "samples", "max", "median", "q0.99", "tolerance",
+               "outside", "worst sample", "status"]
+    for m in _sweep_models(sw):
+        out.append(f'<h3 id="sweep-{_anchor(m)}">{_e(m)}</h3>')
+        for s in sw.get("series", []):
+            if s.get("model") == m and s.get("unsupported"):
+                out.append(f'<p class="note">{_e(_sweep_label(s))}: not run, the engine cannot '
+                           f'represent the model: {_e(s["unsupported"])}</p>')
+        rows = _sweep_rows(sw, m)
+        if rows:
+            body, classes = [], []
+            for r in rows:
+                status_cell = r[9]
+                cls = "fail" if status_cell == "fail" else ("skip" if status_cell.startswith(
+                    "skip") else "")
+                body.append([_e(r[0]), _e(r[1]), _e(r[2]), _e(fmt(r[3])), _e(fmt(r[4])),
+                             _e(fmt(r[5])), _e(fmt_tol(r[6])), _e("—" if r[7] is None else r[7]),
+                             _e("—" if r[8] is None else r[8]),
+                             f'<span class="reason">{_e(status_cell)}</span>'])
+                classes.append(cls)
+            out.append(_table(headers, body, classes, {2, 3, 4, 5, 6, 7, 8}))
+        recs = [r for r in sw.get("results", []) if r.get("model") == m]
+        out.append(_img(plots.sweep_histogram_svg(recs), f"sweep error histograms for {m}",
+                        "Distribution of each quantity's error over the sweep's samples "
+                        "(log-spaced bins, one line per engine; dashed: that engine's "
+                        "tolerance). Exact zeros and values outside the binned range are "
+                        "counted in the legend."))
+        worst = [(r, w) for r in recs for w in (r.get("worst") or [])[:1]
+                 if r.get("outside_tolerance")]
+        if worst:
+            out.append("<details><summary>reproduce the worst samples outside tolerance"
+                       "</summary><pre>" + _e("\n".join(
+                           f"# {_sweep_label(r)} {r.get('quantity')}: error {fmt(w.get('error'))}"
+                           f"\n{(w.get('reproduce') or {}).get('sweep', '')}"
+                           f"\n{(w.get('reproduce') or {}).get('eval', '')}"
+                           for r, w in worst)) + "</pre></details>")
+    faults = sw.get("faults") or {}
+    groups = faults.get("groups") or []
+    if groups or faults.get("chunks"):
+        out.append("<h3>Faults</h3>")
+        body = [[_e(g.get("model")), _e(_sweep_label(g)), _e(g.get("stage")), _e(g.get("type")),
+                 _e(g.get("count")), _e(g.get("first_reason"))] for g in groups]
+        body += [[_e(ch.get("model")), "—", "chunk", _e(ch.get("type")),
+                  _e(f"[{ch.get('start')}, {ch.get('stop')})"), _e(ch.get("reason"))]
+                 for ch in faults.get("chunks") or []]
+        out.append(_table(["model", "engine", "stage", "type", "samples", "first reason"],
+                          body, ["fail"] * len(body), {4}))
+        cmds = [f"# {f.get('model')} {_sweep_label(f)} {f.get('stage')} sample "
+                f"{f.get('index')}: {f.get('reason', '')[:120]}\n{f.get('reproduce', '')}"
+                for f in faults.get("records") or []]
+        if cmds:
+            out.append("<details><summary>reproduce faulty samples (the first "
+                       f"{_e(faults.get('kept_per_group', ''))} per group)</summary><pre>"
+                       + _e("\n".join(cmds)) + "</pre></details>")
+    return "\n".join(out)
+
+
+def _sweep_md(c: Content) -> list[str]:
+    sw = c.sweep
+    meta = sw.get("meta") or {}
+    ok, verdict = _sweep_verdict(sw)
+    out = ["## Sweep", "", f"**{'pass' if ok else 'FAIL'}**: {verdict} (seed "
+           f"{meta.get('seed', '?')}, {meta.get('samples', '?')} samples per model). "
+           "Histograms are in `index.html`.", ""]
+    for m in _sweep_models(sw):
+        out += [f"### {m}", ""]
+        for s in sw.get("series", []):
+            if s.get("model") == m and s.get("unsupported"):
+                out += [f"- {_sweep_label(s)}: not run: {s['unsupported']}"]
+        rows = _sweep_rows(sw, m)
+        if rows:
+            out += [""] + _md_table(
+                ["engine", "quantity", "samples", "max", "median", "q0.99", "tolerance",
+                 "outside", "worst sample", "status"],
+                [[r[0], r[1], r[2], fmt(r[3]), fmt(r[4]), fmt(r[5]), fmt_tol(r[6]),
+                  "—" if r[7] is None else r[7], "—" if r[8] is None else r[8], r[9]]
+                 for r in rows])
+    groups = (sw.get("faults") or {}).get("groups") or []
+    if groups:
+        out += ["### Faults", ""] + _md_table(
+            ["model", "engine", "stage", "type", "samples", "first reason"],
+            [[g.get("model"), _sweep_label(g), g.get("stage"), g.get("type"), g.get("count"),
+              g.get("first_reason")] for g in groups])
+    return out
 
 
 # ---- Markdown --------------------------------------------------------------------------------
@@ -728,6 +889,8 @@ def render_md(c: Content) -> str:
             out += _md_table(["name", "status", "what", "notes"],
                              [[name, st, desc, "; ".join(notes)]
                               for name, st, _, desc, _, notes, _ in named_items(section)])
+    if c.sweep is not None:
+        out += _sweep_md(c)
     out += ["---", "", "Regenerate:", "", "```bash"] + c.regenerate() + ["```", ""]
     for label, m in c.meta_rows():
         v = _versions(m)
@@ -781,9 +944,10 @@ def render_junit(c: Content) -> str:
 
 # ---- entry points ----------------------------------------------------------------------------
 def write_report(results: dict | None, bench: dict | None, out_dir: str | Path, command: str,
-                 results_path: str | None = None, bench_path: str | None = None) -> dict:
+                 results_path: str | None = None, bench_path: str | None = None,
+                 sweep: dict | None = None, sweep_path: str | None = None) -> dict:
     """Write index.html, report.md and junit.xml into out_dir; returns their paths."""
-    c = Content(results, bench, command, results_path, bench_path)
+    c = Content(results, bench, command, results_path, bench_path, sweep, sweep_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"html": out / "index.html", "md": out / "report.md", "junit": out / "junit.xml"}
@@ -796,26 +960,32 @@ def write_report(results: dict | None, bench: dict | None, out_dir: str | Path, 
     return paths
 
 
-def generate(results_path: str | None, bench_path: str | None, out_dir: str) -> dict:
+def generate(results_path: str | None, bench_path: str | None, out_dir: str,
+             sweep_path: str | None = None) -> dict:
     """Load and check the inputs, then write the report (the lead's `run` may call this)."""
     results = check_results(load_json(results_path, "results"), results_path) \
         if results_path else None
     bench = check_bench(load_json(bench_path, "bench"), bench_path) if bench_path else None
+    sweep = check_sweep(load_json(sweep_path, "sweep"), sweep_path) if sweep_path else None
     argv = ["crosscheck", "report"]
     if results_path:
         argv += ["--results", str(results_path)]
     if bench_path:
         argv += ["--bench", str(bench_path)]
+    if sweep_path:
+        argv += ["--sweep", str(sweep_path)]
     argv += ["--out", str(out_dir)]
-    return write_report(results, bench, out_dir, shlex.join(argv), results_path, bench_path)
+    return write_report(results, bench, out_dir, shlex.join(argv), results_path, bench_path,
+                        sweep, sweep_path)
 
 
 def cmd_report(args) -> int:
     results_path = args.results
+    sweep_path = getattr(args, "sweep", None)
     if results_path is None:
         results_path = DEFAULT_RESULTS
         if not Path(results_path).is_file():
-            if args.bench is None:
+            if args.bench is None and sweep_path is None:
                 raise ReportInputError(f"no results file: {DEFAULT_RESULTS} does not exist "
                                        f"(run `crosscheck run` first, or give --results FILE)")
             results_path = None  # a benchmark-only report
@@ -824,8 +994,12 @@ def cmd_report(args) -> int:
         beside = Path(results_path).parent / "bench.json"  # the same --out of run and bench
         if beside.is_file():
             bench_path = str(beside)
-    out_dir = args.out or str(Path(results_path or bench_path).parent)
-    paths = generate(results_path, bench_path, out_dir)
+    if sweep_path is None and results_path is not None:
+        beside = Path(results_path).parent / "sweep.json"  # the same --out of run and sweep
+        if beside.is_file():
+            sweep_path = str(beside)
+    out_dir = args.out or str(Path(results_path or bench_path or sweep_path).parent)
+    paths = generate(results_path, bench_path, out_dir, sweep_path)
     print("crosscheck report: " + ", ".join(str(p) for p in paths.values()))
     return 0
 
@@ -839,6 +1013,9 @@ def register(sub):
     r.add_argument("--bench", default=None, metavar="FILE",
                    help="bench.json from `crosscheck bench` (default: bench.json beside the "
                         "results file, when it exists)")
+    r.add_argument("--sweep", default=None, metavar="FILE",
+                   help="sweep.json from `crosscheck sweep`: error histograms per quantity "
+                        "(default: sweep.json beside the results file, when it exists)")
     r.add_argument("--out", default=None, metavar="DIR",
                    help="output directory (default: the results file's directory)")
     r.set_defaults(func=cmd_report)

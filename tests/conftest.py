@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
 from hypothesis import HealthCheck, settings
 
 # CI: derandomized (the same examples every run) so a red build is reproducible; dev: random
@@ -15,12 +14,7 @@ settings.register_profile("dev", max_examples=25, deadline=None,
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
 
 
-def random_consistent_state(nm, rng, q_spread=0.3, u_spread=1.0, t=0.0):
-    """A random state near the model's initial state, projected onto its constraint manifold."""
-    m = nm.model
-    q = np.asarray(m.initial_q, float) + q_spread * rng.standard_normal(len(m.initial_q))
-    u = np.asarray(m.initial_u, float) + u_spread * rng.standard_normal(len(m.initial_u))
-    return nm.project(q, u, t)
+from crosscheck.sampling import random_consistent_state  # noqa: E402,F401  (one generator)
 
 
 def loadable_models() -> list[str]:

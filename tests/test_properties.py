@@ -18,23 +18,15 @@ import pytest
 
 from reference import NumericModel, models
 from reference.constraints import is_rheonomic
-from tests.conftest import loadable_models, random_consistent_state
+# the same generators draw the sweeps' samples (crosscheck sweep)
+from crosscheck.sampling import random_consistent_state, random_params as _params
+from tests.conftest import loadable_models
 
 CASES = [(n, f) for n in loadable_models() for f in models.get(n).formulations]
 
 # Round-off of sums of products of O(1..1e3) terms in double precision, relative to the sum of
 # the magnitudes of the terms being balanced.
 BALANCE_REL = 1e-9
-
-
-def _params(model, rng):
-    out = {}
-    for p in model.parameters:
-        if p.positive or p.nonnegative:
-            out[p.name] = p.default * rng.uniform(0.8, 1.25)
-        else:  # applied loads and other signed parameters: a random value of the same scale
-            out[p.name] = rng.uniform(-1, 1) * max(1.0, abs(p.default))
-    return out
 
 
 _models_cache: dict = {}
