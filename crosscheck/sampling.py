@@ -18,13 +18,11 @@ samples to build faults).
 """
 from __future__ import annotations
 
-import copy
 import zlib
 
 import numpy as np
 
 from reference import NumericModel
-from reference.numeric import resolve_parameters
 
 # Range of the relative scale factor of every positive parameter: wide enough to move the
 # dynamics, narrow enough that the geometry of every model stays valid (a slider-crank keeps
@@ -66,19 +64,9 @@ def sample_seed(seed: int, model_name: str, index: int) -> int:
 
 
 def with_params(base: NumericModel, params: dict) -> NumericModel:
-    """`NumericModel(base.model, base.formulation, params)` without reloading the compiled code.
-
-    The compiled code depends on the model only (the parameters are arguments), but the
-    constructor reads and compiles it again each time (2-30 ms); a sweep draws a parameter set
-    per sample, so it shares the code object and recomputes only what depends on the parameters
-    (the values, and the Schur pivot reference at the initial state, whose check also raises
-    for a singular parameter set exactly as the constructor does). tests/test_sweep.py checks
-    that both routes give the same numbers."""
-    nm = copy.copy(base)
-    nm.params = resolve_parameters(base.model, params)
-    nm.p = tuple(nm.params[p.name] for p in base.model.parameters)
-    nm.sref = nm._schur_reference()
-    return nm
+    """`NumericModel(base.model, base.formulation, params)` sharing base's compiled code (a
+    sweep draws a parameter set per sample); tests/test_sweep.py checks both routes agree."""
+    return base.with_params(params)
 
 
 def draw_instance(base: NumericModel, rng):
