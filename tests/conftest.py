@@ -1,4 +1,4 @@
-"""Shared test configuration: deterministic hypothesis profiles and consistent-state helpers."""
+"""Shared test configuration: deterministic hypothesis profiles."""
 from __future__ import annotations
 
 import os
@@ -13,18 +13,3 @@ settings.register_profile("dev", max_examples=25, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
 
-
-from crosscheck.sampling import random_consistent_state  # noqa: E402,F401  (one generator)
-
-
-def loadable_models() -> list[str]:
-    """Registered models whose module imports; test_registry fails loudly for any other."""
-    from reference import models
-    out = []
-    for name in models.names():
-        try:
-            models.get(name)
-        except ModuleNotFoundError:
-            continue
-        out.append(name)
-    return out

@@ -192,8 +192,6 @@ def test_work_energy_balance_with_a_torque_and_without_bookkeeping():
 
 
 def test_work_of_a_rheonomic_constraint_enters_the_balance():
-    if "pendulum_moving_support" not in models.names():
-        pytest.skip("pendulum_moving_support not registered")
     nm = NumericModel(models.get("pendulum_moving_support"))
     tr = simulate(nm, *_start(nm), 1.0, "projection", rtol=1e-10, atol=1e-10)
     E = tr.energy()

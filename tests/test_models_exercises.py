@@ -30,7 +30,7 @@ from reference.models import exercise_6_4 as ex4
 from reference.models.common import T_SYM, particle, planar_body
 from reference.models.pendulum import rod_tension
 from reference.system import Body, Force, Model, Torque, rate, rot_x, rot_z, symbols, vec
-from tests.conftest import random_consistent_state
+from crosscheck.sampling import random_consistent_state
 
 FORMS = ["lagrange", "dalembert", "kane"]
 EXERCISES = ["exercise_6_1", "exercise_6_2", "exercise_6_4"]
