@@ -317,7 +317,10 @@ class _Problem:
 
 
 class _Index1(_Problem):
-    def __init__(self, nm, energy):
+    """y' = (N(q, u, t), u') from the compiled KKT solve; `offset(q, u, t)`, when given, shifts
+    the constraint rows' right side: A u' = b + offset (Baumgarte)."""
+
+    def __init__(self, nm, energy, offset=None):
         super().__init__(nm, energy)
         nq, fr = self.nq, self.fr
         rates, work, singular = self.rates, self.work, self.singular
@@ -328,7 +331,7 @@ class _Index1(_Problem):
             yl = y.tolist()
             q, u = yl[:nq], yl[nq:nq + self.n]
             try:
-                ud, lam, piv = fr(q, u, t)
+                ud, lam, piv = fr(q, u, t, offset(q, u, t) if offset else None)
             except (ZeroDivisionError, ValueError):
                 ud, lam, piv = None, None, -1.0
             if not piv > PMIN:
@@ -344,39 +347,20 @@ class _Index1(_Problem):
         self.fun = fun
 
 
-class _Baumgarte(_Problem):
+class _Baumgarte(_Index1):
     def __init__(self, nm, energy, alpha=BAUMGARTE_ALPHA, beta=BAUMGARTE_BETA):
-        super().__init__(nm, energy)
         if alpha < 0 or beta < 0:
             raise ModelInputError(f"Baumgarte gains must be >= 0, got alpha={alpha}, beta={beta}")
         self.alpha, self.beta = float(alpha), float(beta)
-        nq, n, m, mc, p, fr = self.nq, self.n, self.m, self.mc, self.p, self.fr
-        res = self.res
-        rates, work, singular = self.rates, self.work, self.singular
         two_a, b2 = 2.0 * self.alpha, self.beta ** 2
-        PMIN, pmin = PIVOT_RATIO_MIN, self.pmin
 
-        def fun(t, y):
-            yl = y.tolist()
-            q, u = yl[:nq], yl[nq:nq + n]
-            pos, vel = res(q, u, t, p)
+        def offset(q, u, t):
             # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only
-            db = [-two_a * vel[j] - (b2 * pos[j] if j < mc else 0.0) for j in range(m)]
-            try:
-                ud, lam, piv = fr(q, u, t, db)
-            except (ZeroDivisionError, ValueError):
-                ud, lam, piv = None, None, -1.0
-            if not piv > PMIN:
-                singular(t, q, piv)
-            if piv < pmin[0]:
-                pmin[0] = piv
-            out = list(u) if rates else self.qdot(q, u, t)
-            out += ud
-            if work:
-                out.append(self.power(q, u, t, lam))
-            return np.array(out)
+            pos, vel = self.res(q, u, t, self.p)
+            mc = self.mc
+            return [-two_a * v - (b2 * pos[j] if j < mc else 0.0) for j, v in enumerate(vel)]
 
-        self.fun = fun
+        super().__init__(nm, energy, offset)
 
 
 class _Projection(_Index1):
