@@ -101,6 +101,7 @@ def scaled_error(value, reference) -> float:
 
 METRICS = {
     "scaled_error": "max |value - reference| / max(max |reference|, 1)",
+    "relative_energy_error": "|(K + V)_engine - (K + V)_reference| / max(|K| + |V|, 1)",
     "relative_miss": "max |(raw - reference) - predicted| / max(max |predicted|, 1e-5), "
                      "both scaled as scaled_error",
 }

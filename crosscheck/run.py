@@ -126,6 +126,7 @@ def perturbed(name, params: dict, perturb: dict) -> dict:
 def _engine_records(name, nm, states, adapter, perturb, variant=None):
     formulation = nm.formulation
     params = perturbed(name, nm.params, perturb)
+
     def rec(*a, **k):
         r = C.record(name, formulation, adapter.name, *a, **k)
         if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
@@ -200,7 +201,7 @@ def _engine_records(name, nm, states, adapter, perturb, variant=None):
         out.append(rec("instantaneous", "mass_matrix", worst["mass_matrix"].error, C.MASS_MATRIX,
                        worst_state=worst["mass_matrix"].state))
     out.append(rec("instantaneous", "energy", worst["energy"].error, C.ENERGY,
-                   worst_state=worst["energy"].state))
+                   worst_state=worst["energy"].state, metric="relative_energy_error"))
     it = {"iterations_max": max(extras["iterations"])} if extras["iterations"] else {}
     if extras["soft_error"]:
         soft = {"predicted_rel_error_max": float(max(extras["predicted_rel_error"])),
