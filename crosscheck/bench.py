@@ -28,18 +28,11 @@ from .timing import per_call_seconds
 BATCH = 10_000
 
 
-def _states(nm, n, seed=0):
-    """n consistent states near the model's initial state (projected)."""
-    rng = np.random.default_rng(seed)
-    m = nm.model
-    Q, U = [], []
-    for _ in range(n):
-        q = np.asarray(m.initial_q) + 0.2 * rng.standard_normal(len(m.initial_q))
-        u = np.asarray(m.initial_u) + 0.5 * rng.standard_normal(len(m.initial_u))
-        q, u = nm.project(q, u)
-        Q.append(q)
-        U.append(u)
-    return np.array(Q), np.array(U)
+def _states(nm, n):
+    """n seeded consistent states (the ones `crosscheck run` compares at) as (Q, U) arrays."""
+    from .run import consistent_states
+    states = consistent_states(nm, n)
+    return np.array([q for q, _ in states]), np.array([u for _, u in states])
 
 
 def _baseline(model, formulation, params):
@@ -84,7 +77,7 @@ def forward_records(names, quick=False, engines=()):
     for name in names:
         model = models.get(name)
         nm = NumericModel(model)
-        Q, U = _states(nm, 16 if quick else 64, seed=1)
+        Q, U = _states(nm, 16 if quick else 64)
         q, u = Q[0], U[0]
         ql, ul = q.tolist(), u.tolist()
         rec = lambda path, batch, t: recs.append(  # noqa: E731

@@ -143,18 +143,27 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
     return out
 
 
+def _engine_model(adapter, name, nm, row):
+    """(engine model, None), or (None, [row marked skipped with the reason]) when the engine
+    cannot build the model or cannot simulate it."""
+    try:
+        em = adapter.build(name, nm.params)
+    except Exception as exc:  # EngineUnsupported, or a model the engine refuses: recorded
+        return None, [{**row, "skipped": True, "reason": f"{type(exc).__name__}: {exc}"}]
+    if not hasattr(em, "simulate"):
+        return None, [{**row, "skipped": True,
+                       "reason": f"the {adapter.name} engine model has no simulate()"}]
+    return em, None
+
+
 def pinocchio_records(name, quick, ref, nm, adapter):
     T = horizon(name)
     m = nm.model
     out = []
-    try:
-        em = adapter.build(name, nm.params)
-    except Exception as exc:
-        return [{**_base(name, "pinocchio", "index1", "DOP853", None, "rtol=atol", T, ref),
-                 "skipped": True, "reason": f"{type(exc).__name__}: {exc}"}]
-    if not hasattr(em, "simulate"):
-        return [{**_base(name, "pinocchio", "index1", "DOP853", None, "rtol=atol", T, ref),
-                 "skipped": True, "reason": "the pinocchio engine model has no simulate()"}]
+    row = _base(name, "pinocchio", "index1", "DOP853", None, "rtol=atol", T, ref)
+    em, skip = _engine_model(adapter, name, nm, row)
+    if skip:
+        return skip
     t_eval = np.linspace(0.0, T, 21)
     for tol in (ENGINE_LADDER_QUICK if quick else ENGINE_LADDER_FULL):
         rec = _base(name, "pinocchio", "index1", "DOP853", tol, "rtol=atol", T, ref)
@@ -187,14 +196,10 @@ def mujoco_records(name, quick, ref, nm, adapter):
     T = horizon(name)
     m = nm.model
     out = []
-    try:
-        em = adapter.build(name, nm.params)
-    except Exception as exc:
-        return [{**_base(name, "mujoco", None, None, None, "timestep", T, ref),
-                 "skipped": True, "reason": f"{type(exc).__name__}: {exc}"}]
-    if not hasattr(em, "simulate"):
-        return [{**_base(name, "mujoco", None, None, None, "timestep", T, ref),
-                 "skipped": True, "reason": "the mujoco engine model has no simulate()"}]
+    em, skip = _engine_model(adapter, name, nm,
+                             _base(name, "mujoco", None, None, None, "timestep", T, ref))
+    if skip:
+        return skip
     steps = MUJOCO_STEPS_QUICK if quick else MUJOCO_STEPS_FULL
     for integ, hs in steps.items():
         for h in hs:

@@ -76,7 +76,8 @@ def pendulum_exact(theta0: float, theta_dot0: float, g: float, L: float, t):
 
 # ---- the slider-crank in one coordinate -------------------------------------------------------
 def slider_crank_one_coordinate():
-    """Example 2(b) with theta2 eliminated on the +x branch (tests/test_formulations_agree.py)."""
+    """Example 2(b) with theta2 eliminated on the +x branch (the reduction the tests compare
+    Example 2(b) and Exercise 6.3 with, and the slider-crank's high-accuracy reference)."""
     from .models import slider_crank as sc
     from .models.common import particle, planar_body
     from .system import Model, Torque, vec

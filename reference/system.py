@@ -144,9 +144,7 @@ class Model:
         """
         if isinstance(expr, sp.MatrixBase):
             return expr.applyfunc(lambda e: self.time_derivative(e, accelerations))
-        out = sp.diff(expr, self.t)
-        for q, qdot in zip(self.coordinates, self.kinematics):
-            out += sp.diff(expr, q) * qdot
+        out = rate(expr, self.coordinates, self.kinematics, self.t)
         if accelerations is not None:
             for u, ud in zip(self.speeds, accelerations):
                 out += sp.diff(expr, u) * ud

@@ -11,14 +11,11 @@ import math
 
 import numpy as np
 import pytest
-import sympy as sp
 
 from reference import NumericModel, models
 from reference.formulations import derive
 from reference.models.pendulum import rod_tension
-from reference.system import Model, Torque, vec
-from reference.models.common import particle, planar_body
-from reference.models import slider_crank as sc
+from reference.minimal import slider_crank_one_coordinate
 from crosscheck.sampling import random_consistent_state
 
 # Two evaluations of the same equations through differently ordered arithmetic differ by
@@ -73,28 +70,11 @@ def test_pendulum_1a_equals_1b_and_tension():
         assert abs(T - (m * L * w**2 + m * g * math.cos(th))) < ROUNDOFF_REL * max(1, abs(T))
 
 
-def _one_coordinate_slider_crank() -> Model:
-    """Example 2(b) with theta2 eliminated: theta2 = asin(-l1 S1 / l2) (the +x branch)."""
-    th1, w1 = sp.Symbol("theta1", real=True), sp.Symbol("theta1_dot", real=True)
-    m1, m2, m3, l1, l2, r1, r2, I_G1, I_G2, T = (
-        sc.m1, sc.m2, sc.m3, sc.l1, sc.l2, sc.r1, sc.r2, sc.I_G1, sc.I_G2, sc.T)
-    th2 = sp.asin(-l1 * sp.sin(th1) / l2)
-    q, N = (th1,), (w1,)
-    e1, e2 = vec(sp.cos(th1), sp.sin(th1), 0), vec(sp.cos(th2), sp.sin(th2), 0)
-    bodies = (planar_body("crank", m1, I_G1, r1 * e1, th1, q, N),
-              planar_body("rod", m2, I_G2, l1 * e1 + r2 * e2, th2, q, N),
-              particle("slider", m3, l1 * e1 + l2 * e2, q, N))
-    return Model(name="slider_crank_1dof", source="test reduction", title="",
-                 parameters=sc.PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=bodies, gravity=sc.GRAVITY,
-                 loads=(Torque("T", vec(0, 0, w1), vec(0, 0, T)),), formulations=("lagrange",),
-                 initial_q=(sc.THETA1_0,), initial_u=(sc.THETA1_DOT0,))
-
-
 def test_slider_crank_three_ways():
     params = {"T": 1.7}
     ex2 = NumericModel(models.get("slider_crank"), params=params)
     split = NumericModel(models.get("slider_crank_split"), params=params)
-    one = NumericModel(_one_coordinate_slider_crank(), params=params)
+    one = NumericModel(slider_crank_one_coordinate(), params=params)
     l1, l2 = ex2.params["l1"], ex2.params["l2"]
     rng = np.random.default_rng(3)
     for _ in range(15):

@@ -18,8 +18,8 @@ import pytest
 
 from reference import NumericModel, models
 from reference.constraints import is_rheonomic
-# the same generators draw the sweeps' samples (crosscheck sweep)
-from crosscheck.sampling import random_consistent_state, random_params as _params
+# the same generator draws the sweeps' samples (crosscheck sweep)
+from crosscheck.sampling import draw_instance
 
 CASES = [(n, f) for n in models.names() for f in models.get(n).formulations]
 
@@ -39,11 +39,7 @@ def _numeric(name, formulation):
 
 
 def _instance(name, formulation, seed):
-    base = _numeric(name, formulation)
-    rng = np.random.default_rng(seed)
-    nm = NumericModel(base.model, formulation, _params(base.model, rng))  # cached code, new p
-    t = float(rng.uniform(0, 2))
-    q, u = random_consistent_state(nm, rng, t=t)
+    nm, t, q, u = draw_instance(_numeric(name, formulation), np.random.default_rng(seed))
     return nm, q, u, t
 
 

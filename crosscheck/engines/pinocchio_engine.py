@@ -542,7 +542,21 @@ class _PinModel:
 # ======================================================================================
 # Example 1: the simple pendulum (reference Y DOWN; engine Y UP)
 # ======================================================================================
-class PendulumAngle(_PinModel):
+class _SameCoordinates:
+    """Engine coordinates and speeds are the reference's, in the same order and meaning."""
+
+    def to_engine_state(self, q, u):
+        return (np.array(q, float).reshape(self.model.nq).copy(),
+                np.array(u, float).reshape(self.model.nv).copy())
+
+    def from_engine_state(self, qe, ve):
+        return np.array(qe, float).copy(), np.array(ve, float).copy()
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return ae.copy()
+
+
+class PendulumAngle(_SameCoordinates, _PinModel):
     """Example 1(a). One hinge RZ at the origin; the bob (mass m, no inertia) at (0, -L, 0) in
     the hinge frame, so the engine angle is the reference's theta (from the downward vertical)
     with positions (L sin, -L cos) = (x_ref, -y_ref). Plain ABA; the reference has no multipliers.
@@ -559,15 +573,6 @@ class PendulumAngle(_PinModel):
         self.model.appendBodyToJoint(
             j, pin.Inertia(p["m"], np.array([0.0, -p["L"], 0.0]), np.zeros((3, 3))),
             pin.SE3.Identity())
-
-    def to_engine_state(self, q, u):
-        return np.array(q, float).reshape(1).copy(), np.array(u, float).reshape(1).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return ae.copy()
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         pin.rnea(self.model, self.data, qe, ve, ae)
@@ -738,7 +743,7 @@ class SliderCrank(_SliderCrankBase):
         raw["force_on_rod_at_C"] = lam_e[0:3].copy()
 
 
-class SliderCrankSplit(_SliderCrankBase):
+class SliderCrankSplit(_SameCoordinates, _SliderCrankBase):
     """Note 2 / Exercise 6.3, coordinates (theta1, x, theta2) with theta2 measured from C to B
     and r2 = |C G2|. Engine tree: crank hinge (theta1), root slide PX (x) carrying m3, rod hinge
     on the slider at C (the slider does not turn, so the rod's hinge angle is the absolute
@@ -768,15 +773,6 @@ class SliderCrankSplit(_SliderCrankBase):
             j1, pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])),
             j3, pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
             pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
-
-    def to_engine_state(self, q, u):
-        return np.array(q, float).reshape(3).copy(), np.array(u, float).reshape(3).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return ae.copy()
 
     def _multipliers(self, qe, ve, ae, lam_e):
         return lam_e[0:2].copy()
@@ -1175,7 +1171,7 @@ class TopCartesianTree(_TopCartesianBase):
 # ======================================================================================
 # Supplements: the knife edge (nonholonomic) and the moving support (rheonomic)
 # ======================================================================================
-class KnifeEdge(_PinModel):
+class KnifeEdge(_SameCoordinates, _PinModel):
     """Knife edge / Chaplygin sled (horizontal plane, no gravity). Engine tree: slides PX (x),
     PY (y) carrying the contact point C, hinge RZ (theta) carrying the sled: mass center at
     (a, 0, 0) on the blade axis, planar-lamina inertia from I_G. q_e = q_ref. The nonholonomic
@@ -1207,15 +1203,6 @@ class KnifeEdge(_PinModel):
         S, C = math.sin(qe[2]), math.cos(qe[2])
         J = np.array([[-S, C, 0.0]])
         return J, np.array([-(C * ve[0] + S * ve[1]) * ve[2]])
-
-    def to_engine_state(self, q, u):
-        return np.array(q, float).reshape(3).copy(), np.array(u, float).reshape(3).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return ae.copy()
 
     def _multipliers(self, qe, ve, ae, lam_e):
         return lam_e.copy()
