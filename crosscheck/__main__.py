@@ -1,0 +1,6 @@
+"""`python -m crosscheck`: the same as the `crosscheck` command."""
+import sys
+
+from .cli import main
+
+sys.exit(main())
