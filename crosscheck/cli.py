@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 
 from reference.errors import ModelInputError
@@ -182,9 +183,41 @@ def _optional_commands():
             for name in ("run", "bench", "report", "gate", "sweep")]
 
 
+# A value that starts with a minus sign: a number or a comma-separated list of numbers
+# ("-0.5,0.2", "-1e-3"). argparse takes any such token after an option for another option
+# unless it is a single plain negative number, so `--q -0.5,0.2` would fail.
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """`--q -0.5,0.2` -> `--q=-0.5,0.2` for every option that takes one value, so users can
+    type negative coordinates, speeds and parameters the natural way."""
+    takes_value = set()
+    stack = [parser]
+    while stack:
+        p = stack.pop()
+        for action in p._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                stack.extend(action.choices.values())
+            elif action.option_strings and action.nargs is None:
+                takes_value.update(s for s in action.option_strings if s.startswith("--"))
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok in takes_value and i + 1 < len(argv) and _NEGATIVE_VALUE.match(argv[i + 1]):
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(_attach_negative_values(parser, argv))
     try:
         return int(args.func(args) or 0)
     except ModelInputError as exc:

@@ -123,3 +123,26 @@ def test_two_runs_give_identical_results(tmp_path, capsys):
     assert data[0]["series"] == data[1]["series"]
     meta = [{k: v for k, v in d["meta"].items() if k not in ("date", "command")} for d in data]
     assert meta[0] == meta[1]
+
+
+@pytest.mark.parametrize("spaced,joined", [
+    (["--q", "-0.5,0.2", "--u", "-1,0"], ["--q=-0.5,0.2", "--u=-1,0"]),
+    (["--q", "-.5,0.2", "--u", "1,-0"], ["--q=-.5,0.2", "--u=1,-0"]),
+    (["--set", "T=-2", "--q", "-1e-1,0.3", "--t", "-0.5"],
+     ["--set=T=-2", "--q=-1e-1,0.3", "--t=-0.5"]),
+])
+def test_negative_values_after_an_option(capsys, spaced, joined):
+    """`--q -0.5,0.2` is read as the value it looks like (argparse alone takes it for an option)
+    and gives exactly what the `--q=-0.5,0.2` spelling gives."""
+    code, out, err = _run(capsys, "eval", "slider_crank", *spaced, "--project", "--json")
+    assert code == 0, err
+    code2, out2, _ = _run(capsys, "eval", "slider_crank", *joined, "--project", "--json")
+    assert code2 == 0 and json.loads(out) == json.loads(out2)
+
+
+def test_a_negative_value_does_not_swallow_a_flag(capsys):
+    """Only numbers are attached: `--q --json` still reports the missing value."""
+    with pytest.raises(SystemExit) as exc:
+        main(["eval", "slider_crank", "--q", "--json"])
+    assert exc.value.code == 2
+    assert "expected one argument" in capsys.readouterr().err
