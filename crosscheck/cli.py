@@ -12,6 +12,8 @@ import sys
 
 from reference.errors import ModelInputError
 
+from .arguments import OneLineParser
+
 EXIT_USAGE = 2
 
 
@@ -149,7 +151,7 @@ def cmd_eval(args) -> int:
 
 # ---- parser ------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="crosscheck",
         description="Textbook multiplier formulations cross-checked against Pinocchio and MuJoCo")
     sub = p.add_subparsers(dest="command", required=True)
