@@ -1,0 +1,92 @@
+"""What size of error the suite would catch: the smallest relative change of one parameter in
+one engine's model that makes an instantaneous check fail.
+
+For each model, engine and parameter, the parameter of the ENGINE's model alone is multiplied by
+(1 + rel) while the reference keeps its value, and the instantaneous comparison at the run's
+consistent states is repeated. `threshold` searches the decades rel = 1e-13 ... 1e-1 for the
+smallest one that is caught: it checks the largest first (a parameter not caught at 10 % is
+reported as such, with the reason) and then bisects the decades, assuming that a change caught at
+one size is caught at every larger size (the comparisons' errors grow with the change). The
+search costs at most 1 + ceil(log2(13)) = 5 comparisons per parameter.
+
+The parameters are the model's generic set (reference.generic), not the defaults: a load that is
+0 by default cannot be perturbed relatively, and equal defaults could hide one another.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Callable, Optional
+
+DECADES = tuple(range(-13, 0))  # rel = 10**k for k in DECADES
+
+
+@dataclass(frozen=True)
+class Threshold:
+    """The outcome for one model x engine x parameter.
+
+    caught_at: smallest decade caught (a relative change), or None when nothing up to 10 % is;
+    not_caught_below: the largest decade checked and not caught (None when even 1e-13 is);
+    failing_check: the record that caught it at caught_at ("model/engine/check/quantity");
+    reason: why nothing caught it, or why the parameter was not searched.
+    """
+
+    model: str
+    engine: str
+    parameter: str
+    caught_at: Optional[float]
+    not_caught_below: Optional[float]
+    failing_check: str = ""
+    reason: str = ""
+    evaluations: int = 0
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+# evaluate(rel) -> name of the first failing record ("" when every record passed)
+Evaluate = Callable[[float], str]
+
+
+def threshold(evaluate: Evaluate) -> tuple[Optional[int], Optional[int], str, int]:
+    """(caught decade k, largest decade not caught, failing record at k, evaluations)."""
+    calls = 0
+
+    def failing(k: int) -> str:
+        nonlocal calls
+        calls += 1
+        return evaluate(10.0 ** k)
+
+    top = failing(DECADES[-1])
+    if not top:
+        return None, DECADES[-1], "", calls
+    lo, hi, hi_fail = -1, len(DECADES) - 1, top  # DECADES[hi] caught; DECADES[lo] not (or none)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        name = failing(DECADES[mid])
+        if name:
+            hi, hi_fail = mid, name
+        else:
+            lo = mid
+    return DECADES[hi], (DECADES[lo] if lo >= 0 else None), hi_fail, calls
+
+
+def search(model: str, engine: str, parameter: str, evaluate: Evaluate,
+           unused_reason: str = "") -> Threshold:
+    """The threshold of one parameter; `unused_reason` marks a parameter the engine's model does
+    not contain (nothing is searched, the reason is reported)."""
+    if unused_reason:
+        return Threshold(model, engine, parameter, None, None, reason=unused_reason)
+    k, below, name, calls = threshold(evaluate)
+    if k is None:
+        return Threshold(model, engine, parameter, None, 10.0 ** below, evaluations=calls,
+                         reason="no instantaneous check failed for a change of up to 10 %: the "
+                                "compared quantities do not depend on this parameter at these "
+                                "states")
+    return Threshold(model, engine, parameter, 10.0 ** k,
+                     None if below is None else 10.0 ** below, failing_check=name,
+                     evaluations=calls)
+
+
+def log_decade(value: Optional[float]) -> Optional[int]:
+    return None if value is None else int(round(math.log10(value)))

@@ -1,0 +1,34 @@
+"""The decade search of `crosscheck sensitivity`: smallest caught decade, bounded cost."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from crosscheck.sensitivity import DECADES, search, threshold
+
+
+@pytest.mark.parametrize("true_k", list(DECADES))
+def test_finds_the_smallest_caught_decade(true_k):
+    calls = []
+
+    def evaluate(rel):
+        calls.append(rel)
+        return "m/e/instantaneous/accelerations" if rel >= 10.0 ** true_k * 0.999 else ""
+
+    k, below, name, n = threshold(evaluate)
+    assert k == true_k and name.endswith("accelerations")
+    assert below == (true_k - 1 if true_k > DECADES[0] else None)
+    assert n == len(calls) <= 1 + math.ceil(math.log2(len(DECADES)))
+
+
+def test_nothing_caught_is_reported_with_the_reason():
+    t = search("m", "e", "p", lambda rel: "")
+    assert t.caught_at is None and t.not_caught_below == pytest.approx(0.1)
+    assert "10 %" in t.reason and t.evaluations == 1
+
+
+def test_an_unused_parameter_is_not_searched():
+    t = search("m", "e", "L", lambda rel: pytest.fail("must not evaluate"),
+               unused_reason="the engine's model has no L")
+    assert t.caught_at is None and t.reason == "the engine's model has no L"
