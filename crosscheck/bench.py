@@ -116,10 +116,10 @@ def _engines(requested):
     out = []
     for name in requested:
         if name == "pinocchio":
-            from .engines.pinocchio_engine import PinocchioAdapter
+            from .engines.pinocchio.adapter import PinocchioAdapter
             out.append(PinocchioAdapter())
         elif name == "mujoco":
-            from .engines.mujoco_engine import MujocoAdapter
+            from .engines.mujoco.adapter import MujocoAdapter
             out.append(MujocoAdapter())
     return out
 

@@ -25,10 +25,10 @@ ENGINE_NAMES = ("pinocchio", "mujoco")
 
 def engine_adapter(name: str):
     if name == "pinocchio":
-        from .engines.pinocchio_engine import PinocchioAdapter
+        from .engines.pinocchio.adapter import PinocchioAdapter
         return PinocchioAdapter()
     if name == "mujoco":
-        from .engines.mujoco_engine import MujocoAdapter
+        from .engines.mujoco.adapter import MujocoAdapter
         return MujocoAdapter()
     raise ModelInputError(f"unknown engine {name!r}; valid: {', '.join(ENGINE_NAMES)}")
 

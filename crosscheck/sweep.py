@@ -545,8 +545,8 @@ def _mp_context():
     engines), so they start fast and inherit no threads of the parent (a Dask client, tqdm)."""
     import multiprocessing as mp
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["crosscheck.sweep", "crosscheck.engines.pinocchio_engine",
-                                "crosscheck.engines.mujoco_engine"])
+    ctx.set_forkserver_preload(["crosscheck.sweep", "crosscheck.engines.pinocchio.adapter",
+                                "crosscheck.engines.mujoco.adapter"])
     return ctx
 
 

@@ -243,10 +243,10 @@ def _adapter(engine: str):
         return engine, None
     try:
         if engine == "pinocchio":
-            from .engines.pinocchio_engine import PinocchioAdapter
+            from .engines.pinocchio.adapter import PinocchioAdapter
             return PinocchioAdapter(), None
         if engine == "mujoco":
-            from .engines.mujoco_engine import MujocoAdapter
+            from .engines.mujoco.adapter import MujocoAdapter
             return MujocoAdapter(), None
     except Exception as exc:  # ImportError while an adapter is being written
         return None, f"{type(exc).__name__}: {exc}"

@@ -30,7 +30,7 @@ import sympy as sp
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from crosscheck.engines.base import EngineUnsupported
-from crosscheck.engines.mujoco_engine import (MJCF_DIR, SOLIMP, MujocoAdapter, mjcf,
+from crosscheck.engines.mujoco.adapter import (MJCF_DIR, SOLIMP, MujocoAdapter, mjcf,
                                               write_mjcf)
 from reference.models import get
 from reference.numeric import NumericModel
@@ -736,8 +736,8 @@ def test_simulate_exercises_against_reference(name, limit):
 # MJCF files and the adapter contract
 # ======================================================================================
 def test_mjcf_files_are_current_and_load(tmp_path):
-    """crosscheck/engines/mjcf/ holds exactly what the generator writes (regenerate with
-    `python -m crosscheck.engines.mujoco_engine`); each file loads, contacts are off, energy
+    """crosscheck/engines/mujoco/mjcf/ holds exactly what the generator writes (regenerate with
+    `python -m crosscheck.engines.mujoco.adapter`); each file loads, contacts are off, energy
     is on, every equality has solimp 0.9999, and trees sit under one top-level body."""
     fresh = {p.name: p.read_text() for p in write_mjcf(tmp_path)}
     stored = {p.name: p.read_text() for p in MJCF_DIR.glob("*.xml")}

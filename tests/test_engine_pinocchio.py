@@ -29,7 +29,7 @@ from hypothesis import given, settings, strategies as st
 from scipy.integrate import solve_ivp
 
 from crosscheck.engines.base import EngineForward, EngineUnsupported
-from crosscheck.engines.pinocchio_engine import PROX_EXACT, PROX_REDUNDANT, PinocchioAdapter
+from crosscheck.engines.pinocchio.adapter import PROX_EXACT, PROX_REDUNDANT, PinocchioAdapter
 from reference.errors import ModelInputError
 from reference.formulations.lagrange import kinetic_energy, potential_energy
 from reference.models import get
@@ -611,7 +611,7 @@ def test_perturbed_parameter_breaks_agreement(case):
 # ---- adapter contract -------------------------------------------------------------------
 def test_build_errors():
     from reference.models import names
-    assert set(ADAPTER.supported()) == set(names())  # every system of the unit is mapped
+    assert set(ADAPTER.models()) == set(names())  # every system of the unit is mapped
     with pytest.raises(EngineUnsupported, match="no_such_model"):
         ADAPTER.build("no_such_model", {})
     with pytest.raises(EngineUnsupported, match="variant"):

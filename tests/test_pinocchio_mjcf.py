@@ -1,4 +1,4 @@
-"""Pinocchio 4.1.0's MJCF parser on the MuJoCo adapter's files (crosscheck/engines/mjcf/).
+"""Pinocchio 4.1.0's MJCF parser on the MuJoCo adapter's files (crosscheck/engines/mujoco/mjcf/).
 Real Pinocchio and MuJoCo, no mocks. (The Pinocchio adapter's timing hook is tested in
 tests/test_engine_pinocchio.py.)
 
@@ -38,8 +38,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from crosscheck.engines.mujoco_engine import MJCF_DIR, MujocoAdapter, mjcf
-from crosscheck.engines.pinocchio_engine import PROX_REDUNDANT, PinocchioAdapter
+from crosscheck.engines.mujoco.adapter import MJCF_DIR, MujocoAdapter, mjcf
+from crosscheck.engines.pinocchio.adapter import PROX_REDUNDANT, PinocchioAdapter
 from reference.models import get
 from reference.numeric import NumericModel
 

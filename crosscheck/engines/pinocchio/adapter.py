@@ -80,7 +80,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from .base import EngineForward, EngineUnsupported
+from ..base import Capabilities, EngineAdapter, EngineForward, EngineModel, EngineUnsupported
 
 __all__ = ["PinocchioAdapter", "PinocchioTrajectory", "PROX_REDUNDANT", "PROX_EXACT"]
 
@@ -166,7 +166,7 @@ class PinocchioTrajectory:
     raw: dict = field(default_factory=dict)
 
 
-class _PinModel:
+class _PinModel(EngineModel):
     """Shared machinery; subclasses build the engine model and write the maps."""
 
     engine = "pinocchio"
@@ -1492,13 +1492,19 @@ def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
     return resolve_parameters(get(model_name), params)
 
 
-class PinocchioAdapter:
+class PinocchioAdapter(EngineAdapter):
     """EngineAdapter for Pinocchio 4.1 (models built in code; see the module docstring)."""
 
     name = "pinocchio"
+    distribution = "pin"
+    capabilities = Capabilities(multipliers=True, exact=True, mass_matrix=True,
+                                nonholonomic=True, integrators=("DOP853",), variants=True)
 
-    def supported(self) -> list[str]:
-        return list(_MODELS)
+    def models(self) -> tuple[str, ...]:
+        return tuple(_MODELS)
+
+    def unsupported(self) -> dict[str, str]:
+        return dict(_UNSUPPORTED)
 
     def variants(self, model_name: str) -> tuple[Optional[str], ...]:
         """Engine variants of a model (the first is build's default); (None,) for one."""
