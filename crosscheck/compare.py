@@ -60,9 +60,10 @@ SOFT_PREDICTION = Tolerance(
 SOFT_PREDICTION_FLOOR = 1e-5
 
 
-def exact_tolerance(engine: str) -> Tolerance:
-    """The tolerance of an engine's exact (rigid, unregularized) answer."""
-    return MUJOCO_EXACT if engine == "mujoco" else EXACT_KKT
+def exact_tolerance(engine: str, model_name: str = "") -> Tolerance:
+    """The tolerance of an engine's exact (rigid, unregularized) answer (the adapter's own)."""
+    from .engines.registry import get_engine
+    return get_engine(engine).exact_tolerance(model_name)
 
 
 def soft_prediction(raw_value, reference, predicted_error) -> tuple[float, float, float]:

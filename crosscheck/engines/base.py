@@ -18,6 +18,8 @@ from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
+from ..compare import EXACT_KKT, Tolerance
+
 __all__ = ["Capabilities", "EngineAdapter", "EngineForward", "EngineModel", "EngineTrajectory",
            "EngineUnsupported"]
 
@@ -177,3 +179,8 @@ class EngineAdapter(ABC):
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None) -> EngineModel:
         """Engine model for a reference model; raises EngineUnsupported with the reason."""
+
+    def exact_tolerance(self, model_name: str) -> Tolerance:
+        """The tolerance of this engine's exact (rigid or recovered rigid) answer on a model,
+        with the reason it is that size; the default is the round-off bound of a KKT solve."""
+        return EXACT_KKT

@@ -1653,6 +1653,10 @@ class MujocoAdapter(EngineAdapter):
     def models(self) -> tuple[str, ...]:
         return tuple(_MODELS)
 
+    def exact_tolerance(self, model_name: str):
+        from ...compare import MUJOCO_EXACT
+        return MUJOCO_EXACT
+
     def unsupported(self) -> dict[str, str]:
         return dict(_UNSUPPORTED)
 
