@@ -42,7 +42,7 @@ FACTOR = 10.0
 # changes it by 10-100x without any change of method, so values below the floor count as equal.
 ROUND_OFF_FLOOR = 1e-13
 # Timing ratios measured in one run still move with machine load: the same setting's medians
-# vary by 1.3-3x between runs on the 2-core shared machines (crosscheck/timing.py, NUMERICS.md),
+# vary by 1.3-3x between runs on the 2-core shared machines (crosscheck/timing.py, docs/numerics.md),
 # and a ratio combines two such timings. A 5x slowdown is beyond that noise and is what a real
 # loss looks like (falling off the compiled path costs 10-100x).
 TIMING_BAND = 5.0

@@ -38,7 +38,7 @@ PROJECTED_DRIFT = C.Tolerance(
            "tolerance (~1e-15 relative) on unit-size coordinates")
 INDEX1_DRIFT = C.Tolerance(
     1e-7, "no stabilization: the position drift follows the integrator's error, ~10..100x its "
-          "tolerance over 5..10 s (NUMERICS.md 1.1; Pinocchio adapter docstring); 1e3x rtol")
+          "tolerance over 5..10 s (docs/numerics.md); 1e3x rtol")
 SOFT_STATE = C.Tolerance(
     5e-2, "characterization, not a physics bound: MuJoCo's equality constraints are soft "
           "(solref 0.02 s, d = 0.9999), so its trajectory follows slightly different dynamics; "
@@ -47,10 +47,10 @@ SOFT_STATE = C.Tolerance(
           "tracks this figure against its baseline")
 SOFT_DRIFT = C.Tolerance(
     1e-5, "MuJoCo's soft constraints settle at a violation set by solref (time constant "
-          "0.02 s): measured 5e-7..2.2e-6 here, 2.6e-6 in ENGINES.md 3.5")
+          "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md")
 SOFT_ENERGY = C.Tolerance(
     1e-2, "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
-          "characterization (ENGINES.md 3.5: 6e-4 J of 7 J for the slider-crank, RK4)")
+          "characterization (docs/engines/mujoco.md: 6e-4 J of 7 J for the slider-crank, RK4)")
 
 
 def state_error(q, u, ref_q, ref_u) -> np.ndarray:
@@ -128,7 +128,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                            PROJECTED_DRIFT, label="DOP853+projection"))
     ref_energy_tol = C.Tolerance(
         1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
-              "(projection does not conserve energy exactly, NUMERICS.md 1.3)")
+              "(projection does not conserve energy exactly, docs/numerics.md)")
     if conserved:
         records.append(rec("reference", "energy_drift", _energy_drift(E_ref), ref_energy_tol))
     else:

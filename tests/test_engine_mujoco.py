@@ -631,7 +631,7 @@ def test_perturbed_parameter_fails_the_rigid_comparison(name, param):
 
 
 # ======================================================================================
-# why pendulum_xy is a light rod and not a tendon equality (ENGINES.md, re-verified)
+# why pendulum_xy is a light rod and not a tendon equality (docs/engines/mujoco.md)
 # ======================================================================================
 def test_tendon_equality_misses_jdot_v():
     """A spatial tendon origin -> bob held at its length: its one row has aref = 0 (no J-dot v),
@@ -667,7 +667,7 @@ def test_simulate_rk4_matches_reference_and_energy_is_read_after_forward():
     """pendulum_angle, RK4, dt = 1e-3 for 1 s against the reference integrated by scipy at
     1e-12: RK4's global error ~ dt^4 leaves < 1e-9 rad; energy conserved to 1e-10; and with
     Euler the d.energy read right after mj_step is the one of the state at the START of the
-    step (ENGINES.md 3.4, re-verified), which is why simulate() calls mj_forward first."""
+    step (docs/engines/mujoco.md), which is why simulate() calls mj_forward first."""
     from scipy.integrate import solve_ivp
 
     em = engine("pendulum_angle", None)

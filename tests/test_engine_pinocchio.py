@@ -264,7 +264,7 @@ def test_engine_solve_quality(case):
 
 
 def test_redundant_planar_rows_need_the_proximal_settings():
-    """ENGINES.md 2.3, re-verified: the slider-crank's 3-row closure has an identically zero
+    """docs/engines/pinocchio.md: the slider-crank's 3-row closure has an identically zero
     out-of-plane row, so the plain Cholesky KKT (mu = 0, one iteration) gives NaN, and
     PROX_REDUNDANT converges in a few iterations to the reference's answer."""
     model_name = "slider_crank"
