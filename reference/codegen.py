@@ -129,11 +129,14 @@ def _dot_terms(pairs) -> list[str]:
 
 
 def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str],
-              reference: list[str] | None = None) -> list[list[str]]:
-    """Lower-triangular L with L L^T = Mc, skipping structural zeros; records pivot ratios
-    (each pivot over `reference[j]`, by default the original diagonal entry)."""
+              reference: list[str] | None = None) -> tuple[list[list[str]], list[str]]:
+    """Lower-triangular L with L L^T = Mc, skipping structural zeros, and the reciprocals of its
+    diagonal; records pivot ratios (each pivot over `reference[j]`, by default the original
+    diagonal entry). One reciprocal per pivot, then multiplications: a division costs 4-10
+    multiplications, and the solves divide by each pivot n + m times (issue 13)."""
     n = len(Mc)
     L = [["0"] * n for _ in range(n)]
+    inv = ["0"] * n
     for j in range(n):
         terms = _dot_terms((L[j][k], L[j][k]) for k in range(j))
         d = Mc[j][j] if not terms else f"{Mc[j][j]} - ({' + '.join(terms)})"
@@ -143,18 +146,20 @@ def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str],
         else:
             pivots.append(f"{dv}/{Mc[j][j]}" if Mc[j][j] != "0" else dv)
         L[j][j] = w.assign(f"sqrt({dv})")
+        inv[j] = w.assign(f"1.0/{L[j][j]}")
         for i in range(j + 1, n):
             terms = _dot_terms((L[i][k], L[j][k]) for k in range(j))
             if Mc[i][j] == "0" and not terms:
                 continue
             num = Mc[i][j] if Mc[i][j] != "0" else "0"
             num = num if not terms else f"{num} - ({' + '.join(terms)})"
-            L[i][j] = w.assign(f"({num})/{L[j][j]}")
-    return L
+            L[i][j] = w.assign(f"({num})*{inv[j]}")
+    return L, inv
 
 
-def _chol_solve(w: _Writer, L: list[list[str]], rhs: list[str]) -> list[str]:
+def _chol_solve(w: _Writer, chol: tuple[list[list[str]], list[str]], rhs: list[str]) -> list[str]:
     """Solve L L^T x = rhs with forward and back substitution, skipping zeros."""
+    L, inv = chol
     n = len(L)
     z = ["0"] * n
     for i in range(n):
@@ -162,14 +167,14 @@ def _chol_solve(w: _Writer, L: list[list[str]], rhs: list[str]) -> list[str]:
         if rhs[i] == "0" and not terms:
             continue
         num = rhs[i] if not terms else f"{rhs[i]} - ({' + '.join(terms)})"
-        z[i] = w.assign(f"({num})/{L[i][i]}")
+        z[i] = w.assign(f"({num})*{inv[i]}")
     x = ["0"] * n
     for i in reversed(range(n)):
         terms = _dot_terms((L[k][i], x[k]) for k in range(i + 1, n))
         if z[i] == "0" and not terms:
             continue
         num = z[i] if not terms else f"{z[i]} - ({' + '.join(terms)})"
-        x[i] = w.assign(f"({num})/{L[i][i]}")
+        x[i] = w.assign(f"({num})*{inv[i]}")
     return x
 
 
