@@ -4,7 +4,9 @@
   its own accuracy measured in the same run against rtol = atol = 1e-13;
 - Pinocchio: its forward dynamics integrated by the same scipy DOP853 at rtol = atol = 1e-10 in
   its own coordinates, no stabilization (index-1 drift is part of what is measured);
-- MuJoCo: its own RK4 on a time-step ladder (h and h/2).
+- MuJoCo: its own RK4 on a time-step ladder (h and h/2; h = 1 ms, or for a horizon that is not
+  a whole number of ms the largest step below 1 ms that divides it, see mujoco_ladder), both
+  rungs recorded on the reference's output times (output_grid).
 Each run yields records (state error against the reference, constraint drift, energy drift)
 and a series for the report's plots.
 
@@ -14,10 +16,11 @@ removed, so a coordinate reported modulo 2 pi does not count as an error.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from reference import NumericModel
-from reference.errors import ModelInputError
 from reference.integrate import simulate
 
 from . import compare as C
@@ -28,6 +31,39 @@ N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots
 REF_RTOL, REF_CHECK_RTOL = 1e-12, 1e-13
 PIN_RTOL = 1e-10
 MUJOCO_STEPS = (1e-3, 5e-4)
+# how close t_end / h must be to a whole number for t_end to count as a multiple of the step:
+# far above the float error of 5.0 / 1e-3 (~1e-16 relative), far below any step a user means
+GRID_SLACK = 1e-9
+
+
+def mujoco_ladder(t_end: float) -> tuple[float, float]:
+    """MuJoCo's two step sizes for a horizon: MUJOCO_STEPS when t_end is a whole number of the
+    coarse step, otherwise the largest h <= MUJOCO_STEPS[0] that divides t_end (and h / 2).
+
+    Both rungs must end exactly at t_end and share output times, or their trajectories (and the
+    halving estimate between them) would be on different grids; a horizon shorter than the
+    coarse step (1e-9 s) gets a single step of t_end."""
+    h0, h1 = MUJOCO_STEPS
+    n = round(t_end / h0)
+    if n >= 1 and abs(n * h0 - t_end) <= GRID_SLACK * t_end:
+        return h0, h1
+    n = max(1, math.ceil(t_end / h0 - GRID_SLACK))
+    h = t_end / n
+    return h, h * h1 / h0
+
+
+def output_grid(t_end: float) -> tuple[np.ndarray, int]:
+    """The output times, common to the reference, Pinocchio and both MuJoCo rungs, and the
+    number of coarse MuJoCo steps between them (`record_every`; the finer rung records every
+    2x that). At most N_OUT times: every `every`-th coarse step, plus t_end itself (the
+    engine records the last step too, so the last interval may be shorter)."""
+    h0, _ = mujoco_ladder(t_end)
+    n = max(1, round(t_end / h0))
+    if n % (N_OUT - 1) == 0:  # 5 s: the plain 20 ms grid
+        return np.linspace(0.0, t_end, N_OUT), n // (N_OUT - 1)
+    every = math.ceil(n / (N_OUT - 1))
+    steps = sorted(set(range(0, n + 1, every)) | {n})
+    return np.linspace(0.0, t_end, n + 1)[steps], every
 
 REFERENCE_ACCURACY = C.Tolerance(
     1e-8, "the reference trajectory (rtol 1e-12) against a tighter one (rtol 1e-13): the "
@@ -100,7 +136,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
     """Records and plot series for one model: the reference, then every engine variant."""
     model = nm.model
     f = nm.formulation
-    grid = np.linspace(0.0, t_end, N_OUT)
+    grid, every = output_grid(t_end)
     q0, u0 = nm.project(model.initial_q, model.initial_u)
     records, series = [], []
     ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL, t_eval=grid)
@@ -173,14 +209,15 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
             else:
                 soft = getattr(getattr(em, "m", None), "neq", 0) > 0
                 trs = {}
-                for h in MUJOCO_STEPS:
-                    every = max(1, int(round((t_end / (N_OUT - 1)) / h)))
-                    trs[h] = em.simulate(q0, u0, t_end, h, "RK4", record_every=every)
+                ladder = mujoco_ladder(t_end)
+                for h in ladder:  # the finer rung records on the same times
+                    trs[h] = em.simulate(q0, u0, t_end, h, "RK4",
+                                         record_every=every * round(ladder[0] / h))
                     info = {"steps": trs[h].n_steps}
                     if trs[h].raw.get("warnings"):  # an unstable step reset MuJoCo's state
                         info["engine_warnings"] = trs[h].raw["warnings"]
                     runs.append((f"RK4 h={h:g}", trs[h].t, trs[h].q, trs[h].u, info))
-                h0, h1 = MUJOCO_STEPS
+                h0, h1 = ladder
                 halving = float(np.max(state_error(trs[h0].q, trs[h0].u, trs[h1].q, trs[h1].u)))
                 if soft:
                     state_tol, drift_tol, energy_tol = SOFT_STATE, SOFT_DRIFT, SOFT_ENERGY
@@ -198,9 +235,12 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                                              "RK4's energy error estimated by halving the step "
                                              f"({abs(E0 - E1):.1e}), times 10")
             for k, (label, t, q, u, info) in enumerate(runs):
-                if len(t) != len(ref.t) or np.max(np.abs(np.asarray(t) - ref.t)) > 1e-9:
-                    raise ModelInputError(f"{adapter.name} trajectory of {name} is not on the "
-                                          f"reference's output grid")
+                if len(t) != len(ref.t) or \
+                        np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * t_end:
+                    raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, "
+                                       f"{len(t)} times) is not on the reference's output grid "
+                                       f"({len(ref.t)} times over {t_end:g} s): a bug in "
+                                       f"output_grid / mujoco_ladder")
                 err = state_error(q, u, ref.q, ref.u)
                 res = _residual_series(nm, t, q, u)
                 E = _energy_series(nm, t, q, u)
