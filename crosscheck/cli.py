@@ -182,7 +182,7 @@ def _optional_commands():
     """Subcommands that live in their own modules: each has a register(subparsers)."""
     from importlib import import_module
     return [import_module(f"crosscheck.{name}").register
-            for name in ("run", "bench", "report", "gate", "sweep", "engines_command")]
+            for name in ("run", "bench", "report", "gate", "sweep", "engines_command", "sensitivity_command")]
 
 
 # A value that starts with a minus sign: a number or a comma-separated list of numbers
