@@ -30,6 +30,39 @@ def positive_int(text: str) -> int:
     return value
 
 
+def nonnegative_int(text: str) -> int:
+    """An integer >= 0 (a seed, a first sample index, a number of cases kept)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 0")
+    return value
+
+
+def positive_seconds(text: str) -> float:
+    """A finite duration > 0 (a time budget)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} s: give a finite number of seconds > 0")
+    return value
+
+
+def finite_float(text: str) -> float:
+    """Any finite number (a time t of `eval`)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} is not finite")
+    return value
+
+
 def horizon(text: str) -> float:
     """A trajectory length in seconds: finite, > 0 and at most MAX_T_END."""
     try:
@@ -82,8 +115,30 @@ def resolve_models(names: list[str]) -> list[str]:
     return list(names)
 
 
+def resolve_engines(names: list[str]) -> list[str]:
+    """The engines to compare, each a known one (an unknown name is refused, never skipped)."""
+    from .run import ENGINE_NAMES
+
+    for name in unique(names, "engine"):
+        if name not in ENGINE_NAMES:
+            raise ModelInputError(f"unknown engine {name!r}; valid: {', '.join(ENGINE_NAMES)}")
+    return list(names)
+
+
+def add_models(parser: argparse.ArgumentParser) -> None:
+    """Positional model names (checked by resolve_models before any work)."""
+    parser.add_argument("models", nargs="*", help="models (default: all)")
+
+
+def add_engines(parser: argparse.ArgumentParser) -> None:
+    """--engines a,b (checked by resolve_engines before any work)."""
+    parser.add_argument("--engines", type=name_list, default="pinocchio,mujoco",
+                        metavar="E1,E2", help="engines, comma-separated (default: all)")
+
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse prints the whole usage block before an error; the CLI promises one line."""
 
     def error(self, message: str):  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+        # "crosscheck: error:" like every other bad input, whichever subcommand refused it
+        self.exit(2, f"crosscheck: error: {message} (see `{self.prog} --help`)\n")
