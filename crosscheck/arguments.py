@@ -9,7 +9,11 @@ one-line message (exit 2) before doing any work. Argument values are checked at 
 from __future__ import annotations
 
 import argparse
+import errno
 import math
+import os
+import tempfile
+from pathlib import Path
 
 from reference.errors import ModelInputError
 
@@ -134,6 +138,48 @@ def add_engines(parser: argparse.ArgumentParser) -> None:
     """--engines a,b (checked by resolve_engines before any work)."""
     parser.add_argument("--engines", type=name_list, default="pinocchio,mujoco",
                         metavar="E1,E2", help="engines, comma-separated (default: all)")
+
+
+def output_dir(path: str, option: str = "--out") -> Path:
+    """Check, before any work, that `path` is or can become a directory this process can write
+    files into; leaves no trace (directories it had to create for the probe are removed again),
+    so a command refused later has written nothing."""
+    p = Path(path)
+    shown = path if len(path) <= 80 else f"{path[:40]}...{path[-20:]}"  # the line stays short
+    where = f"{option} {shown!r}"
+    longest = max((len(os.fsencode(part)) for part in p.parts), default=0)
+    if longest > 255:  # NAME_MAX of every common file system
+        raise ModelInputError(f"{where}: a name in it is {longest} bytes long, more "
+                              "than the 255 a file system allows; give a shorter directory name")
+    try:
+        a_file = p.exists() and not p.is_dir()
+    except OSError:  # a whole path over PATH_MAX: the probe below says so
+        a_file = False
+    if a_file:
+        raise ModelInputError(f"{where} is an existing file, not a directory; give a directory "
+                              "(the command writes its files inside it)")
+    created: list[Path] = []
+    try:
+        for d in reversed([p, *p.parents]):
+            if not d.exists():
+                d.mkdir()
+                created.append(d)
+        fd, probe = tempfile.mkstemp(dir=p, prefix=".crosscheck-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        if exc.errno == errno.ENAMETOOLONG:
+            why += "; give a shorter path"
+        raise ModelInputError(f"{where}: cannot write there ({why}); give a directory you "
+                              "can write to") from None
+    finally:
+        for d in reversed(created):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+    return p
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -141,7 +141,7 @@ def meta(argv) -> dict:
 
 
 def cmd_bench(args) -> int:
-    from .arguments import resolve_engines, resolve_models
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
     from .stress import stress_records
     from .workprecision import (
@@ -154,6 +154,7 @@ def cmd_bench(args) -> int:
     t_start = time.perf_counter()
     names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
     requested = resolve_engines(args.engines)
+    output_dir(args.out)  # an unusable --out fails now, not after the benchmark
     try:
         engines = _engines(requested)
     except ImportError as exc:  # an adapter still being written: forward records without it

@@ -1022,6 +1022,8 @@ def cmd_report(args) -> int:
         if beside.is_file():
             sweep_path = str(beside)
     out_dir = args.out or str(Path(results_path or bench_path or sweep_path).parent)
+    from .arguments import output_dir
+    output_dir(out_dir)
     paths = generate(results_path, bench_path, out_dir, sweep_path)
     print("crosscheck report: " + ", ".join(str(p) for p in paths.values()))
     return 0

@@ -264,11 +264,15 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
 
 
 def cmd_run(args) -> int:
-    from .arguments import resolve_engines, resolve_models
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .bench import meta
     names = resolve_models(args.models)  # unknown or repeated names fail before any work
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
+    for name in names:  # a parameter the model lacks fails now, not after the models before it
+        for ps in perturb.values():
+            perturbed(name, {p.name: p.default for p in models.get(name).parameters}, ps)
+    output_dir(args.out)  # an unusable --out fails now, not after the computation
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
         from tqdm import tqdm

@@ -1075,7 +1075,7 @@ def _print_summary(res: dict, path: Path) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .arguments import resolve_engines, resolve_models
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
     samples, seed, index, worst = args.samples, args.seed, args.index, args.worst
     workers, chunk, max_seconds = args.workers, args.chunk, args.max_seconds
@@ -1083,7 +1083,7 @@ def cmd_sweep(args) -> int:
         raise ModelInputError("give --workers or --dask, not both")
     names = resolve_models(args.models)
     engines = tuple(resolve_engines(args.engines))
-    out = Path(args.out)
+    out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
     if args.bench:
         cfg = Campaign(list(names), samples, seed, index, engines)
         cfg.validate()

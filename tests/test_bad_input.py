@@ -11,6 +11,8 @@ from crosscheck.cli import main
 
 OUT = "{out}"  # replaced by the test's own output directory
 MALFORMED = "{malformed}"  # a results.json whose first record has no model name
+A_FILE = "{file}"  # an existing plain file
+LONG = "{tmp}/" + "x" * 300  # one name longer than any file system allows
 
 
 def _call(argv: list[str]) -> int:
@@ -53,6 +55,15 @@ CASES = [
     (["eval", "slider_crank", "--t", "inf"], 2, "--t: inf is not finite"),
     (["eval", "slider_crank", "--t", "x"], 2, "'x' is not a number"),
     (["eval", "no_such_model"], 2, "unknown model"),
+    # --out checked before any work: an existing file, a place nobody can write, a long name
+    *[([cmd, *extra, "--out", bad], 2, fragment)
+      for cmd, extra in (("run", ["pendulum_angle", "--instantaneous"]),
+                         ("bench", ["pendulum_angle", "--quick"]),
+                         ("sweep", ["pendulum_xy", "--samples", "2", "--workers", "1"]),
+                         ("report", ["--results", "{results}"]))
+      for bad, fragment in ((A_FILE, "is an existing file, not a directory"),
+                            ("/proc/crosscheck/out", "cannot write there"),
+                            (LONG, "255"))],
     # report and gate
     (["report", "--results", MALFORMED, "--out", OUT], 2, "record 0 has no 'model' name"),
     (["report", "--results", "{tmp}/missing.json", "--out", OUT], 2, "not found"),
@@ -63,14 +74,17 @@ CASES = [
 
 
 @pytest.mark.parametrize("argv,code,fragment", CASES,
-                         ids=[" ".join(c[0][:4]) for c in CASES])
+                         ids=[" ".join(c[0][:4])[:60] for c in CASES])
 def test_bad_input_one_line_exit_code_no_leftovers(tmp_path, capsys, argv, code, fragment):
+    (tmp_path / "file").write_text("not a directory")
+    (tmp_path / "results.json").write_text(json.dumps({"meta": {}, "records": []}))
     malformed = tmp_path / "malformed.json"
     malformed.write_text(json.dumps({"meta": {}, "records": [
         {"engine": "mujoco", "check": "trajectory", "quantity": "state_error", "error": 1.0,
          "tolerance": 2.0, "passed": True}]}))
     out = tmp_path / "out"
     argv = [a.replace(OUT, str(out)).replace(MALFORMED, str(malformed))
+            .replace(A_FILE, str(tmp_path / "file")).replace("{results}", str(tmp_path / "results.json"))
             .replace("{tmp}", str(tmp_path)) for a in argv]
     got = _call(argv)
     _, err = capsys.readouterr()
@@ -79,4 +93,6 @@ def test_bad_input_one_line_exit_code_no_leftovers(tmp_path, capsys, argv, code,
     assert err.startswith("crosscheck: error:") and err.count("\n") == 1, err
     assert "Traceback" not in err
     assert not out.exists() or not any(out.iterdir()), sorted(out.iterdir())
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["malformed.json"]  # nothing written
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "malformed.json",
+                                                          "results.json"]  # nothing written
+    assert (tmp_path / "file").read_text() == "not a directory"
