@@ -141,14 +141,20 @@ def meta(argv) -> dict:
 
 
 def cmd_bench(args) -> int:
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
     from .stress import stress_records
-    from .workprecision import (profile_for_missed, skip_savings, targets,
-                                work_precision_records)
+    from .workprecision import (
+        profile_for_missed,
+        skip_savings,
+        targets,
+        work_precision_records,
+    )
 
     t_start = time.perf_counter()
-    names = args.models or models.names()
-    requested = [e for e in args.engines.split(",") if e]
+    names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
+    requested = resolve_engines(args.engines)
+    output_dir(args.out)  # an unusable --out fails now, not after the benchmark
     try:
         engines = _engines(requested)
     except ImportError as exc:  # an adapter still being written: forward records without it
@@ -216,8 +222,9 @@ def cmd_bench(args) -> int:
 
 def register(sub):
     b = sub.add_parser("bench", help="benchmark forward dynamics (and work-precision)")
-    b.add_argument("models", nargs="*", help="models (default: all)")
+    from .arguments import add_engines, add_models
+    add_models(b)
     b.add_argument("--quick", action="store_true")
-    b.add_argument("--engines", default="pinocchio,mujoco")
+    add_engines(b)
     b.add_argument("--out", default="out")
     b.set_defaults(func=cmd_bench)

@@ -12,7 +12,7 @@ import sys
 
 from reference.errors import ModelInputError
 
-from .arguments import OneLineParser
+from .arguments import OneLineParser, finite_float
 
 EXIT_USAGE = 2
 
@@ -167,7 +167,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a parameter (repeatable)")
     e.add_argument("--q", help="coordinates, comma-separated (default: the model's initial state)")
     e.add_argument("--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)")
-    e.add_argument("--t", type=float, default=0.0, help="time (rheonomic constraints)")
+    e.add_argument("--t", type=finite_float, default=0.0, help="time (rheonomic constraints)")
     e.add_argument("--project", action="store_true",
                    help="project the state onto the constraint manifold instead of refusing it")
     e.add_argument("--json", action="store_true")

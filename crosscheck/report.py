@@ -58,11 +58,34 @@ def load_json(path: str | Path, what: str) -> dict:
     return data
 
 
+def _record_problem(r) -> str | None:
+    """What is wrong with one record, or None: the fields every report and gate reads."""
+    if not isinstance(r, dict):
+        return "is not an object"
+    for key in ("model", "engine", "check", "quantity"):
+        if not isinstance(r.get(key), str) or not r[key]:
+            return f"has no {key!r} name"
+    if r.get("passed") not in (True, False, None):
+        return f"has \"passed\": {r.get('passed')!r} (expected true, false or null)"
+    for key in ("error", "tolerance"):
+        v = r.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            return f"has {key!r}: {v!r} (expected a number or null)"
+    if r.get("passed") is not None and r.get("tolerance") is None:
+        return "is judged (\"passed\" set) but has no tolerance"
+    return None
+
+
 def check_results(data: dict, path) -> dict:
     recs = data.get("records")
-    if not isinstance(recs, list) or not all(isinstance(r, dict) for r in recs):
+    if not isinstance(recs, list):
         raise ReportInputError(f"results file {str(path)!r} has no \"records\" list of objects "
                                f"(is it a results.json written by `crosscheck run`?)")
+    for i, r in enumerate(recs):
+        problem = _record_problem(r)
+        if problem:
+            raise ReportInputError(f"results file {str(path)!r}: record {i} {problem} (is it "
+                                   f"a results.json written by `crosscheck run`?)")
     series = data.get("series")
     if series is not None and not (isinstance(series, list)
                                    and all(isinstance(s, dict) for s in series)):
@@ -999,6 +1022,8 @@ def cmd_report(args) -> int:
         if beside.is_file():
             sweep_path = str(beside)
     out_dir = args.out or str(Path(results_path or bench_path or sweep_path).parent)
+    from .arguments import output_dir
+    output_dir(out_dir)
     paths = generate(results_path, bench_path, out_dir, sweep_path)
     print("crosscheck report: " + ", ".join(str(p) for p in paths.values()))
     return 0

@@ -264,15 +264,15 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
 
 
 def cmd_run(args) -> int:
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .bench import meta
-    names = args.models or models.names()
-    for n in names:
-        models.get(n)  # unknown names fail before any work
-    engine_names = [e for e in args.engines.split(",") if e]
-    for e in engine_names:
-        if e not in ENGINE_NAMES:
-            raise ModelInputError(f"unknown engine {e!r}; valid: {', '.join(ENGINE_NAMES)}")
+    names = resolve_models(args.models)  # unknown or repeated names fail before any work
+    engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
+    for name in names:  # a parameter the model lacks fails now, not after the models before it
+        for ps in perturb.values():
+            perturbed(name, {p.name: p.default for p in models.get(name).parameters}, ps)
+    output_dir(args.out)  # an unusable --out fails now, not after the computation
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
         from tqdm import tqdm
@@ -305,15 +305,17 @@ def cmd_run(args) -> int:
 
 
 def register(sub):
+    from .arguments import MAX_T_END, add_engines, add_models, horizon, positive_int
     r = sub.add_parser("run", help="cross-check the reference against the engines")
-    r.add_argument("models", nargs="*", help="models (default: all)")
-    r.add_argument("--engines", default=",".join(ENGINE_NAMES))
+    add_models(r)
+    add_engines(r)
     r.add_argument("--out", default="out")
     r.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL")
-    r.add_argument("--states", type=int, default=6, help="consistent states per model")
+    r.add_argument("--states", type=positive_int, default=6, help="consistent states per model")
     r.add_argument("--instantaneous", action="store_true",
                    help="only the checks at consistent states, no trajectories")
-    r.add_argument("--t-end", type=float, default=5.0, help="trajectory length [s]")
+    r.add_argument("--t-end", type=horizon, default=5.0,
+                   help=f"trajectory length [s], > 0 and at most {MAX_T_END:g}")
     r.add_argument("--no-report", action="store_true",
                    help="write results.json only (no index.html / report.md / junit.xml)")
     r.set_defaults(func=cmd_run)

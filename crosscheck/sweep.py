@@ -466,13 +466,11 @@ class Campaign:
     out: str | None = None
 
     def validate(self) -> None:
+        from .arguments import resolve_engines, resolve_models
         if not self.models:
             raise ModelInputError("no models given")
-        for name in self.models:
-            models.get(name)  # unknown names fail before any work
-        for e in self.engines:
-            if e not in ENGINE_NAMES:
-                raise ModelInputError(f"unknown engine {e!r}; valid: {', '.join(ENGINE_NAMES)}")
+        resolve_models(list(self.models))  # unknown or repeated names fail before any work
+        resolve_engines(list(self.engines))
         for e in self.perturb:
             if e not in self.engines:
                 raise ModelInputError(f"--perturb names engine {e!r}, which is not in "
@@ -1053,26 +1051,6 @@ def _print_bench(b: dict) -> None:
 
 
 # ---- command line ---------------------------------------------------------------------------
-def _int(text, what, minimum=0) -> int:
-    try:
-        v = int(text)
-    except (TypeError, ValueError):
-        raise ModelInputError(f"{what}: {text!r} is not an integer")
-    if v < minimum:
-        raise ModelInputError(f"{what} must be >= {minimum}, got {v}")
-    return v
-
-
-def _float(text, what) -> float:
-    try:
-        v = float(text)
-    except (TypeError, ValueError):
-        raise ModelInputError(f"{what}: {text!r} is not a number")
-    if not (math.isfinite(v) and v > 0):
-        raise ModelInputError(f"{what} must be a positive number, got {text}")
-    return v
-
-
 def _print_summary(res: dict, path: Path) -> None:
     st = res["status"]
     for r in res["results"]:
@@ -1097,22 +1075,15 @@ def _print_summary(res: dict, path: Path) -> None:
 
 
 def cmd_sweep(args) -> int:
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
-    samples = _int(args.samples, "--samples", 1)
-    seed = _int(args.seed, "--seed", 0)
-    index = _int(args.index, "--index", 0)
-    worst = _int(args.worst, "--worst", 0)
-    workers = None if args.workers is None else _int(args.workers, "--workers", 1)
-    chunk = None if args.chunk is None else _int(args.chunk, "--chunk", 1)
-    max_seconds = None if args.max_seconds is None else _float(args.max_seconds,
-                                                               "--max-seconds")
+    samples, seed, index, worst = args.samples, args.seed, args.index, args.worst
+    workers, chunk, max_seconds = args.workers, args.chunk, args.max_seconds
     if workers is not None and args.dask is not None:
         raise ModelInputError("give --workers or --dask, not both")
-    names = args.models or models.names()
-    engines = tuple(e for e in args.engines.split(",") if e)
-    if not engines:
-        raise ModelInputError(f"--engines: give at least one of {', '.join(ENGINE_NAMES)}")
-    out = Path(args.out)
+    names = resolve_models(args.models)
+    engines = tuple(resolve_engines(args.engines))
+    out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
     if args.bench:
         cfg = Campaign(list(names), samples, seed, index, engines)
         cfg.validate()
@@ -1146,27 +1117,38 @@ def cmd_sweep(args) -> int:
 
 
 def register(sub):
+    from .arguments import (
+        add_engines,
+        add_models,
+        nonnegative_int,
+        positive_int,
+        positive_seconds,
+    )
     s = sub.add_parser(
         "sweep", help="seeded random campaigns of the cross-checks (local workers or Dask)",
         description="Draw N seeded random parameter sets and consistent states per model, run "
                     "the instantaneous cross-checks on each, write DIR/sweep.json.")
-    s.add_argument("models", nargs="*", help="models (default: all)")
-    s.add_argument("--samples", default="100", help="samples per model (default 100)")
-    s.add_argument("--seed", default="0", help="campaign seed (default 0)")
-    s.add_argument("--index", default="0",
+    add_models(s)
+    s.add_argument("--samples", type=positive_int, default=100,
+                   help="samples per model (default 100)")
+    s.add_argument("--seed", type=nonnegative_int, default=0, help="campaign seed (default 0)")
+    s.add_argument("--index", type=nonnegative_int, default=0,
                    help="first sample index (default 0): --index I --samples 1 reruns sample I")
-    s.add_argument("--engines", default=",".join(ENGINE_NAMES))
+    add_engines(s)
     s.add_argument("--formulation", default=None,
                    help="reference formulation (default: each model's first)")
     s.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL",
                    help="fault injection, as in crosscheck run")
-    s.add_argument("--workers", default=None, help="local worker processes (default: all cores; "
+    s.add_argument("--workers", type=positive_int, default=None, help="local worker processes (default: all cores; "
                                                    "1 runs in this process)")
     s.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]")
-    s.add_argument("--chunk", default=None, help="samples per task (default: sized per executor)")
-    s.add_argument("--max-seconds", default=None, help="time budget: stop and report what is done")
-    s.add_argument("--worst", default=str(WORST_CASES), help="worst cases kept per quantity")
+    s.add_argument("--chunk", type=positive_int, default=None,
+                   help="samples per task (default: sized per executor)")
+    s.add_argument("--max-seconds", type=positive_seconds, default=None,
+                   help="time budget: stop and report what is done")
+    s.add_argument("--worst", type=nonnegative_int, default=WORST_CASES,
+                   help="worst cases kept per quantity")
     s.add_argument("--bench", action="store_true",
                    help="measure throughput (per model and engine, 1 vs 2 workers) and write "
                         "DIR/sweep_bench.json instead of running a campaign")
