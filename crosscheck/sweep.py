@@ -885,7 +885,8 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
         "completed": done,
         "completed_ranges": {n: _ranges(a.completed, cfg.index) for n, a in aggs.items()},
         "outside_tolerance": outside_total, "faults": n_faults + len(chunk_faults),
-        "passed": outside_total == 0 and n_faults == 0 and not chunk_faults,
+        # an incomplete campaign checked only part of what was asked: it never reads as passed
+        "passed": complete and outside_total == 0 and n_faults == 0 and not chunk_faults,
     }
     return {"status": status, "series": series_rows, "results": results,
             "faults": {"groups": list(fault_groups.values()), "records": fault_records,

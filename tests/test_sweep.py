@@ -351,8 +351,11 @@ def test_time_budget_stops_and_says_so(tmp_path, capsys):
     st = res["status"]
     assert not st["complete"] and "time budget" in st["stopped"] and "stopped" in out
     done = st["completed"]["pendulum_xy"]
-    assert 0 < done < 100000 and st["completed_ranges"]["pendulum_xy"] == [[0, done]]
-    assert code == (0 if st["passed"] else 1)
+    # on a loaded machine the budget can end before the first chunk: what completed (possibly
+    # nothing) is reported exactly, and an incomplete campaign never reads as passed
+    assert done < 100000
+    assert st["completed_ranges"]["pendulum_xy"] == ([[0, done]] if done else [])
+    assert st["passed"] is False and code == 1
 
 
 # ---- command line ---------------------------------------------------------------------------
