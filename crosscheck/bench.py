@@ -106,33 +106,21 @@ def forward_records(names, quick=False, engines=()):
                              "batch": 1, "us_per_state": None, "skipped": True,
                              "reason": str(exc)})
                 continue
-            timed = getattr(em, "timed_forward", None)
-            fn = timed(q, u) if timed else (lambda: em.forward(q, u))
-            rec(f"engine:{engine.name}", 1, per_call_seconds(fn))
+            rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(q, u)))
     return recs
 
 
 def _engines(requested):
-    out = []
-    for name in requested:
-        if name == "pinocchio":
-            from .engines.pinocchio.adapter import PinocchioAdapter
-            out.append(PinocchioAdapter())
-        elif name == "mujoco":
-            from .engines.mujoco.adapter import MujocoAdapter
-            out.append(MujocoAdapter())
-    return out
+    from .engines.registry import get_engine
+    return [get_engine(name) for name in requested]
 
 
 def meta(argv) -> dict:
     import scipy
     versions = {"python": platform.python_version(), "numpy": np.__version__,
                 "scipy": scipy.__version__, "sympy": sp.__version__}
-    for mod, key in (("pinocchio", "pin"), ("mujoco", "mujoco")):
-        try:
-            versions[key] = __import__(mod).__version__
-        except ImportError:
-            versions[key] = None
+    from .engines.registry import engine_versions
+    versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
     import shlex
     return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
             "machine": {"platform": platform.platform(), "processor": platform.machine(),
@@ -148,18 +136,16 @@ def cmd_bench(args) -> int:
 
     t_start = time.perf_counter()
     names = args.models or models.names()
-    requested = [e for e in args.engines.split(",") if e]
-    try:
-        engines = _engines(requested)
-    except ImportError as exc:  # an adapter still being written: forward records without it
-        print(f"bench: engine unavailable ({exc}); its rows are recorded as skipped",
-              file=sys.stderr)
-        engines = []
-        for e in requested:
-            try:
-                engines += _engines([e])
-            except ImportError:
-                pass
+    from .engines.registry import EngineImportError, available_engines
+    requested = ([e for e in args.engines.split(",") if e] if args.engines is not None
+                 else list(available_engines()))
+    engines = []
+    for e in requested:  # unknown names fail (listing the registered engines) before any work
+        try:
+            engines += _engines([e])
+        except EngineImportError as exc:  # registered, not importable: its rows are skipped
+            print(f"bench: engine unavailable ({exc}); its rows are recorded as skipped",
+                  file=sys.stderr)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
@@ -218,6 +204,7 @@ def register(sub):
     b = sub.add_parser("bench", help="benchmark forward dynamics (and work-precision)")
     b.add_argument("models", nargs="*", help="models (default: all)")
     b.add_argument("--quick", action="store_true")
-    b.add_argument("--engines", default="pinocchio,mujoco")
+    b.add_argument("--engines", default=None,
+                   help="comma-separated engines (default: every available engine)")
     b.add_argument("--out", default="out")
     b.set_defaults(func=cmd_bench)
