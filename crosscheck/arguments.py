@@ -119,13 +119,15 @@ def resolve_models(names: list[str]) -> list[str]:
     return list(names)
 
 
-def resolve_engines(names: list[str]) -> list[str]:
-    """The engines to compare, each a known one (an unknown name is refused, never skipped)."""
-    from .run import ENGINE_NAMES
+def resolve_engines(names: list[str] | None) -> list[str]:
+    """The engines to compare: every registered engine that imports here when none is named;
+    a named one must be registered (the error lists the registered ones) and import here."""
+    from .engines.registry import available_engines, get_engine
 
+    if not names:
+        return list(available_engines())
     for name in unique(names, "engine"):
-        if name not in ENGINE_NAMES:
-            raise ModelInputError(f"unknown engine {name!r}; valid: {', '.join(ENGINE_NAMES)}")
+        get_engine(name)
     return list(names)
 
 

@@ -106,33 +106,21 @@ def forward_records(names, quick=False, engines=()):
                              "batch": 1, "us_per_state": None, "skipped": True,
                              "reason": str(exc)})
                 continue
-            timed = getattr(em, "timed_forward", None)
-            fn = timed(q, u) if timed else (lambda: em.forward(q, u))
-            rec(f"engine:{engine.name}", 1, per_call_seconds(fn))
+            rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(q, u)))
     return recs
 
 
 def _engines(requested):
-    out = []
-    for name in requested:
-        if name == "pinocchio":
-            from .engines.pinocchio.adapter import PinocchioAdapter
-            out.append(PinocchioAdapter())
-        elif name == "mujoco":
-            from .engines.mujoco.adapter import MujocoAdapter
-            out.append(MujocoAdapter())
-    return out
+    from .engines.registry import get_engine
+    return [get_engine(name) for name in requested]
 
 
 def meta(argv) -> dict:
     import scipy
     versions = {"python": platform.python_version(), "numpy": np.__version__,
                 "scipy": scipy.__version__, "sympy": sp.__version__}
-    for mod, key in (("pinocchio", "pin"), ("mujoco", "mujoco")):
-        try:
-            versions[key] = __import__(mod).__version__
-        except ImportError:
-            versions[key] = None
+    from .engines.registry import engine_versions
+    versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
     import shlex
     return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
             "machine": {"platform": platform.platform(), "processor": platform.machine(),
@@ -153,19 +141,8 @@ def cmd_bench(args) -> int:
 
     t_start = time.perf_counter()
     names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
-    requested = resolve_engines(args.engines)
+    engines = _engines(resolve_engines(args.engines))  # unknown or unimportable: exit 2
     output_dir(args.out)  # an unusable --out fails now, not after the benchmark
-    try:
-        engines = _engines(requested)
-    except ImportError as exc:  # an adapter still being written: forward records without it
-        print(f"bench: engine unavailable ({exc}); its rows are recorded as skipped",
-              file=sys.stderr)
-        engines = []
-        for e in requested:
-            try:
-                engines += _engines([e])
-            except ImportError:
-                pass
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 

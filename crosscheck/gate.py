@@ -52,7 +52,13 @@ WP_KEY_FIELDS = ("model", "engine", "method", "integrator", "setting")
 WP_FIGURES = ("error", "residual", "energy_drift")
 # the timing a path is divided by, in order of preference: the engines' constrained forward
 # calls (the ratio the report shows), else the plain lambdify+solve baseline of the same run
-TIMING_ANCHORS = ("engine:pinocchio", "engine:mujoco", "baseline-lambdify-solve")
+BASELINE_ANCHOR = "baseline-lambdify-solve"
+
+
+def timing_anchors() -> tuple[str, ...]:
+    """Every available engine's forward path in the registry's order, then the baseline."""
+    from .engines.registry import available_engines
+    return tuple(f"engine:{e}" for e in available_engines()) + (BASELINE_ANCHOR,)
 
 
 class GateInputError(ReportInputError):
@@ -127,12 +133,13 @@ def timing_ratios(bench: dict) -> dict[str, dict]:
     of the same model in the same bench run (minimum over repeats: least disturbed by load)."""
     out: dict[str, dict] = {}
     by_model: dict[str, dict[str, float]] = {}
+    anchors = timing_anchors()
     for r in bench.get("forward", []) or []:
         t = _f(r.get("us_per_state_min", r.get("us_per_state")))
         if math.isfinite(t) and t > 0 and not r.get("skipped"):
             by_model.setdefault(str(r.get("model", "?")), {})[str(r.get("path", "?"))] = t
     for model, paths in by_model.items():
-        for anchor in TIMING_ANCHORS:
+        for anchor in anchors:
             if anchor not in paths:
                 continue
             for path, t in paths.items():

@@ -41,10 +41,12 @@ def generic_model(name: str) -> NumericModel:
 
 def _engine_figures(name, nm, states, adapter, perturb) -> tuple[str, dict[str, float]]:
     """(first failing record, every record's error) of one engine at the states."""
-    from .run import _engine_records  # the one comparison of `crosscheck run`
+    from .comparison import engine_records  # the one comparison of `crosscheck run`
+    from .perturb import perturbed
 
+    params = perturbed(name, nm.params, perturb)
     recs = [r for variant in adapter.variants(name)
-            for r in _engine_records(name, nm, states, adapter, perturb, variant)]
+            for r in engine_records(name, nm, states, adapter, params, variant)]
     failing = next((f"{r['model']}/{r['engine']}/{r['check']}/{r['quantity']}" for r in recs
                     if r["passed"] is False), "")
     figures = {f"{r['check']}/{r['quantity']}": r["error"] for r in recs

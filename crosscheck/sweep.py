@@ -11,8 +11,8 @@ Generator seeded with sampling.sample_seed(S, M, i): its randomness depends on (
 never on the worker that ran it, the chunking, the executor or the other models.
 
 Checks. For every sample and every engine variant, the instantaneous cross-checks of
-`crosscheck run` (crosscheck.run._engine_records; the same metrics and named tolerances of
-crosscheck.compare): state map, mass matrix (where the coordinates map one to one), energy,
+`crosscheck run` (crosscheck.comparison.compare_at_state, the one comparison path; the same
+metrics and named tolerances): state map, mass matrix (where the coordinates map one to one), energy,
 accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer recovered
 from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
 `*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance
@@ -75,8 +75,10 @@ from reference import NumericModel, models
 from reference.errors import ModelInputError, SingularSystemError
 
 from . import compare as C
+from .comparison import ReferenceAnswer, build, compare_at_state, rigid_answer, tolerance
 from .engines.base import EngineUnsupported
-from .run import ENGINE_NAMES, engine_adapter, parse_perturb, perturbed
+from .engines.registry import available_engines, engine_modules, get_engine
+from .perturb import check_parameters, parse_perturb, perturbed
 from .sampling import draw_sample, sample_seed
 
 # ---- named settings, each with its reason ---------------------------------------------------
@@ -105,7 +107,6 @@ SOFT_ERROR_REASON = (
     "MuJoCo's raw (soft) answer against the rigid reference: the error its impedance "
     "d = 0.9999 makes by design (~1e-4 relative); reported, not judged here -- the "
     "*_soft_vs_predicted quantity holds it to the error the impedance predicts")
-RIGID_ANSWER = "rigid, recovered from MuJoCo's soft solution"
 REFERENCE = "reference"
 
 
@@ -142,67 +143,12 @@ def base_model(name: str, formulation: str | None = None) -> NumericModel:
 
 
 def _adapter(engine: str):
-    return _cached(("adapter", engine), lambda: engine_adapter(engine))
-
-
-def _finite(x: float) -> float:
-    x = float(x)
-    return x if math.isfinite(x) else math.inf
+    return _cached(("adapter", engine), lambda: get_engine(engine))
 
 
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return (text[0] if text else "")[:400]
-
-
-def _soft(raw_value, reference, predicted) -> tuple[float, float]:
-    """(miss of the predicted soft error, raw soft error), as crosscheck.run holds them."""
-    miss, raw_err, _pred = C.soft_prediction(raw_value, reference, predicted)
-    return miss, raw_err
-
-
-def engine_errors(em, q, u, t, acc, lam, M_ref, energy_ref, n_rows):
-    """Errors of one engine model at one state against the reference's values there.
-
-    Returns (values {quantity: error}, skips {quantity: reason}, soft). The metrics are those
-    of crosscheck.run._engine_records for one state (tests/test_sweep.py checks they agree)."""
-    vals: dict[str, float] = {}
-    skips: dict[str, str] = {}
-    qe, ve = em.to_engine_state(q, u)
-    q2, u2 = em.from_engine_state(qe, ve)
-    vals["state_map"] = max(C.scaled_error(q2, q), C.scaled_error(u2, u))
-    M_e = em.mass_matrix(q) if hasattr(em, "mass_matrix") else None
-    if M_e is None:
-        skips["mass_matrix"] = getattr(em, "mass_matrix_note", None) or (
-            "engine coordinates do not map one to one onto the reference's, so their mass "
-            "matrices are not comparable")
-    else:
-        vals["mass_matrix"] = C.scaled_error(M_e, M_ref)
-    ef = em.forward(q, u, t)
-    raw = ef.raw or {}
-    Ke, Ve = em.energy(q, u)
-    Kr, Vr = energy_ref
-    vals["energy"] = abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0)
-    soft = "rigid_accelerations" in raw and "predicted_acceleration_error" in raw
-    if n_rows == 0:
-        skips["multipliers"] = ("no constraints: the engine runs plain forward dynamics "
-                                "(ABA / unconstrained step), no multipliers to compare")
-    elif ef.multipliers is None:
-        skips["multipliers"] = raw.get("multipliers_note") or (
-            "the engine model has no constraint forces that map onto the reference's rows")
-    if soft:
-        vals["accelerations"] = C.scaled_error(raw["rigid_accelerations"], acc)
-        vals["accelerations_soft_vs_predicted"], vals["accelerations_soft_error"] = _soft(
-            ef.accelerations, acc, raw["predicted_acceleration_error"])
-        if "multipliers" not in skips:
-            vals["multipliers"] = C.scaled_error(raw["rigid_multipliers"], lam)
-            vals["multipliers_soft_vs_predicted"], vals["multipliers_soft_error"] = _soft(
-                ef.multipliers, lam, raw["predicted_multiplier_error"])
-    else:
-        vals["accelerations"] = C.scaled_error(ef.accelerations, acc)
-        if "multipliers" not in skips:
-            vals["multipliers"] = C.scaled_error(ef.multipliers, lam)
-    return {k: _finite(v) for k, v in vals.items()}, skips, soft
 
 
 def reference_batch(base: NumericModel, nms, T, Q, U):
@@ -309,15 +255,16 @@ def run_chunk(spec: ChunkSpec) -> dict:
             per_series[(engine, variant)][2] += 1
             try:
                 params = perturbed(name, nm.params, perturb.get(engine, {}))
-                ad = _adapter(engine)
-                em = ad.build(name, params, variant=variant) if variant else ad.build(name, params)
+                em = build(_adapter(engine), name, params, variant)
             except Exception as exc:  # noqa: BLE001
                 fault(i, s, engine, variant, "build", exc)
                 per_series[(engine, variant)][0] += time.perf_counter() - tb
                 continue
             te = time.perf_counter()
             try:
-                vals, sk, sf = engine_errors(em, q, u, t, acc, lam, M_ref, E_ref, base.m)
+                sc = compare_at_state(em, q, u, t, ReferenceAnswer(acc, lam, M_ref, E_ref),
+                                      base.m)
+                vals, sk, sf = sc.values, sc.skips, sc.soft
             except Exception as exc:  # noqa: BLE001
                 fault(i, s, engine, variant, "evaluate", exc)
                 vals, sk, sf = None, {}, None
@@ -414,21 +361,6 @@ def _histogram(v: np.ndarray) -> dict:
             "nonfinite": int((~np.isfinite(v)).sum())}
 
 
-def _tolerance(quantity: str, soft: bool, engine: str) -> tuple[C.Tolerance | None, str]:
-    """(named tolerance, metric) of a quantity, as crosscheck.run holds it."""
-    if quantity == "state_map":
-        return C.STATE_MAP, "scaled_error"
-    if quantity == "mass_matrix":
-        return C.MASS_MATRIX, "scaled_error"
-    if quantity == "energy":
-        return C.ENERGY, "relative_energy_error"
-    if quantity.endswith("_soft_vs_predicted"):
-        return C.SOFT_PREDICTION, "relative_miss"
-    if quantity.endswith("_soft_error"):
-        return None, "scaled_error"
-    return (C.RIGID_RECOVERY if soft else C.exact_tolerance(engine)), "scaled_error"
-
-
 def _fmt_floats(x) -> str:
     return ",".join(repr(float(v)) for v in np.asarray(x, float).ravel())
 
@@ -459,7 +391,7 @@ class Campaign:
     samples: int
     seed: int = 0
     index: int = 0
-    engines: tuple = ENGINE_NAMES
+    engines: tuple = field(default_factory=available_engines)
     perturb: dict = field(default_factory=dict)
     formulation: str | None = None
     worst: int = WORST_CASES
@@ -476,12 +408,7 @@ class Campaign:
                 raise ModelInputError(f"--perturb names engine {e!r}, which is not in "
                                       f"--engines {','.join(self.engines)}")
         for name in self.models:
-            names = [p.name for p in models.get(name).parameters]
-            for e, ps in self.perturb.items():
-                for p in ps:
-                    if p not in names:
-                        raise ModelInputError(f"--perturb {e}:{p}: model {name!r} has no "
-                                              f"parameter {p!r}; valid: {', '.join(names)}")
+            check_parameters(name, [p.name for p in models.get(name).parameters], self.perturb)
         if self.samples < 1:
             raise ModelInputError(f"--samples must be >= 1, got {self.samples}")
         if self.seed < 0 or self.index < 0:
@@ -499,10 +426,9 @@ def _plan(cfg: Campaign):
         series, unsupported = [], {}
         for e in cfg.engines:
             ad = _adapter(e)
-            variants = list(ad.variants(name)) if hasattr(ad, "variants") else [None]
-            for v in variants:
+            for v in ad.variants(name):
                 try:  # the model structure, not the parameters, decides this
-                    ad.build(name, None, variant=v) if v else ad.build(name, None)
+                    build(ad, name, None, v)
                 except EngineUnsupported as exc:
                     unsupported[(e, v)] = _first_line(exc)
                     continue
@@ -543,8 +469,7 @@ def _mp_context():
     engines), so they start fast and inherit no threads of the parent (a Dask client, tqdm)."""
     import multiprocessing as mp
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["crosscheck.sweep", "crosscheck.engines.pinocchio.adapter",
-                                "crosscheck.engines.mujoco.adapter"])
+    ctx.set_forkserver_preload(["crosscheck.sweep", *engine_modules()])
     return ctx
 
 
@@ -836,7 +761,7 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
                                 "faults": n_faults})
             soft = bool(agg.soft.get((e, v)))
             for qn in keys:
-                tol, metric = _tolerance(qn, soft, e)
+                tol, metric = tolerance(qn, soft, _adapter(e), name)
                 row = {"model": name, "formulation": agg.formulation, "engine": e,
                        "variant": v, "quantity": qn}
                 if (e, v, qn) not in agg.values:
@@ -875,7 +800,7 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
                            if len(vals) else {}),
                        "histogram": _histogram(vals), "worst": worst}
                 if soft and qn in ("accelerations", "multipliers"):
-                    rec["answer"] = RIGID_ANSWER
+                    rec["answer"] = rigid_answer(e)
                 results.append(rec)
     n_faults = sum(g["count"] for g in fault_groups.values())
     complete = stopped is None and all(d == cfg.samples for d in done.values())
@@ -950,7 +875,7 @@ def _machine_scaling(workers=(1, 2), tasks: int = 8, n: int = 2_000_000) -> list
     return out
 
 
-def bench(model_names=None, samples: int = 200, seed: int = 0, engines=ENGINE_NAMES,
+def bench(model_names=None, samples: int = 200, seed: int = 0, engines=None,
           scaling_workers=(1, 2), log=None) -> dict:
     """Throughput of campaigns, measured (not asserted). For `crosscheck sweep --bench` and for
     crosscheck.bench to call.
@@ -965,6 +890,7 @@ def bench(model_names=None, samples: int = 200, seed: int = 0, engines=ENGINE_NA
       scaling of pure-Python work over the same kind of pool.
     """
     names = list(model_names or models.names())
+    engines = tuple(available_engines() if engines is None else engines)
     log = log or (lambda msg: None)
     rows = []
     for name in names:

@@ -104,24 +104,26 @@ def test_batched_reference_isolates_a_singular_sample():
     ("slider_crank", "mujoco"), ("slider_crank", "pinocchio"), ("exercise_6_1", "mujoco"),
     ("top_cartesian", "pinocchio")])
 def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
-    """engine_errors at one state = crosscheck.run._engine_records on that single state (these
-    models are scleronomic, so run's t = 0 and the sample's t give the same numbers)."""
-    from crosscheck.run import _engine_records, engine_adapter
+    """A sweep sample's values (compare_at_state) = run's records (engine_records) on that
+    single state (these models are scleronomic, so run's t = 0 and the sample's t give the
+    same numbers), each against the same tolerance."""
+    from crosscheck.comparison import (build, compare_at_state, engine_records,
+                                       reference_answer, tolerance)
+    from crosscheck.engines.registry import get_engine
     base = S.base_model(name)
     _, nm, t, q, u = draw_sample(base, 4, 1)
-    ad = engine_adapter(engine)
+    ad = get_engine(engine)
     for variant in ad.variants(name):
-        recs = _engine_records(name, nm, [(q, u)], ad, {}, variant)
-        em = ad.build(name, nm.params, variant=variant) if variant else ad.build(name, nm.params)
-        fw = nm.forward(q, u, t)
-        vals, skips, soft = S.engine_errors(em, q, u, t, fw.accelerations, fw.multipliers,
-                                            nm.matrices(q, u, t)[0], nm.energy(q, u, t), nm.m)
+        recs = engine_records(name, nm, [(q, u)], ad, nm.params, variant)
+        em = build(ad, name, nm.params, variant)
+        sc = compare_at_state(em, q, u, t, reference_answer(nm, q, u, t), nm.m)
+        assert recs
         for r in recs:
             if r["skipped"]:
-                assert r["quantity"] in skips and r["quantity"] not in vals
+                assert r["quantity"] in sc.skips and r["quantity"] not in sc.values
                 continue
-            assert vals[r["quantity"]] == r["error"], r["quantity"]
-            tol, _ = S._tolerance(r["quantity"], soft, r["engine"])
+            assert sc.values[r["quantity"]] == r["error"], r["quantity"]
+            tol, _ = tolerance(r["quantity"], sc.soft, ad, name)
             assert tol.value == r["tolerance"]
 
 
@@ -224,10 +226,13 @@ class _FlakyAdapter:
     L drew below its default fails in forward."""
 
     def __init__(self, inner):
-        self.inner, self.name = inner, inner.name
+        self.inner, self.name, self.capabilities = inner, inner.name, inner.capabilities
 
     def variants(self, name):
         return self.inner.variants(name)
+
+    def exact_tolerance(self, name):
+        return self.inner.exact_tolerance(name)
 
     def build(self, name, params, variant=None):
         em = self.inner.build(name, params)

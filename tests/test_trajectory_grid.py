@@ -9,27 +9,26 @@ import numpy as np
 import pytest
 
 from crosscheck.cli import main
-from crosscheck.trajectory import MUJOCO_STEPS, N_OUT, mujoco_ladder, output_grid
+from crosscheck.trajectory import FIXED_STEPS, N_OUT, output_grid, step_ladder
 
 
 @pytest.mark.parametrize("t_end", [5.0, 1.0, 0.13, 0.1, 0.01, 0.1234, 1.009, 1e-3, 1e-9, 999.9])
 def test_grid_lies_on_both_mujoco_rungs(t_end):
-    h0, h1 = mujoco_ladder(t_end)
-    assert h0 <= MUJOCO_STEPS[0] and h1 == pytest.approx(h0 / 2, rel=1e-15)
-    grid, every = output_grid(t_end)
+    h0, h1 = step_ladder(t_end)
+    assert h0 <= FIXED_STEPS[0] and h1 == pytest.approx(h0 / 2, rel=1e-15)
+    grid = output_grid(t_end)
     assert grid[0] == 0.0 and grid[-1] == pytest.approx(t_end, rel=1e-12)
     assert 2 <= len(grid) <= N_OUT and np.all(np.diff(grid) > 0)
     for h in (h0, h1):  # every output time is a whole number of steps of either rung
         steps = grid / h
         assert np.max(np.abs(steps - np.round(steps))) < 1e-6
         assert round(t_end / h) == round(steps[-1])  # and the rung ends at t_end
-    assert every >= 1
 
 
 def test_five_seconds_keeps_the_20_ms_grid():
-    grid, every = output_grid(5.0)
-    assert mujoco_ladder(5.0) == MUJOCO_STEPS
-    assert np.array_equal(grid, np.linspace(0.0, 5.0, N_OUT)) and every == 20
+    grid = output_grid(5.0)
+    assert step_ladder(5.0) == FIXED_STEPS
+    assert np.array_equal(grid, np.linspace(0.0, 5.0, N_OUT))
 
 
 @pytest.mark.parametrize("t_end", ["0.13", "1e-9"])
@@ -41,7 +40,7 @@ def test_short_horizon_runs_with_mujoco(tmp_path, capsys, t_end):
     res = json.loads((out / "results.json").read_text())
     traj = [r for r in res["records"] if r["check"] == "trajectory" and r["engine"] == "mujoco"]
     assert traj and all(r["passed"] for r in traj)
-    h0 = mujoco_ladder(float(t_end))[0]
+    h0 = step_ladder(float(t_end))[0]
     assert traj[0]["label"] == f"RK4 h={h0:g}"  # the step actually used is named
     series = [s for s in res["series"] if s["engine"] == "mujoco"]
     assert len(series) == 2  # MuJoCo's clock sums its steps: equal to round-off

@@ -41,7 +41,9 @@ class Capabilities:
         the coordinates map linearly (else None with ``mass_matrix_note``).
     nonholonomic: velocity-level (non-integrable) constraint rows can be expressed.
     integrators: the engine's own integrators accepted by ``simulate``; () means the engine
-        has no trajectories in this suite.
+        has no trajectories in this suite. The first is the one `crosscheck run` uses.
+    adaptive_integrators: the subset of ``integrators`` that control their error (they take
+        ``rtol``); the others take a fixed ``timestep``.
     variants: some models have several engine models (``EngineAdapter.variants``).
     """
 
@@ -52,12 +54,19 @@ class Capabilities:
     nonholonomic: bool = False
     integrators: tuple[str, ...] = ()
     variants: bool = False
+    adaptive_integrators: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        extra = set(self.adaptive_integrators) - set(self.integrators)
+        if extra:
+            raise ValueError(f"adaptive_integrators {sorted(extra)} are not in integrators")
 
     def as_dict(self) -> dict[str, Any]:
         return {"multipliers": self.multipliers, "exact": self.exact,
                 "rigid_recovery": self.rigid_recovery, "mass_matrix": self.mass_matrix,
                 "nonholonomic": self.nonholonomic, "integrators": list(self.integrators),
-                "variants": self.variants}
+                "variants": self.variants,
+                "adaptive_integrators": list(self.adaptive_integrators)}
 
 
 @dataclass
@@ -69,6 +78,9 @@ class EngineForward:
         model has no constraint forces that map to them (``multipliers_note`` says why).
     rigid_accelerations / rigid_multipliers: soft engines only (Capabilities.rigid_recovery):
         the rigid answer recovered from the engine's own soft output.
+    predicted_acceleration_error / predicted_multiplier_error: soft engines, at a state where
+        the answer is regularized: (raw - rigid) as the regularization predicts it; None where
+        the engine model has no soft rows (its answer is then exact).
     iterations: solver iterations (0: no solve, 1: a direct solve), None if not reported.
     raw: engine-native quantities worth reporting (residuals, impedance, ...), floats or arrays.
     """
@@ -80,6 +92,13 @@ class EngineForward:
     rigid_accelerations: Optional[np.ndarray] = None
     rigid_multipliers: Optional[np.ndarray] = None
     iterations: Optional[int] = None
+    predicted_acceleration_error: Optional[np.ndarray] = None
+    predicted_multiplier_error: Optional[np.ndarray] = None
+
+    @property
+    def soft(self) -> bool:
+        """The answer is regularized here: compare its rigid recovery, predict the raw one."""
+        return self.rigid_accelerations is not None and self.predicted_acceleration_error is not None
 
 
 @dataclass
@@ -89,7 +108,9 @@ class EngineTrajectory:
     violation / velocity_violation: the engine-side constraint residuals per output time (zeros
     for a model without constraints); energy: the engine's K + V per output time; wall_s: time
     spent in the engine's stepping (mapping excluded where the engine allows); steps: number of
-    engine steps or right-hand-side evaluations; setting: the integrator setting used.
+    engine steps or right-hand-side evaluations; setting: the integrator setting used;
+    failure: None when the integration reached the last time, else why it stopped; warnings:
+    engine warnings that fired (name -> count; a run with any is not a trajectory of the model).
     """
 
     t: np.ndarray
@@ -103,6 +124,8 @@ class EngineTrajectory:
     wall_s: Optional[float] = None
     steps: Optional[int] = None
     raw: dict = field(default_factory=dict)
+    failure: Optional[str] = None
+    warnings: dict = field(default_factory=dict)
 
 
 class EngineModel(ABC):
@@ -112,6 +135,13 @@ class EngineModel(ABC):
     model_name: str
     variant: Optional[str] = None
     mass_matrix_note: Optional[str] = None
+    # the engine's own constraint rows are regularized (soft): trajectories follow slightly
+    # different dynamics, so they are characterized, not held to the rigid bounds
+    soft_constraints: bool = False
+    # the engine's native solver for this model (reported with timings), and whether it solves
+    # constraint rows (False: a minimal-coordinate tree or an unconstrained model)
+    solver: Optional[str] = None
+    constrained_solve: bool = False
 
     @abstractmethod
     def to_engine_state(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,6 +192,14 @@ class EngineAdapter(ABC):
     name: str
     distribution: str  # the installed package whose version results record (e.g. "pin")
     capabilities: Capabilities
+    label: str = ""  # the engine's name in prose (tables, plot legends); default: name
+    # position in every default order (engine lists, tables, plot colours, the timing anchor):
+    # lower first, ties alphabetical; engines that do not set it come after the built-ins
+    rank: int = 100
+
+    @property
+    def display_name(self) -> str:
+        return self.label or self.name
 
     @abstractmethod
     def models(self) -> tuple[str, ...]:

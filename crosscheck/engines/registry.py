@@ -67,15 +67,41 @@ def get_engine(name: str, **options) -> EngineAdapter:
 
 
 def available_engines() -> tuple[str, ...]:
-    """The registered engines that import here (the default engine set of every command)."""
+    """The registered engines that import here (the default engine set of every command), in
+    the adapters' order (``EngineAdapter.rank``, then alphabetical)."""
     out = []
     for name in engine_names():
         try:
-            _adapter_class(name)
+            cls = _adapter_class(name)
         except EngineImportError:
             continue
-        out.append(name)
-    return tuple(out)
+        out.append((cls.rank, name))
+    return tuple(name for _rank, name in sorted(out))
+
+
+def engine_label(name: str) -> str:
+    """The engine's name in prose (``EngineAdapter.label``), or its registered name."""
+    try:
+        return _adapter_class(name).label or name
+    except (UnknownEngineError, EngineImportError):
+        return name
+
+
+def engine_modules() -> tuple[str, ...]:
+    """The module of every registered engine's entry point (what worker processes preload)."""
+    return tuple(_entry_points()[n].module for n in engine_names())
+
+
+def engine_distributions() -> tuple[str, ...]:
+    """The installed package of every engine that imports here (the keys results' meta
+    records versions under), in the engines' order."""
+    return tuple(_adapter_class(n).distribution for n in available_engines())
+
+
+def engine_versions() -> dict[str, Optional[str]]:
+    """{distribution: installed version} of every engine that imports here (results' meta)."""
+    return {_adapter_class(n).distribution: _version(_adapter_class(n).distribution)
+            for n in available_engines()}
 
 
 @dataclass(frozen=True)

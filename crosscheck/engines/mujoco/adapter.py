@@ -77,27 +77,35 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import mujoco
 import numpy as np
 
-from ..base import Capabilities, EngineAdapter, EngineForward, EngineModel, EngineUnsupported
+from ...compare import Tolerance
+from ..base import (Capabilities, EngineAdapter, EngineForward, EngineModel, EngineTrajectory,
+                    EngineUnsupported)
 
-__all__ = ["MujocoAdapter", "MujocoTrajectory", "mjcf", "write_mjcf", "SOLIMP", "SOLREF",
+__all__ = ["MujocoAdapter", "mjcf", "write_mjcf", "SOLIMP", "SOLREF",
            "LIGHT", "INTEGRATORS"]
 
 SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 SOLREF = (0.02, 1.0)
 # relative mass/inertia of the bodies the reference does not have (light rods, the light frame)
 LIGHT = 1e-12
-INTEGRATORS = {"Euler": mujoco.mjtIntegrator.mjINT_EULER,
+# MuJoCo's fixed-step integrators; the first is the one `crosscheck run` uses for trajectories
+INTEGRATORS = {"RK4": mujoco.mjtIntegrator.mjINT_RK4,
+               "Euler": mujoco.mjtIntegrator.mjINT_EULER,
                "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-               "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
-               "RK4": mujoco.mjtIntegrator.mjINT_RK4}
+               "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
 MJCF_DIR = Path(__file__).with_name("mjcf")
+MUJOCO_EXACT = Tolerance(
+    5e-11, "an exact answer in MuJoCo (a tree, no equality rows): MuJoCo rejects massless "
+           "bodies, so the reference's light rods and zero axial inertias get 1e-12 relative "
+           "mass or inertia, which biases the answer by ~1e-12 and is amplified by the nearly "
+           "singular M; measured up to 2.9e-11 (crosscheck sweep exercise_6_4 --seed 3 "
+           "--samples 200 --engines mujoco)")
 
 
 def _f(x: float) -> str:
@@ -485,29 +493,6 @@ def _warnings(d) -> dict:
     return out
 
 
-@dataclass
-class MujocoTrajectory:
-    """Output of EngineModel.simulate, in reference coordinates at the recorded steps.
-
-    t: times; q (N, nq), u (N, n): reference coordinates and speeds mapped from MuJoCo's state;
-    n_steps: mj_step calls; energy (N, 2): (K, V) in the reference's datum, read after an
-    mj_forward at each recorded state (d.energy is lagged after mj_step); violation (N,):
-    max |efc_pos| of the equality rows (position-level constraint drift, engine measure);
-    wall_time: seconds spent in the loop.
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    u: np.ndarray
-    n_steps: int
-    integrator: str
-    timestep: float
-    energy: np.ndarray
-    violation: np.ndarray
-    wall_time: float
-    raw: dict = field(default_factory=dict)
-
-
 # ======================================================================================
 # shared machinery
 # ======================================================================================
@@ -529,6 +514,7 @@ class _MjModel(EngineModel):
         self.xml = self._xml(solref=self.solref, solimp=self.solimp)
         self.m = mujoco.MjModel.from_xml_string(self.xml)
         self.d = mujoco.MjData(self.m)
+        self.soft_constraints = self.m.neq > 0
         self.applied = self._applied()
         self._light_ids = [mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
                            for b in self.light_bodies]
@@ -629,7 +615,7 @@ class _MjModel(EngineModel):
             lam = self._multipliers(qe, ve, qacc, np.zeros(0))
             raw.update(rigid_accelerations=acc.copy(),
                        rigid_multipliers=None if lam is None else np.array(lam, float))
-            return EngineForward(acc, lam, raw)
+            return self._answer(acc, lam, raw)
         if not np.all(d.efc_type[:nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY):
             raise RuntimeError(f"{self.model_name}: unexpected non-equality constraint rows")
         f = d.efc_force[:nefc].copy()
@@ -700,7 +686,17 @@ class _MjModel(EngineModel):
             # at a consistent state MuJoCo's aref must be -J-dot v (connect rows)
             raw["aref_plus_jdot_v"] = float(np.max(np.abs(aref + jdv)))
         self._extra_raw(raw)
-        return EngineForward(acc, lam, raw)
+        return self._answer(acc, lam, raw)
+
+    @staticmethod
+    def _answer(acc, lam, raw) -> EngineForward:
+        """The typed answer; raw keeps the same arrays for diagnostics and the engine tests."""
+        return EngineForward(
+            acc, lam, raw, multipliers_note=raw.get("multipliers_note"),
+            rigid_accelerations=raw["rigid_accelerations"],
+            rigid_multipliers=raw["rigid_multipliers"],
+            predicted_acceleration_error=raw.get("predicted_acceleration_error"),
+            predicted_multiplier_error=raw.get("predicted_multiplier_error"))
 
     def timed_forward(self, q, u):
         """Timing hook for `crosscheck bench`: maps the reference state once (and sets
@@ -776,28 +772,35 @@ class _MjModel(EngineModel):
         """max |efc_pos| of the equality rows at the current data (after mj_forward)."""
         return float(np.max(np.abs(self.d.efc_pos[:self.d.nefc]))) if self.d.nefc else 0.0
 
-    def simulate(self, q0, u0, t_end: float, timestep: float = 1e-3,
-                 integrator: str = "RK4", record_every: int = 1) -> MujocoTrajectory:
-        """Run mj_step from the mapped initial state for round(t_end / timestep) steps.
+    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
+                 timestep: Optional[float] = None) -> EngineTrajectory:
+        """Run mj_step from the mapped initial state for round(t_eval[-1] / timestep) steps,
+        recording the state at the steps nearest to t_eval (which must lie on the step grid).
 
         A fresh MjModel/MjData (same XML) with opt.timestep and opt.integrator set, so forward()
-        is not disturbed. Every `record_every` steps (and at t = 0) the state is read, mapped to
-        the reference, and mj_forward is called before reading d.energy and efc_pos (d.energy is
-        lagged after mj_step: it belongs to the start of the step, or to the last RK4 stage).
-        mj_forward recomputes only derived quantities, so the trajectory is unchanged by it.
+        is not disturbed. At each recorded step the state is read, mapped to the reference,
+        and mj_forward is called before reading d.energy and efc_pos (d.energy is lagged after
+        mj_step: it belongs to the start of the step, or to the last RK4 stage). mj_forward
+        recomputes only derived quantities, so the trajectory is unchanged by it. wall_s is
+        the stepping loop (with the recording); steps the mj_step calls.
         """
         if integrator not in INTEGRATORS:
             raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-        if not (timestep > 0 and t_end >= 0):
-            raise ValueError("timestep must be > 0 and t_end >= 0")
+        t_eval = np.asarray(t_eval, dtype=float)
+        if timestep is None or not (timestep > 0 and t_eval.size and t_eval[-1] >= 0):
+            raise ValueError(f"{integrator} takes a fixed step: give timestep > 0 and t_eval "
+                             f"ending at t >= 0 (got timestep {timestep!r})")
+        marks = np.rint(t_eval / timestep).astype(int)
+        if np.max(np.abs(marks * timestep - t_eval)) > 1e-9 * max(1.0, float(t_eval[-1])):
+            raise ValueError(f"t_eval is not on the {timestep:g} s step grid")
         m = mujoco.MjModel.from_xml_string(self.xml)
         m.opt.timestep = float(timestep)
         m.opt.integrator = INTEGRATORS[integrator]
         d = mujoco.MjData(m)
         qe, ve = self.to_engine_state(q0, u0)
         self._set(qe, ve, m, d)
-        n_steps = int(round(t_end / timestep))
-        T, Q, U, E, Vi = [], [], [], [], []
+        n_steps, record_at = int(marks[-1]), set(marks.tolist())
+        T, Q, U, E, Vi, Vv = [], [], [], [], [], []
 
         def record():
             mujoco.mj_forward(m, d)
@@ -805,21 +808,23 @@ class _MjModel(EngineModel):
             T.append(d.time)
             Q.append(q)
             U.append(u)
-            E.append(self._energy_after_forward(m, d))
+            E.append(sum(self._energy_after_forward(m, d)))
             Vi.append(float(np.max(np.abs(d.efc_pos[:d.nefc]))) if d.nefc else 0.0)
+            Vv.append(float(np.max(np.abs(d.efc_vel[:d.nefc]))) if d.nefc else 0.0)
 
         t0 = time.perf_counter()
-        record()
+        if 0 in record_at:
+            record()
         for k in range(1, n_steps + 1):
             mujoco.mj_step(m, d)
-            if k % record_every == 0 or k == n_steps:
+            if k in record_at:
                 record()
         wall = time.perf_counter() - t0
-        return MujocoTrajectory(t=np.array(T), q=np.array(Q), u=np.array(U), n_steps=n_steps,
-                                integrator=integrator, timestep=float(timestep),
-                                energy=np.array(E), violation=np.array(Vi), wall_time=wall,
-                                raw={"solref": self.solref, "solimp": self.solimp,
-                                     "warnings": _warnings(d)})
+        return EngineTrajectory(
+            t=np.array(T), q=np.array(Q), u=np.array(U), violation=np.array(Vi),
+            velocity_violation=np.array(Vv), energy=np.array(E), integrator=integrator,
+            setting={"timestep": float(timestep)}, wall_s=wall, steps=n_steps,
+            warnings=_warnings(d), raw={"solref": self.solref, "solimp": self.solimp})
 
 
 # ======================================================================================
@@ -1643,6 +1648,8 @@ class MujocoAdapter(EngineAdapter):
 
     name = "mujoco"
     distribution = "mujoco"
+    label = "MuJoCo"
+    rank = 20
     capabilities = Capabilities(multipliers=True, exact=False, rigid_recovery=True,
                                 mass_matrix=True, nonholonomic=False,
                                 integrators=tuple(INTEGRATORS), variants=True)
@@ -1653,8 +1660,7 @@ class MujocoAdapter(EngineAdapter):
     def models(self) -> tuple[str, ...]:
         return tuple(_MODELS)
 
-    def exact_tolerance(self, model_name: str):
-        from ...compare import MUJOCO_EXACT
+    def exact_tolerance(self, model_name: str) -> Tolerance:
         return MUJOCO_EXACT
 
     def unsupported(self) -> dict[str, str]:
