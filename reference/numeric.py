@@ -250,6 +250,30 @@ class NumericModel:
         n, nm = self.n, self._nlam
         return out[:n], out[n:nm], float(out[nm])
 
+    def raw_function(self, name: str):
+        """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
+        kinematics, energy, matrices, position_jacobian): the integrators' unchecked calls.
+        On the compiled backend the groups are views of one output array and `p` must be
+        this model's own parameter tuple (the kernel reads the packed copy, self._pa)."""
+        if self._k is None:
+            return self._scalar[name]
+        f, total, offs, pa = self._k.get(name), self._k.total[name], self._k.offsets[name], \
+            self._pa
+        arrays = self._arrays
+
+        def call(q, u, t, p=None):
+            out = np.empty(total)
+            try:
+                st = f(q, u, t, pa, out)
+            except TypeError:  # lists: convert, then call
+                q, u, t = arrays(q, u, t)
+                st = f(q, u, t, pa, out)
+            if st and st != compiled.NOT_FINITE:  # NaN in, NaN out, as the Python path
+                self._fail(st, q, u)
+            return tuple(out[a:b] for a, b in offs)
+
+        return call
+
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
                 f"(pivot ratio {piv:.1e} <= {PIVOT_RATIO_MIN:.0e}): the constraint rows are "
