@@ -354,4 +354,5 @@ def load_compiled(eom_factory, model, formulation: str, params: dict):
     scalar, batched = _namespace(False), _namespace(True)
     exec(code, scalar)
     exec(code, batched)
+    scalar["__cache_path__"] = path
     return scalar, batched, src
