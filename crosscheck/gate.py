@@ -29,6 +29,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from .output import write_atomic
 from .report import ReportInputError, check_bench, check_results, load_json
 
 # An accuracy figure may grow by this factor before it is a regression. The figures are worst
@@ -313,8 +314,7 @@ def cmd_gate(args) -> int:
             _print_list("still failing", o.known_failures)
             if not changed:
                 print("  nothing beyond the gate's factor and floor (figures refreshed)")
-        baseline_path.parent.mkdir(parents=True, exist_ok=True)
-        baseline_path.write_text(json.dumps(new, indent=2, allow_nan=True) + "\n")
+        write_atomic(baseline_path, json.dumps(new, indent=2, allow_nan=True) + "\n")
         return 0
     if not baseline_path.exists():
         raise GateInputError(f"baseline file {args.baseline!r} not found (create it "

@@ -1077,6 +1077,7 @@ def _print_summary(res: dict, path: Path) -> None:
 def cmd_sweep(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
+    from .output import write_atomic
     samples, seed, index, worst = args.samples, args.seed, args.index, args.worst
     workers, chunk, max_seconds = args.workers, args.chunk, args.max_seconds
     if workers is not None and args.dask is not None:
@@ -1089,8 +1090,7 @@ def cmd_sweep(args) -> int:
         cfg.validate()
         b = bench(names, samples, seed, engines,
                   log=lambda m: print(m, file=sys.stderr, flush=True))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "sweep_bench.json").write_text(json.dumps(b, indent=2, default=_json_default))
+        write_atomic(out / "sweep_bench.json", json.dumps(b, indent=2, default=_json_default))
         _print_bench(b)
         print(f"wrote {out / 'sweep_bench.json'}")
         return 0
@@ -1107,9 +1107,8 @@ def cmd_sweep(args) -> int:
     finally:
         if bar:
             bar.close()
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "sweep.json"
-    path.write_text(json.dumps(res, indent=2, default=_json_default, allow_nan=True))
+    path = write_atomic(out / "sweep.json",
+                        json.dumps(res, indent=2, default=_json_default, allow_nan=True))
     _print_summary(res, path)
     if res["status"]["stopped"] == "interrupted":
         code = 130
