@@ -2,7 +2,8 @@
 
 Bad input prints one line `crosscheck: error: ...` and exits with status 2, never a traceback.
 Exit 1 means only "a check failed"; Ctrl-C prints one line and exits 130; an unexpected
-exception (a bug) prints its traceback and exits 3.
+exception (a bug) prints its traceback and exits 3; a sweep stopped by its time budget with
+nothing failed exits 4 (incomplete, not passed).
 """
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from .arguments import OneLineParser, finite_float
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
+EXIT_INCOMPLETE = 4  # a campaign stopped by its time budget: nothing failed, not all was run
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 

@@ -21,7 +21,7 @@ a chunk in one batched call of its compiled code, with per-sample parameter arra
 
 Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding,
 executor), "status" (complete, stopped, completed sample ranges per model, outside_tolerance,
-faults, passed), "series" (per model x engine x variant: evaluated, faults, or why it is not
+faults, verdict, passed: true only for a complete campaign with nothing failed), "series" (per model x engine x variant: evaluated, faults, or why it is not
 run), "results" (per model x engine x variant x quantity: tolerance and its reason, count,
 max, mean, quantiles, a log10 histogram, outside_tolerance, the worst cases), "faults" (groups
 with counts, the first FAULTS_KEPT records per group), "timing" (where the time went; the only
@@ -50,9 +50,11 @@ builds); --max-seconds compares wall clocks (time.time) on the workers; one-thre
 error value (8 bytes per sample per quantity, ~20 quantities per model) to give exact quantiles:
 10^6 samples of one model is ~160 MB, so run models one at a time at that scale.
 
-Exit status: 0 when every completed sample is within every tolerance and nothing faulted
-(including a campaign stopped by --max-seconds, which says so), 1 when a sample is outside a
-tolerance or faulted, 2 on bad input (one line), 130 when interrupted (after writing sweep.json).
+Exit status: 0 when the campaign completed with every sample within every tolerance and nothing
+faulted (status.verdict "passed"), 1 when a sample is outside a tolerance or faulted ("failed"),
+4 when it stopped early (--max-seconds) with nothing failed in what it ran ("incomplete": not
+passed), 2 on bad input (one line), 130 when interrupted (after writing sweep.json, whose
+status.passed is then false).
 """
 from __future__ import annotations
 
@@ -885,8 +887,11 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
         "completed": done,
         "completed_ranges": {n: _ranges(a.completed, cfg.index) for n, a in aggs.items()},
         "outside_tolerance": outside_total, "faults": n_faults + len(chunk_faults),
-        "passed": outside_total == 0 and n_faults == 0 and not chunk_faults,
     }
+    # an incomplete campaign never reads as passed: what it did not run, it did not check
+    clean = outside_total == 0 and n_faults == 0 and not chunk_faults
+    status["verdict"] = "failed" if not clean else "passed" if complete else "incomplete"
+    status["passed"] = status["verdict"] == "passed"
     return {"status": status, "series": series_rows, "results": results,
             "faults": {"groups": list(fault_groups.values()), "records": fault_records,
                        "kept_per_group": FAULTS_KEPT, "chunks": chunk_faults}}
@@ -1100,7 +1105,6 @@ def cmd_sweep(args) -> int:
     if sys.stderr.isatty():
         from tqdm import tqdm
         bar = tqdm(total=samples * len(names), desc="samples", unit="sample", file=sys.stderr)
-    code = None
     try:
         res = campaign(cfg, workers=workers, dask=args.dask, chunk=chunk,
                        max_seconds=max_seconds, progress=bar.update if bar else None)
@@ -1110,9 +1114,16 @@ def cmd_sweep(args) -> int:
     path = write_atomic(out / "sweep.json",
                         json.dumps(res, indent=2, default=_json_default, allow_nan=True))
     _print_summary(res, path)
-    if res["status"]["stopped"] == "interrupted":
-        code = 130
-    return code if code is not None else (0 if res["status"]["passed"] else 1)
+    return exit_code(res["status"])
+
+
+def exit_code(status: dict) -> int:
+    """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
+    stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
+    from .cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+    if status["stopped"] == "interrupted":
+        return EXIT_INTERRUPTED
+    return {"passed": 0, "failed": 1}.get(status["verdict"], EXIT_INCOMPLETE)
 
 
 def register(sub):

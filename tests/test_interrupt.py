@@ -85,3 +85,36 @@ def test_sigint_on_a_real_run(previous_run, delay):
     assert len(lines) == 1 and lines[0].startswith("crosscheck: interrupted"), err
     assert _snapshot(previous_run) == before
     assert not [p for p in previous_run.iterdir() if p.name.startswith(TMP_PREFIX)]
+
+
+def test_sigint_on_a_real_sweep(tmp_path):
+    """An interrupted campaign writes what it completed and never reads as passed (item 6)."""
+    out = tmp_path / "sweep"
+    proc = _start(["sweep", "pendulum_xy", "--samples", "1000000", "--workers", "1",
+                   "--engines", "pinocchio", "--out", str(out)])
+    deadline = time.time() + 120
+    while time.time() < deadline:  # interrupt once samples are being evaluated
+        time.sleep(1.0)
+        if proc.poll() is not None or _sampling(proc.pid):
+            break
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    stdout, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    st = json.loads((out / "sweep.json").read_text())["status"]
+    assert st["stopped"] == "interrupted" and not st["complete"]
+    assert st["passed"] is False and st["verdict"] == "incomplete"
+    assert 0 < st["completed"]["pendulum_xy"] < 1000000
+    assert "stopped: interrupted" in stdout
+    assert sorted(p.name for p in out.iterdir()) == ["sweep.json"]
+
+
+def _sampling(pid: int) -> bool:
+    """The process has been running its own code for a while (past imports and compiling):
+    judged by its CPU time, read from /proc (Linux)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return True
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK") > 3.0
