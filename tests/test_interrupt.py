@@ -63,9 +63,13 @@ def test_no_report_removes_the_stale_report(previous_run, capsys):
     assert _models_in(previous_run) == {"slider_crank"}
 
 
+def tmp_cwd() -> str:
+    return os.getcwd()  # the test's own tmp_path (conftest), never the checkout
+
+
 def _start(args: list[str]) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.Popen([sys.executable, "-m", "crosscheck", *args], cwd=ROOT, env=env,
+    return subprocess.Popen([sys.executable, "-m", "crosscheck", *args], cwd=tmp_cwd(), env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
