@@ -4,6 +4,7 @@
                      [--workers K | --dask ADDRESS] [--chunk C] [--max-seconds T]
                      [--perturb ENGINE:PARAM=REL] [--formulation F] [--worst K] [--out DIR]
     crosscheck sweep [MODEL ...] --bench --samples N [--out DIR]   # throughput -> sweep_bench.json
+    crosscheck sweep --resume DIR [--workers K | --dask ADDRESS]   # finish an interrupted one
 
 Samples. Sample i of model M (i = I .. I+N-1) is one random parameter set, one time t and one
 consistent state, drawn by crosscheck.sampling (the property tests' generator) from a numpy
@@ -33,7 +34,11 @@ reference's accelerations and multipliers at that case, to round-off of the scal
 Faults (a draw whose projection fails, a singular reference, an engine that raises while
 building or evaluating) are recorded per sample with the stage, the exception and its message;
 the campaign goes on. An interrupted campaign (Ctrl-C, or --max-seconds) writes what it
-completed, as sample-index ranges per model, and says why it stopped.
+completed, as sample-index ranges per model, and says why it stopped; every finished chunk is
+also kept in DIR/sweep.chunks (crosscheck.sweep_store), and `--resume DIR` computes only the
+samples no stored chunk covers, ending with the sweep.json of an uninterrupted run (meta and
+timing aside). A Dask worker lost mid-campaign costs only the rerun of its tasks (the scheduler
+reschedules them; the results do not depend on where a chunk ran).
 
 Execution: local worker processes by default (all cores; ProcessPoolExecutor, chunks of at most
 LOCAL_CHUNK_MAX samples), in-process with --workers 1, or a Dask distributed cluster with
@@ -517,13 +522,17 @@ def _plan(cfg: Campaign):
 
 
 def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
+    """The chunks still to run: every sample no merged chunk covers (all of them, unless the
+    campaign resumes from stored chunks)."""
     specs = []
     perturb = tuple((e, tuple(sorted(p.items()))) for e, p in sorted(cfg.perturb.items()))
+    end = cfg.index + cfg.samples
     for name, agg in aggs.items():
-        for a in range(cfg.index, cfg.index + cfg.samples, chunk):
-            specs.append(ChunkSpec(name, agg.formulation, cfg.seed, a,
-                                   min(a + chunk, cfg.index + cfg.samples),
-                                   tuple(agg.series), perturb, deadline))
+        for a in range(cfg.index, end, chunk):
+            b = min(a + chunk, end)
+            for lo, hi in _ranges(~agg.completed[a - cfg.index:b - cfg.index], a):
+                specs.append(ChunkSpec(name, agg.formulation, cfg.seed, lo, hi,
+                                       tuple(agg.series), perturb, deadline))
     return specs
 
 
@@ -702,13 +711,16 @@ def local_chunk(n_samples: int, workers: int) -> int:
 
 
 def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | None = None,
-             max_seconds: float | None = None, progress=None, on_chunk=None) -> dict:
+             max_seconds: float | None = None, progress=None, on_chunk=None,
+             store=None, resume: bool = False) -> dict:
     """Run a campaign and return the sweep.json content.
 
     workers: local processes (default: all cores; 1 = in this process); dask: a scheduler
     address, "local[:K]" or a distributed.Client (then workers is ignored); chunk: samples per
     task (default: local_chunk / dask_chunk); max_seconds: time budget; on_chunk(result) is
-    called after each chunk is merged (tests use it to interrupt)."""
+    called after each chunk is merged (tests use it to interrupt); store: a
+    sweep_store.ChunkStore that keeps every finished chunk on disk, and with resume=True
+    supplies the chunks an interrupted run of the same campaign finished (not recomputed)."""
     from .bench import meta
     cfg.validate()
     if max_seconds is not None and not max_seconds > 0:
@@ -732,6 +744,7 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
                     "chunk": chunk}
     if chunk < 1:
         raise ModelInputError(f"--chunk must be >= 1, got {chunk}")
+    loaded = _load_stored(cfg, aggs, store, resume, progress)
     specs = _specs(cfg, aggs, chunk, deadline)
     stopped = None
     seen = set()
@@ -744,6 +757,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
                                      "type": type(res).__name__, "reason": _first_line(res)})
             return
         agg.merge(res)
+        if store is not None:
+            store.save(res)
         if progress:
             progress(res["completed"])
         if on_chunk:
@@ -761,6 +776,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
             for spec, res in runner.stop():  # chunks that finished while stopping
                 if (spec.model, spec.start) not in seen:
                     aggs[spec.model].merge(res)
+                    if store is not None:
+                        store.save(res)
     finally:
         if runner is not None:
             runner.close()
@@ -775,8 +792,27 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
             stopped = "chunks failed as a whole (see faults.chunks)"
     out = _summarize(cfg, aggs, stopped, done)
     out["meta"] = {**meta(sys.argv[1:]), **_campaign_meta(cfg, aggs), "executor": executor}
+    if resume:
+        out["meta"]["resumed"] = loaded
     out["timing"] = _timing(aggs, time.perf_counter() - t_start)
     return out
+
+
+def _load_stored(cfg: Campaign, aggs, store, resume: bool, progress) -> dict:
+    """Merge the chunks a stored, interrupted run of this campaign finished (resume), or start
+    a fresh store; returns what was loaded (for meta)."""
+    if store is None:
+        return {}
+    if not resume:
+        store.start()
+        return {}
+    chunks = [r for r in store.load() if r["model"] in aggs]
+    for res in chunks:
+        aggs[res["model"]].merge(res)
+        if progress:
+            progress(res["completed"])
+    return {"chunks": len(chunks), "samples": sum(r["completed"] for r in chunks),
+            "from": str(store.dir)}
 
 
 def _campaign_meta(cfg: Campaign, aggs) -> dict:
@@ -1083,38 +1119,85 @@ def cmd_sweep(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
     from .output import write_atomic
-    samples, seed, index, worst = args.samples, args.seed, args.index, args.worst
-    workers, chunk, max_seconds = args.workers, args.chunk, args.max_seconds
-    if workers is not None and args.dask is not None:
+    from .sweep_store import ChunkStore
+    if args.workers is not None and args.dask is not None:
         raise ModelInputError("give --workers or --dask, not both")
-    names = resolve_models(args.models)
-    engines = tuple(resolve_engines(args.engines))
-    out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
-    if args.bench:
-        cfg = Campaign(list(names), samples, seed, index, engines)
-        cfg.validate()
-        b = bench(names, samples, seed, engines,
-                  log=lambda m: print(m, file=sys.stderr, flush=True))
-        write_atomic(out / "sweep_bench.json", json.dumps(b, indent=2, default=_json_default))
-        _print_bench(b)
-        print(f"wrote {out / 'sweep_bench.json'}")
-        return 0
-    cfg = Campaign(list(names), samples, seed, index, engines, parse_perturb(args.perturb),
-                   args.formulation, worst, str(out))
+    if args.resume is not None:
+        cfg, out = _resumed_campaign(args)
+    else:
+        names = resolve_models(args.models)
+        engines = tuple(resolve_engines(args.engines))
+        out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
+        if args.bench:
+            return _cmd_bench(args, names, engines, out)
+        cfg = Campaign(list(names), args.samples, args.seed, args.index, engines,
+                       parse_perturb(args.perturb), args.formulation, args.worst, str(out))
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
-        bar = tqdm(total=samples * len(names), desc="samples", unit="sample", file=sys.stderr)
+        bar = tqdm(total=cfg.samples * len(cfg.models), desc="samples", unit="sample",
+                   file=sys.stderr)
+    store = ChunkStore(out, cfg)
     try:
-        res = campaign(cfg, workers=workers, dask=args.dask, chunk=chunk,
-                       max_seconds=max_seconds, progress=bar.update if bar else None)
+        res = campaign(cfg, workers=args.workers, dask=args.dask, chunk=args.chunk,
+                       max_seconds=args.max_seconds, progress=bar.update if bar else None,
+                       store=store, resume=args.resume is not None)
     finally:
         if bar:
             bar.close()
     path = write_atomic(out / "sweep.json",
                         json.dumps(res, indent=2, default=_json_default, allow_nan=True))
     _print_summary(res, path)
+    if res["status"]["complete"]:
+        store.remove()  # after sweep.json is in place: nothing left to resume
+    else:
+        print(f"finished chunks kept in {store.dir}; continue with: "
+              f"{shlex.join(['crosscheck', 'sweep', '--resume', str(out)])}")
     return exit_code(res["status"])
+
+
+# campaign options of the command line, with their defaults: under --resume each must be left
+# at its default or agree with the stored campaign
+_CAMPAIGN_OPTIONS = {"models": [], "samples": 100, "seed": 0, "index": 0,
+                     "engines": list(ENGINE_NAMES), "perturb": [], "formulation": None,
+                     "worst": WORST_CASES}
+
+
+def _resumed_campaign(args):
+    """The campaign stored in --resume DIR; options that contradict it are refused."""
+    from .arguments import output_dir
+    from .sweep_store import stored_settings
+    if args.bench:
+        raise ModelInputError("--resume continues a campaign; --bench measures throughput: "
+                              "give one of them")
+    out = output_dir(args.resume, "--resume")
+    if args.out not in ("out", args.resume):
+        raise ModelInputError(f"--resume {args.resume!r} writes there; drop --out {args.out!r}")
+    st = stored_settings(out)
+    given = {"perturb": parse_perturb(args.perturb)}
+    for key, default in _CAMPAIGN_OPTIONS.items():
+        value = getattr(args, key)
+        if value != default and given.get(key, value) != st[key]:
+            raise ModelInputError(
+                f"--resume {args.resume!r} continues the campaign stored there ({key} "
+                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out")
+    cfg = Campaign(list(st["models"]), st["samples"], st["seed"], st["index"],
+                   tuple(st["engines"]), st["perturb"], st["formulation"], st["worst"],
+                   str(out))
+    return cfg, out
+
+
+def _cmd_bench(args, names, engines, out) -> int:
+    from .cli import _json_default
+    from .output import write_atomic
+    cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
+    cfg.validate()
+    b = bench(names, args.samples, args.seed, engines,
+              log=lambda m: print(m, file=sys.stderr, flush=True))
+    write_atomic(out / "sweep_bench.json", json.dumps(b, indent=2, default=_json_default))
+    _print_bench(b)
+    print(f"wrote {out / 'sweep_bench.json'}")
+    return 0
 
 
 def exit_code(status: dict) -> int:
@@ -1163,4 +1246,7 @@ def register(sub):
                    help="measure throughput (per model and engine, 1 vs 2 workers) and write "
                         "DIR/sweep_bench.json instead of running a campaign")
     s.add_argument("--out", default="out")
+    s.add_argument("--resume", default=None, metavar="DIR",
+                   help="continue the interrupted campaign whose --out was DIR: its finished "
+                        "chunks (DIR/sweep.chunks) are kept, only the rest is computed")
     s.set_defaults(func=cmd_sweep)

@@ -111,7 +111,9 @@ def test_sigint_on_a_real_sweep(tmp_path):
     assert st["passed"] is False and st["verdict"] == "incomplete"
     assert 0 < st["completed"]["pendulum_xy"] < 1000000
     assert "stopped: interrupted" in stdout
-    assert sorted(p.name for p in out.iterdir()) == ["sweep.json"]
+    # the finished chunks stay for `--resume` (tests/test_sweep_faults.py), nothing else
+    assert sorted(p.name for p in out.iterdir()) == ["sweep.chunks", "sweep.json"]
+    assert f"crosscheck sweep --resume {out}" in stdout
 
 
 def _sampling(pid: int) -> bool:
