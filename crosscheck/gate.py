@@ -297,6 +297,11 @@ def cmd_gate(args) -> int:
     bench = check_bench(load_json(args.bench, "bench"), args.bench) if args.bench else None
     baseline_path = Path(args.baseline)
     if args.update:
+        from .arguments import output_dir
+        if baseline_path.is_dir():
+            raise GateInputError(f"--baseline {args.baseline!r} is a directory; give the "
+                                 f"baseline file's path (e.g. reports/baseline.json)")
+        output_dir(str(baseline_path.parent), "--baseline")  # writable, before the comparison
         old = _load_baseline(args.baseline) if baseline_path.exists() else None
         argv = ["crosscheck", "gate", "--baseline", args.baseline, "--results", args.results]
         if args.bench:
