@@ -15,8 +15,6 @@ import os
 import tempfile
 from pathlib import Path
 
-from reference.errors import ModelInputError
-
 # The longest trajectory horizon `run` accepts. The trajectory stage integrates the reference
 # at rtol 1e-12 and every engine at its finest step over the horizon; at 1000 s that is already
 # the 1000 s stress scene's cost (minutes). Longer runs are a stress scene, not a check.
@@ -99,11 +97,18 @@ def name_list(text: str) -> list[str]:
     return names
 
 
+def _refuse(message: str) -> Exception:
+    """A ModelInputError (one line, exit 2), imported on use: this module loads with the CLI
+    before the models, so that a Ctrl-C during their import is answered with one line."""
+    from reference.errors import ModelInputError
+    return ModelInputError(message)
+
+
 def unique(names: list[str], what: str) -> list[str]:
     """The names in order, refusing repeats (a repeated model would duplicate its records)."""
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
-        raise ModelInputError(f"{what} {', '.join(repeated)} given more than once")
+        raise _refuse(f"{what} {', '.join(repeated)} given more than once")
     return list(names)
 
 
@@ -151,14 +156,14 @@ def output_dir(path: str, option: str = "--out") -> Path:
     where = f"{option} {shown!r}"
     longest = max((len(os.fsencode(part)) for part in p.parts), default=0)
     if longest > 255:  # NAME_MAX of every common file system
-        raise ModelInputError(f"{where}: a name in it is {longest} bytes long, more "
+        raise _refuse(f"{where}: a name in it is {longest} bytes long, more "
                               "than the 255 a file system allows; give a shorter directory name")
     try:
         a_file = p.exists() and not p.is_dir()
     except OSError:  # a whole path over PATH_MAX: the probe below says so
         a_file = False
     if a_file:
-        raise ModelInputError(f"{where} is an existing file, not a directory; give a directory "
+        raise _refuse(f"{where} is an existing file, not a directory; give a directory "
                               "(the command writes its files inside it)")
     created: list[Path] = []
     try:
@@ -173,7 +178,7 @@ def output_dir(path: str, option: str = "--out") -> Path:
         why = exc.strerror or str(exc)
         if exc.errno == errno.ENAMETOOLONG:
             why += "; give a shorter path"
-        raise ModelInputError(f"{where}: cannot write there ({why}); give a directory you "
+        raise _refuse(f"{where}: cannot write there ({why}); give a directory you "
                               "can write to") from None
     finally:
         for d in reversed(created):

@@ -176,6 +176,7 @@ def meta(argv) -> dict:
 def cmd_bench(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
+    from .output import write_atomic
     from .stress import stress_records
     from .workprecision import (
         profile_for_missed,
@@ -189,7 +190,6 @@ def cmd_bench(args) -> int:
     engines = _engines(resolve_engines(args.engines))  # unknown or unimportable: exit 2
     output_dir(args.out)  # an unusable --out fails now, not after the benchmark
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
 
     def log(msg):
         print(f"[{time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
@@ -212,7 +212,7 @@ def cmd_bench(args) -> int:
     log("targets and skip measurements done")
     result["meta"]["quick"] = bool(args.quick)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
-    (out / "bench.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    write_atomic(out / "bench.json", json.dumps(result, indent=2, default=_json_default))
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "

@@ -980,26 +980,40 @@ def render_junit(c: Content) -> str:
 # ---- entry points ----------------------------------------------------------------------------
 def write_report(results: dict | None, bench: dict | None, out_dir: str | Path, command: str,
                  results_path: str | None = None, bench_path: str | None = None,
-                 sweep: dict | None = None, sweep_path: str | None = None) -> dict:
-    """Write index.html, report.md and junit.xml into out_dir; returns their paths."""
+                 sweep: dict | None = None, sweep_path: str | None = None,
+                 outputs=None) -> dict:
+    """Write index.html, report.md and junit.xml into out_dir; returns their paths.
+
+    The files are staged and renamed into place together (crosscheck.output), so an interrupt
+    leaves the previous report or this one, never a mix; with `outputs` given (a run staging
+    its results.json too) they are only staged, and the caller commits them all at once."""
+    from .output import Outputs
     c = Content(results, bench, command, results_path, bench_path, sweep, sweep_path)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {"html": out / "index.html", "md": out / "report.md", "junit": out / "junit.xml"}
-    paths["html"].write_text(render_html(c), encoding="utf-8")
-    paths["md"].write_text(render_md(c), encoding="utf-8")
-    if results is not None:
-        paths["junit"].write_text(render_junit(c), encoding="utf-8")
-    else:
-        paths.pop("junit")
-    return paths
+    names = {"html": "index.html", "md": "report.md", "junit": "junit.xml"}
+    if results is None:
+        names.pop("junit")
+    renderers = {"html": render_html, "md": render_md, "junit": render_junit}
+    if outputs is not None:
+        for key, name in names.items():
+            outputs.stage(name, renderers[key](c))
+        return {k: outputs.path(v) for k, v in names.items()}
+    with Outputs(out_dir) as staged:
+        for key, name in names.items():
+            staged.stage(name, renderers[key](c))
+        staged.commit(stale=("junit.xml",))  # no results: an old junit.xml is not this one
+    return {k: staged.path(v) for k, v in names.items()}
 
 
 def generate(results_path: str | None, bench_path: str | None, out_dir: str,
-             sweep_path: str | None = None) -> dict:
-    """Load and check the inputs, then write the report (the lead's `run` may call this)."""
-    results = check_results(load_json(results_path, "results"), results_path) \
-        if results_path else None
+             sweep_path: str | None = None, outputs=None, results_text: str | None = None
+             ) -> dict:
+    """Load and check the inputs, then write the report (`run` calls this with its staged
+    outputs and the results.json text it is about to commit)."""
+    if results_text is not None:
+        results = check_results(json.loads(results_text), results_path)
+    else:
+        results = check_results(load_json(results_path, "results"), results_path) \
+            if results_path else None
     bench = check_bench(load_json(bench_path, "bench"), bench_path) if bench_path else None
     sweep = check_sweep(load_json(sweep_path, "sweep"), sweep_path) if sweep_path else None
     argv = ["crosscheck", "report"]
@@ -1011,7 +1025,7 @@ def generate(results_path: str | None, bench_path: str | None, out_dir: str,
         argv += ["--sweep", str(sweep_path)]
     argv += ["--out", str(out_dir)]
     return write_report(results, bench, out_dir, shlex.join(argv), results_path, bench_path,
-                        sweep, sweep_path)
+                        sweep, sweep_path, outputs)
 
 
 def cmd_report(args) -> int:

@@ -129,16 +129,11 @@ def cmd_run(args) -> int:
     if bar:
         bar.close()
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
                        "state_seed": "crc32 of the model name (crosscheck.run.consistent_states)",
                        "metrics": C.METRICS},
               "records": records, "series": series}
-    (out / "results.json").write_text(json.dumps(result, indent=2, allow_nan=True))
-    if not args.no_report:  # the main job leaves a report a person can open
-        from .report import generate
-        bench = out / "bench.json"
-        generate(str(out / "results.json"), str(bench) if bench.exists() else None, str(out))
+    _write_outputs(out, json.dumps(result, indent=2, allow_nan=True), not args.no_report)
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
     passed = sum(1 for r in records if r["passed"])
@@ -148,6 +143,24 @@ def cmd_run(args) -> int:
     print(f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
           f"-> {out / 'results.json'}" + ("" if args.no_report else f", {out / 'index.html'}"))
     return 1 if failed else 0
+
+
+REPORT_FILES = ("index.html", "report.md", "junit.xml")
+
+
+def _write_outputs(out: Path, results_text: str, report: bool) -> None:
+    """results.json and the report, staged and renamed into place together: an interrupt leaves
+    the previous run's files or this run's, never a mix; without the report, an old one is
+    removed (it would describe other results)."""
+    from .output import Outputs
+    with Outputs(out) as staged:
+        staged.stage("results.json", results_text)
+        if report:  # the main job leaves a report a person can open
+            from .report import generate
+            bench = out / "bench.json"
+            generate(str(out / "results.json"), str(bench) if bench.exists() else None,
+                     str(out), outputs=staged, results_text=results_text)
+        staged.commit(stale=REPORT_FILES)
 
 
 def register(sub):

@@ -4,6 +4,7 @@
                      [--workers K | --dask ADDRESS] [--chunk C] [--max-seconds T]
                      [--perturb ENGINE:PARAM=REL] [--formulation F] [--worst K] [--out DIR]
     crosscheck sweep [MODEL ...] --bench --samples N [--out DIR]   # throughput -> sweep_bench.json
+    crosscheck sweep --resume DIR [--workers K | --dask ADDRESS]   # finish an interrupted one
 
 Samples. Sample i of model M (i = I .. I+N-1) is one random parameter set, one time t and one
 consistent state, drawn by crosscheck.sampling (the property tests' generator) from a numpy
@@ -21,7 +22,7 @@ a chunk in one batched call of its compiled code, with per-sample parameter arra
 
 Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding,
 executor), "status" (complete, stopped, completed sample ranges per model, outside_tolerance,
-faults, passed), "series" (per model x engine x variant: evaluated, faults, or why it is not
+faults, verdict, passed: true only for a complete campaign with nothing failed), "series" (per model x engine x variant: evaluated, faults, or why it is not
 run), "results" (per model x engine x variant x quantity: tolerance and its reason, count,
 max, mean, quantiles, a log10 histogram, outside_tolerance, the worst cases), "faults" (groups
 with counts, the first FAULTS_KEPT records per group), "timing" (where the time went; the only
@@ -33,7 +34,11 @@ reference's accelerations and multipliers at that case, to round-off of the scal
 Faults (a draw whose projection fails, a singular reference, an engine that raises while
 building or evaluating) are recorded per sample with the stage, the exception and its message;
 the campaign goes on. An interrupted campaign (Ctrl-C, or --max-seconds) writes what it
-completed, as sample-index ranges per model, and says why it stopped.
+completed, as sample-index ranges per model, and says why it stopped; every finished chunk is
+also kept in DIR/sweep.chunks (crosscheck.sweep_store), and `--resume DIR` computes only the
+samples no stored chunk covers, ending with the sweep.json of an uninterrupted run (meta and
+timing aside). A Dask worker lost mid-campaign costs only the rerun of its tasks (the scheduler
+reschedules them; the results do not depend on where a chunk ran).
 
 Execution: local worker processes by default (all cores; ProcessPoolExecutor, chunks of at most
 LOCAL_CHUNK_MAX samples), in-process with --workers 1, or a Dask distributed cluster with
@@ -50,9 +55,11 @@ builds); --max-seconds compares wall clocks (time.time) on the workers; one-thre
 error value (8 bytes per sample per quantity, ~20 quantities per model) to give exact quantiles:
 10^6 samples of one model is ~160 MB, so run models one at a time at that scale.
 
-Exit status: 0 when every completed sample is within every tolerance and nothing faulted
-(including a campaign stopped by --max-seconds, which says so), 1 when a sample is outside a
-tolerance or faulted, 2 on bad input (one line), 130 when interrupted (after writing sweep.json).
+Exit status: 0 when the campaign completed with every sample within every tolerance and nothing
+faulted (status.verdict "passed"), 1 when a sample is outside a tolerance or faulted ("failed"),
+4 when it stopped early (--max-seconds) with nothing failed in what it ran ("incomplete": not
+passed), 2 on bad input (one line), 130 when interrupted (after writing sweep.json, whose
+status.passed is then false).
 """
 from __future__ import annotations
 
@@ -441,13 +448,17 @@ def _plan(cfg: Campaign):
 
 
 def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
+    """The chunks still to run: every sample no merged chunk covers (all of them, unless the
+    campaign resumes from stored chunks)."""
     specs = []
     perturb = tuple((e, tuple(sorted(p.items()))) for e, p in sorted(cfg.perturb.items()))
+    end = cfg.index + cfg.samples
     for name, agg in aggs.items():
-        for a in range(cfg.index, cfg.index + cfg.samples, chunk):
-            specs.append(ChunkSpec(name, agg.formulation, cfg.seed, a,
-                                   min(a + chunk, cfg.index + cfg.samples),
-                                   tuple(agg.series), perturb, deadline))
+        for a in range(cfg.index, end, chunk):
+            b = min(a + chunk, end)
+            for lo, hi in _ranges(~agg.completed[a - cfg.index:b - cfg.index], a):
+                specs.append(ChunkSpec(name, agg.formulation, cfg.seed, lo, hi,
+                                       tuple(agg.series), perturb, deadline))
     return specs
 
 
@@ -625,13 +636,16 @@ def local_chunk(n_samples: int, workers: int) -> int:
 
 
 def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | None = None,
-             max_seconds: float | None = None, progress=None, on_chunk=None) -> dict:
+             max_seconds: float | None = None, progress=None, on_chunk=None,
+             store=None, resume: bool = False) -> dict:
     """Run a campaign and return the sweep.json content.
 
     workers: local processes (default: all cores; 1 = in this process); dask: a scheduler
     address, "local[:K]" or a distributed.Client (then workers is ignored); chunk: samples per
     task (default: local_chunk / dask_chunk); max_seconds: time budget; on_chunk(result) is
-    called after each chunk is merged (tests use it to interrupt)."""
+    called after each chunk is merged (tests use it to interrupt); store: a
+    sweep_store.ChunkStore that keeps every finished chunk on disk, and with resume=True
+    supplies the chunks an interrupted run of the same campaign finished (not recomputed)."""
     from .bench import meta
     cfg.validate()
     if max_seconds is not None and not max_seconds > 0:
@@ -655,6 +669,7 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
                     "chunk": chunk}
     if chunk < 1:
         raise ModelInputError(f"--chunk must be >= 1, got {chunk}")
+    loaded = _load_stored(cfg, aggs, store, resume, progress)
     specs = _specs(cfg, aggs, chunk, deadline)
     stopped = None
     seen = set()
@@ -667,6 +682,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
                                      "type": type(res).__name__, "reason": _first_line(res)})
             return
         agg.merge(res)
+        if store is not None:
+            store.save(res)
         if progress:
             progress(res["completed"])
         if on_chunk:
@@ -684,6 +701,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
             for spec, res in runner.stop():  # chunks that finished while stopping
                 if (spec.model, spec.start) not in seen:
                     aggs[spec.model].merge(res)
+                    if store is not None:
+                        store.save(res)
     finally:
         if runner is not None:
             runner.close()
@@ -698,8 +717,27 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
             stopped = "chunks failed as a whole (see faults.chunks)"
     out = _summarize(cfg, aggs, stopped, done)
     out["meta"] = {**meta(sys.argv[1:]), **_campaign_meta(cfg, aggs), "executor": executor}
+    if resume:
+        out["meta"]["resumed"] = loaded
     out["timing"] = _timing(aggs, time.perf_counter() - t_start)
     return out
+
+
+def _load_stored(cfg: Campaign, aggs, store, resume: bool, progress) -> dict:
+    """Merge the chunks a stored, interrupted run of this campaign finished (resume), or start
+    a fresh store; returns what was loaded (for meta)."""
+    if store is None:
+        return {}
+    if not resume:
+        store.start()
+        return {}
+    chunks = [r for r in store.load() if r["model"] in aggs]
+    for res in chunks:
+        aggs[res["model"]].merge(res)
+        if progress:
+            progress(res["completed"])
+    return {"chunks": len(chunks), "samples": sum(r["completed"] for r in chunks),
+            "from": str(store.dir)}
 
 
 def _campaign_meta(cfg: Campaign, aggs) -> dict:
@@ -810,9 +848,11 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
         "completed": done,
         "completed_ranges": {n: _ranges(a.completed, cfg.index) for n, a in aggs.items()},
         "outside_tolerance": outside_total, "faults": n_faults + len(chunk_faults),
-        # an incomplete campaign checked only part of what was asked: it never reads as passed
-        "passed": complete and outside_total == 0 and n_faults == 0 and not chunk_faults,
     }
+    # an incomplete campaign never reads as passed: what it did not run, it did not check
+    clean = outside_total == 0 and n_faults == 0 and not chunk_faults
+    status["verdict"] = "failed" if not clean else "passed" if complete else "incomplete"
+    status["passed"] = status["verdict"] == "passed"
     return {"status": status, "series": series_rows, "results": results,
             "faults": {"groups": list(fault_groups.values()), "records": fault_records,
                        "kept_per_group": FAULTS_KEPT, "chunks": chunk_faults}}
@@ -1004,43 +1044,95 @@ def _print_summary(res: dict, path: Path) -> None:
 def cmd_sweep(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
-    samples, seed, index, worst = args.samples, args.seed, args.index, args.worst
-    workers, chunk, max_seconds = args.workers, args.chunk, args.max_seconds
-    if workers is not None and args.dask is not None:
+    from .output import write_atomic
+    from .sweep_store import ChunkStore
+    if args.workers is not None and args.dask is not None:
         raise ModelInputError("give --workers or --dask, not both")
-    names = resolve_models(args.models)
-    engines = tuple(resolve_engines(args.engines))
-    out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
-    if args.bench:
-        cfg = Campaign(list(names), samples, seed, index, engines)
-        cfg.validate()
-        b = bench(names, samples, seed, engines,
-                  log=lambda m: print(m, file=sys.stderr, flush=True))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "sweep_bench.json").write_text(json.dumps(b, indent=2, default=_json_default))
-        _print_bench(b)
-        print(f"wrote {out / 'sweep_bench.json'}")
-        return 0
-    cfg = Campaign(list(names), samples, seed, index, engines, parse_perturb(args.perturb),
-                   args.formulation, worst, str(out))
+    if args.resume is not None:
+        cfg, out = _resumed_campaign(args)
+    else:
+        names = resolve_models(args.models)
+        engines = tuple(resolve_engines(args.engines))
+        out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
+        if args.bench:
+            return _cmd_bench(args, names, engines, out)
+        cfg = Campaign(list(names), args.samples, args.seed, args.index, engines,
+                       parse_perturb(args.perturb), args.formulation, args.worst, str(out))
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
-        bar = tqdm(total=samples * len(names), desc="samples", unit="sample", file=sys.stderr)
-    code = None
+        bar = tqdm(total=cfg.samples * len(cfg.models), desc="samples", unit="sample",
+                   file=sys.stderr)
+    store = ChunkStore(out, cfg)
     try:
-        res = campaign(cfg, workers=workers, dask=args.dask, chunk=chunk,
-                       max_seconds=max_seconds, progress=bar.update if bar else None)
+        res = campaign(cfg, workers=args.workers, dask=args.dask, chunk=args.chunk,
+                       max_seconds=args.max_seconds, progress=bar.update if bar else None,
+                       store=store, resume=args.resume is not None)
     finally:
         if bar:
             bar.close()
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "sweep.json"
-    path.write_text(json.dumps(res, indent=2, default=_json_default, allow_nan=True))
+    path = write_atomic(out / "sweep.json",
+                        json.dumps(res, indent=2, default=_json_default, allow_nan=True))
     _print_summary(res, path)
-    if res["status"]["stopped"] == "interrupted":
-        code = 130
-    return code if code is not None else (0 if res["status"]["passed"] else 1)
+    if res["status"]["complete"]:
+        store.remove()  # after sweep.json is in place: nothing left to resume
+    else:
+        print(f"finished chunks kept in {store.dir}; continue with: "
+              f"{shlex.join(['crosscheck', 'sweep', '--resume', str(out)])}")
+    return exit_code(res["status"])
+
+
+# campaign options of the command line, with their defaults: under --resume each must be left
+# at its default or agree with the stored campaign
+_CAMPAIGN_OPTIONS = {"models": [], "samples": 100, "seed": 0, "index": 0,
+                     "engines": None, "perturb": [], "formulation": None,
+                     "worst": WORST_CASES}
+
+
+def _resumed_campaign(args):
+    """The campaign stored in --resume DIR; options that contradict it are refused."""
+    from .arguments import output_dir
+    from .sweep_store import stored_settings
+    if args.bench:
+        raise ModelInputError("--resume continues a campaign; --bench measures throughput: "
+                              "give one of them")
+    out = output_dir(args.resume, "--resume")
+    if args.out not in ("out", args.resume):
+        raise ModelInputError(f"--resume {args.resume!r} writes there; drop --out {args.out!r}")
+    st = stored_settings(out)
+    given = {"perturb": parse_perturb(args.perturb)}
+    for key, default in _CAMPAIGN_OPTIONS.items():
+        value = getattr(args, key)
+        if value != default and given.get(key, value) != st[key]:
+            raise ModelInputError(
+                f"--resume {args.resume!r} continues the campaign stored there ({key} "
+                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out")
+    cfg = Campaign(list(st["models"]), st["samples"], st["seed"], st["index"],
+                   tuple(st["engines"]), st["perturb"], st["formulation"], st["worst"],
+                   str(out))
+    return cfg, out
+
+
+def _cmd_bench(args, names, engines, out) -> int:
+    from .cli import _json_default
+    from .output import write_atomic
+    cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
+    cfg.validate()
+    b = bench(names, args.samples, args.seed, engines,
+              log=lambda m: print(m, file=sys.stderr, flush=True))
+    write_atomic(out / "sweep_bench.json", json.dumps(b, indent=2, default=_json_default))
+    _print_bench(b)
+    print(f"wrote {out / 'sweep_bench.json'}")
+    return 0
+
+
+def exit_code(status: dict) -> int:
+    """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
+    stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
+    from .cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+    if status["stopped"] == "interrupted":
+        return EXIT_INTERRUPTED
+    return {"passed": 0, "failed": 1}.get(status["verdict"], EXIT_INCOMPLETE)
 
 
 def register(sub):
@@ -1080,4 +1172,7 @@ def register(sub):
                    help="measure throughput (per model and engine, 1 vs 2 workers) and write "
                         "DIR/sweep_bench.json instead of running a campaign")
     s.add_argument("--out", default="out")
+    s.add_argument("--resume", default=None, metavar="DIR",
+                   help="continue the interrupted campaign whose --out was DIR: its finished "
+                        "chunks (DIR/sweep.chunks) are kept, only the rest is computed")
     s.set_defaults(func=cmd_sweep)

@@ -70,6 +70,12 @@ CASES = [
     (["gate", "--baseline", MALFORMED, "--results", MALFORMED], 2, "record 0 has no 'model'"),
     (["gate", "--baseline", "{tmp}/new.json", "--results", MALFORMED, "--update"], 2,
      "record 0 has no 'model'"),
+    (["gate", "--baseline", "/proc/crosscheck/baseline.json", "--results", "{results}",
+      "--update"], 2, "--baseline '/proc/crosscheck': cannot write there"),
+    (["gate", "--baseline", "{tmp}", "--results", "{results}", "--update"], 2,
+     "is a directory"),
+    (["gate", "--baseline", "{results}", "--results", "{results}", "--factor", "x"], 2,
+     "invalid float value"),
 ]
 
 
