@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import codegen
+from . import codegen, redundant
 from .constraints import check_independent
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
 from .formulations import derive
@@ -69,8 +69,9 @@ def _floats(x) -> list[float]:
 @dataclass
 class Forward:
     accelerations: np.ndarray  # u'
-    multipliers: np.ndarray  # lambda, constraint order
+    multipliers: np.ndarray  # lambda, constraint order (minimum norm when rows are dependent)
     pivot_ratio: float
+    rank: int | None = None  # rank of A where the model allows dependent rows, else None
 
 
 class NumericModel:
@@ -90,6 +91,8 @@ class NumericModel:
         self.n = len(model.speeds)
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]
+        self.redundant = bool(getattr(model, "redundant_constraints", False))
+        self.rank = self.m  # rank of A at the initial state (below m only if redundant)
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
 
@@ -116,6 +119,9 @@ class NumericModel:
         if self._scalar["META"]["augmented"]:
             M = M + A.T @ A * (np.trace(M) / self.n) / max((A * A).sum() / self.m, 1e-300)
         names = self.model.constraint_names or tuple(f"c{j + 1}" for j in range(self.m))
+        if self.redundant:  # dependent rows allowed: remember the rank, solve numerically
+            self.rank, _s = redundant.numerical_rank(A)
+            return (1.0,) * self.m
         check_independent(A, names, where=f"the initial state of {self.model.name}")
         S = A @ np.linalg.solve(M, A.T)
         d = np.diag(S).copy()
@@ -149,6 +155,12 @@ class NumericModel:
     def forward(self, q, u, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
         q, u, t = self._state(q, u, t)
+        if self.redundant:
+            ud, lam, piv = self.forward_raw(q, u, t)
+            if not piv > PIVOT_RATIO_MIN:
+                raise SingularSystemError(self._singular_message(q, piv))
+            return Forward(np.asarray(ud, float), np.asarray(lam, float), float(piv),
+                           self._last_rank)
         try:
             ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
@@ -160,8 +172,21 @@ class NumericModel:
     def forward_raw(self, q: list, u: list, t: float, db=None):
         """Unchecked fast path for integrators: lists in, (u', lambda, pivot ratio) out.
         `db` offsets the constraint rows' right side: A u' = b + db (Baumgarte)."""
+        if self.redundant:
+            return self._forward_redundant(q, u, t, db)
         return self._scalar["forward"](q, u, t, self.p, self.sref,
                                        self._no_db if db is None else db)
+
+    def _forward_redundant(self, q, u, t, db=None):
+        """forward_raw for models with dependent rows (reference.redundant): lists out."""
+        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
+        n, m = self.n, self.m
+        b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
+        ud, lam, piv, self._last_rank = redundant.solve(
+            np.array(M, float).reshape(n, n), np.array(f, float),
+            np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
+            augment=self._scalar["META"]["augmented"], where=self.model.name)
+        return ud.tolist(), lam.tolist(), piv
 
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
@@ -266,8 +291,15 @@ class NumericModel:
         if not (np.isfinite(Q).all() and np.isfinite(U).all()):
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref, self._no_db)
+        if self.redundant:  # one numeric solve per state (reference.redundant)
+            rows = [self.forward_raw(Q[i].tolist(), U[i].tolist(), t) for i in range(N)]
+            ud = list(np.array([r[0] for r in rows]).reshape(N, self.n).T)
+            lam = list(np.array([r[1] for r in rows]).reshape(N, self.m).T)
+            piv = np.array([r[2] for r in rows])
+        else:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref,
+                                                        self._no_db)
         UD = np.empty((N, self.n))
         for i, c in enumerate(ud):
             UD[:, i] = c

@@ -1,0 +1,114 @@
+"""MuJoCo's rigid answer for any MJCF file: the exact KKT solve from MuJoCo's own quantities.
+
+MuJoCo's equality constraints are soft, so mj_forward's qacc differs from the rigid motion by
+its impedance. The rigid answer is recovered from MuJoCo's own smooth dynamics, without its
+constraint solver: after mj_forward,
+
+    [ M  -J^T ] [qacc  ]   [qfrc_smooth]
+    [ J   0   ] [lambda] = [-Jdot v    ]
+
+with M from mj_fullM (armature included), qfrc_smooth = passive - bias + applied + actuator
+(MuJoCo's own sum), J and Jdot v of every active equality from mj_jac and mj_jacDot at the
+anchors MuJoCo itself uses (engine_core_constraint.c): connect p1 - p2, weld p1 - p2 and
+omega1 - omega2 (the weld's quaternion rows span the same space on the manifold), joint
+q1 - poly(q2) with Jdot v = -poly''(q2) v2^2. Dependent rows are solved as in
+reference.redundant (unique qacc, minimum-norm lambda).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from reference import redundant
+from reference.mjcf_checks import disabled
+
+EQ = mujoco.mjtEq
+
+
+@dataclass
+class RigidForward:
+    qacc: np.ndarray
+    multipliers: np.ndarray
+    rank: int
+    J: np.ndarray
+    qacc_soft: np.ndarray  # mj_forward's own (soft) answer, for comparison
+
+
+def _point(m, d, e: int, side: int, weld: bool):
+    """Body id, world point and (for welds) nothing else, as MuJoCo's equality code does."""
+    obj = (m.eq_obj1id, m.eq_obj2id)[side][e]
+    if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
+        return int(m.site_bodyid[obj]), np.array(d.site_xpos[obj])
+    k = (1 - side) if weld else side
+    anchor = m.eq_data[e, 3 * k:3 * k + 3]
+    return int(obj), d.xpos[obj] + d.xmat[obj].reshape(3, 3) @ anchor
+
+
+def _body_rows(m, d, body: int, point, rot: bool):
+    jp, jr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    dp, dr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    if body:
+        mujoco.mj_jac(m, d, jp, jr, np.asarray(point, float), body)
+        mujoco.mj_jacDot(m, d, dp, dr, np.asarray(point, float), body)
+    J = np.vstack([jp, jr]) if rot else jp
+    Jd = np.vstack([dp, dr]) if rot else dp
+    return J, Jd @ d.qvel
+
+
+def equality_rows(m, d):
+    """J (rows, nv) and Jdot v of the active equalities at the state in d (after mj_forward)."""
+    Js, jdv = [], []
+    if disabled(m, "mjDSBL_EQUALITY") or disabled(m, "mjDSBL_CONSTRAINT"):
+        return np.zeros((0, m.nv)), np.zeros(0)
+    for e in range(m.neq):
+        if not d.eq_active[e]:
+            continue
+        t = m.eq_type[e]
+        if t in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
+            weld = t == int(EQ.mjEQ_WELD)
+            rot = weld and m.eq_data[e, 10] != 0
+            b1, p1 = _point(m, d, e, 0, weld)
+            b2, p2 = _point(m, d, e, 1, weld)
+            J1, a1 = _body_rows(m, d, b1, p1, rot)
+            J2, a2 = _body_rows(m, d, b2, p2, rot)
+            Js.append(J1 - J2)
+            jdv.append(a1 - a2)
+        elif t == int(EQ.mjEQ_JOINT):
+            j1, j2 = m.eq_obj1id[e], m.eq_obj2id[e]
+            row = np.zeros((1, m.nv))
+            row[0, m.jnt_dofadr[j1]] = 1.0
+            acc = 0.0
+            if j2 >= 0:
+                c = m.eq_data[e, :5]
+                a2 = m.jnt_qposadr[j2]
+                x = d.qpos[a2] - m.qpos0[a2]
+                v2 = d.qvel[m.jnt_dofadr[j2]]
+                row[0, m.jnt_dofadr[j2]] = -(c[1] + 2 * c[2] * x + 3 * c[3] * x**2
+                                            + 4 * c[4] * x**3)
+                acc = -(2 * c[2] + 6 * c[3] * x + 12 * c[4] * x**2) * v2**2
+            Js.append(row)
+            jdv.append(np.array([acc]))
+        else:
+            raise ValueError(f"equality #{e}: type {t} has no rigid rows here")
+    if not Js:
+        return np.zeros((0, m.nv)), np.zeros(0)
+    return np.vstack(Js), np.concatenate(jdv)
+
+
+def rigid_forward(m, qpos, qvel, *, applied=None) -> RigidForward:
+    """MuJoCo's rigid accelerations and minimum-norm multipliers at (qpos, qvel)."""
+    d = mujoco.MjData(m)
+    d.qpos[:] = qpos
+    d.qvel[:] = qvel
+    if applied is not None:
+        d.qfrc_applied[:] = applied
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    J, jdv = equality_rows(m, d)
+    rank, _s = redundant.numerical_rank(J)
+    qacc, lam, _piv, rank = redundant.solve(M, np.array(d.qfrc_smooth), J, -jdv,
+                                            rank_expected=rank, augment=False, where="MuJoCo")
+    return RigidForward(qacc, lam, rank, J, np.array(d.qacc))
