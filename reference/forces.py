@@ -20,8 +20,8 @@ applied load enters the work-energy balance through Model.load_power.
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence, Union
 
 import sympy as sp
 
@@ -30,17 +30,17 @@ from .system import Force, Torque, rate, vec
 
 T_SYM = sp.Symbol("t", real=True)  # the Model's default time symbol
 
-VectorSpec = Union[sp.Matrix, Sequence, Callable]
+VectorSpec = sp.Matrix | Sequence | Callable
 
 
 @dataclass(frozen=True)
 class ForceElements:
     """A potential and loads to give a Model (potential=..., loads=...)."""
 
-    potential: sp.Expr = sp.Integer(0)
+    potential: sp.Expr = sp.S.Zero
     loads: tuple = ()
 
-    def __add__(self, other: "ForceElements") -> "ForceElements":
+    def __add__(self, other: ForceElements) -> ForceElements:
         return ForceElements(self.potential + other.potential, self.loads + other.loads)
 
 

@@ -91,6 +91,10 @@ def axis_rotation(a: sp.Matrix, angle) -> sp.Matrix:
     return sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
 
 
+_NORM_REASON = ("quaternion normalization: Lagrange's K and V see variations off the unit "
+                "sphere that the partial velocities do not (as the top's, Exercise 6.6)")
+
+
 @dataclass(frozen=True)
 class JointInfo:
     """One MJCF joint in the reference: its coordinates and the MuJoCo dofs' velocity
@@ -117,7 +121,7 @@ class MjcfImport:
 
 
 # ---- file ---------------------------------------------------------------------------------------
-def compile_file(path) -> "mujoco.MjModel":
+def compile_file(path) -> mujoco.MjModel:
     """MuJoCo's compiled model, or a ModelFileError carrying MuJoCo's own message."""
     path = Path(path)
     if not path.is_file():
@@ -239,7 +243,7 @@ def _passive(m, joints) -> tuple[tuple[Body, ...], ForceElements]:
                                    r_G=sp.zeros(3, 1), R=sp.eye(3)))
             if d and not disabled(m, "mjDSBL_DAMPER"):
                 elements.append(joint_damper(f"{ji.name}:{k}", w, num(d)))
-        jid = [j for j in range(m.njnt) if m.jnt_qposadr[j] == ji.qposadr][0]
+        jid = next(j for j in range(m.njnt) if m.jnt_qposadr[j] == ji.qposadr)
         k_s = float(m.jnt_stiffness[jid])
         if k_s and not disabled(m, "mjDSBL_SPRING") and ji.type in (int(JNT.mjJNT_HINGE),
                                                                    int(JNT.mjJNT_SLIDE)):
@@ -388,8 +392,8 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
                 f"{INITIAL_TOL:.0e}); fix the keyframe or load with project=True to project "
                 f"it onto the constraint manifold")
         qpos, qvel = project_state(m, qpos, qvel)
-        notes = notes + (f"initial state projected onto the constraint manifold (it was off "
-                         f"by {off:.3e})",)
+        note = f"initial state projected onto the constraint manifold (it was off by {off:.3e})"
+        notes = (*notes, note)
     loads = passive.loads
     conserved = not loads
     model = Model(
@@ -401,10 +405,7 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
         loads=loads, potential=passive.potential,
         configuration_constraints=tuple(rows), constraint_names=tuple(names),
         formulations=("kane", "lagrange", "dalembert"),
-        formulation_dependent_rows=tuple(
-            (n, "quaternion normalization: Lagrange's K and V see variations off the unit "
-                "sphere that the partial velocities do not (as the top's, Exercise 6.6)")
-            for n in norm_names),
+        formulation_dependent_rows=tuple((n, _NORM_REASON) for n in norm_names),
         multiplier_meaning="MuJoCo's equality rows: connect/weld lambda is the force (and "
                            "moment) on the first object, joint lambda the generalized force "
                            "on the first joint; with dependent rows, the minimum-norm lambda",
@@ -423,5 +424,15 @@ def with_initial_state(imp: MjcfImport, qpos, qvel) -> MjcfImport:
     return replace(imp, model=model)
 
 
-__all__ = ["MjcfImport", "JointInfo", "import_mjcf", "compile_file", "rates_from_qvel",
-           "qvel_from_rates", "initial_state", "with_initial_state", "num", "Torque"]
+__all__ = [
+    "JointInfo",
+    "MjcfImport",
+    "Torque",
+    "compile_file",
+    "import_mjcf",
+    "initial_state",
+    "num",
+    "qvel_from_rates",
+    "rates_from_qvel",
+    "with_initial_state",
+]

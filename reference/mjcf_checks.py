@@ -36,7 +36,7 @@ def _contact_pairs(m) -> list[str]:
     filters, <exclude>), by name; empty when contacts are disabled."""
     if disabled(m, "mjDSBL_CONTACT") or disabled(m, "mjDSBL_CONSTRAINT"):
         return []
-    excluded = set(int(s) for s in m.exclude_signature[:m.nexclude])
+    excluded = {int(s) for s in m.exclude_signature[:m.nexclude]}
     weld, parent = m.body_weldid, m.body_parentid
     out = []
     for g1 in range(m.ngeom):

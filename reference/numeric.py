@@ -96,7 +96,7 @@ class NumericModel:
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
 
-    def with_params(self, params: dict | None) -> "NumericModel":
+    def with_params(self, params: dict | None) -> NumericModel:
         """The same compiled model with other parameter values, without reading and compiling
         the code again (2-30 ms): the code depends on the model only, the values are
         arguments. The Schur reference is recomputed, so a singular parameter set raises here

@@ -66,7 +66,7 @@ def solve(M, f, A, b, *, rank_expected: int, augment: bool, where: str = ""):
     M, f, A, b = (np.asarray(x, float) for x in (M, f, A, b))
     n, m = M.shape[0], A.shape[0]
     if m == 0:
-        L, piv = _cholesky_with_ratio(M)
+        _L, piv = _cholesky_with_ratio(M)
         ud = np.linalg.solve(M, f) if piv > 0 else np.full(n, np.nan)
         return ud, np.zeros(0), piv, 0
     U, s, Vt = np.linalg.svd(A)
@@ -84,7 +84,7 @@ def solve(M, f, A, b, *, rank_expected: int, augment: bool, where: str = ""):
         K, fa = M + rho * Ar.T @ Ar, f + rho * Ar.T @ br
     else:
         K, fa = M, f
-    L, piv_M = _cholesky_with_ratio(K)
+    _L, piv_M = _cholesky_with_ratio(K)
     if not piv_M > 0:
         return np.full(n, np.nan), np.full(m, np.nan), piv_M, r
     Y = np.linalg.solve(K, Ar.T)
