@@ -25,10 +25,11 @@ import numpy as np
 from .errors import InconsistentConstraintError, SingularSystemError
 
 # A singular value of A below RANK_RTOL times the largest counts as zero. Structurally dependent
-# rows give 1e-16..1e-15 relative (round-off of the SVD, measured on the four-bar in
-# tests/data/fourbar_connect.xml); the codegen path refuses a Schur pivot ratio (a squared
-# singular value ratio) under 1e-12, so sqrt(1e-12) = 1e-6 puts the two paths' singular poses
-# at the same distance.
+# rows give exactly 0 (tests/data/fourbar_connect.xml: a zero row) or round-off, 7e-18 relative
+# (tests/data/fourbar_tilted.xml, the same loop in a tilted frame; measured with
+# `nm.matrices` and np.linalg.svd at the initial state); the codegen path refuses a Schur pivot
+# ratio (a squared singular value ratio) under 1e-12, so sqrt(1e-12) = 1e-6 puts the two
+# paths' singular poses at the same distance.
 RANK_RTOL = 1e-6
 
 # Dependent rows must be consistent: |U_perp^T b| over (|b| + |A| |u'|) above this is a
