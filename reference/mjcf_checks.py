@@ -53,7 +53,7 @@ def _contact_pairs(m) -> list[str]:
                     w1 == weld[parent[w2]] or w2 == weld[parent[w1]]):
                 continue
             lo, hi = min(b1, b2), max(b1, b2)
-            if ((lo + 1) << 16) + hi + 1 in excluded or ((hi + 1) << 16) + lo + 1 in excluded:
+            if (lo << 16) + hi in excluded or (hi << 16) + lo in excluded:  # MuJoCo's signature
                 continue
             out.append(f"{_n(m, OBJ.mjOBJ_GEOM, g1, 'geom')} / {_n(m, OBJ.mjOBJ_GEOM, g2, 'geom')}")
     return out
