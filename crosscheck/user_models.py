@@ -144,3 +144,14 @@ def load_all(paths: Iterable = (), *, entry_points: bool = True,
                                  f"{seen[um.name]}; rename it (Model(name=...))")
         seen[um.name] = um.origin
     return found
+
+
+def describe(um: UserModel) -> dict:
+    """One row for `crosscheck models`: the model's shape and where it came from."""
+    mdl = um.model
+    return {"name": mdl.name, "origin": um.origin, "kind": um.kind, "title": mdl.title,
+            "coordinates": [s.name for s in mdl.coordinates],
+            "speeds": [s.name for s in mdl.speeds],
+            "parameters": [p.name for p in mdl.parameters],
+            "constraints": list(mdl.constraint_names), "formulations": list(mdl.formulations),
+            "notes": mdl.geometry_note}

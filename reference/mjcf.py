@@ -383,12 +383,14 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
             norm_names.append(names[-1])
     g = np.zeros(3) if disabled(m, "mjDSBL_GRAVITY") else np.array(m.opt.gravity, float)
     qpos, qvel = initial_state(m)
-    off = violation(m, qpos)
-    if off > INITIAL_TOL * (1 + float(np.max(np.abs(qpos), initial=0.0))):
+    off = violation(m, qpos, qvel)
+    scale = 1 + float(np.max(np.abs(np.concatenate([qpos, qvel])), initial=0.0))
+    if off > INITIAL_TOL * scale:
         if not project:
             raise OffManifoldError(
                 f"{path}: the initial state ({'keyframe 0' if m.nkey else 'qpos0'}) violates "
-                f"the equality constraints or quaternion norms by {off:.3e} (tolerance "
+                f"the equality constraints (positions or velocities) or quaternion norms by "
+                f"{off:.3e} (tolerance "
                 f"{INITIAL_TOL:.0e}); fix the keyframe or load with project=True to project "
                 f"it onto the constraint manifold")
         qpos, qvel = project_state(m, qpos, qvel)

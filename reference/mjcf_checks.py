@@ -194,12 +194,15 @@ def _quat_norm_error(m, qpos) -> float:
     return worst
 
 
-def violation(m, qpos) -> float:
-    """Largest equality-row residual (MuJoCo's efc_pos) or quaternion norm error at qpos."""
+def violation(m, qpos, qvel=None) -> float:
+    """Largest equality-row residual (MuJoCo's efc_pos), quaternion norm error at qpos, or
+    velocity-row residual J qvel."""
     d = mujoco.MjData(m)
     d.qpos[:] = qpos
-    pos, _J = _equality_rows(m, d)
-    return max(float(np.max(np.abs(pos), initial=0.0)), _quat_norm_error(m, qpos))
+    pos, J = _equality_rows(m, d)
+    vel = J @ np.asarray(qvel, float) if qvel is not None and J.shape[0] else np.zeros(0)
+    return max(float(np.max(np.abs(pos), initial=0.0)), _quat_norm_error(m, qpos),
+               float(np.max(np.abs(vel), initial=0.0)))
 
 
 def project_state(m, qpos, qvel, tol: float = 1e-14, max_iter: int = 50):

@@ -23,7 +23,12 @@ import pytest
 import sympy as sp
 
 from crosscheck.mjcf_rigid import rigid_forward
-from crosscheck.user_models import entry_point_models, load_all, load_model_file
+from crosscheck.user_models import (
+    describe,
+    entry_point_models,
+    load_all,
+    load_model_file,
+)
 from reference import redundant
 from reference.errors import (
     InconsistentConstraintError,
@@ -230,11 +235,27 @@ def test_off_manifold_keyframe_is_refused_then_projected(tmp_path):
     assert "projected" in imp.model.geometry_note
 
 
+def test_off_manifold_keyframe_velocity_is_refused(tmp_path):
+    text = (DATA / "fourbar_connect.xml").read_text().replace(
+        "</mujoco>", '<keyframe><key qpos="0 0 0" qvel="1 0 0"/></keyframe></mujoco>')
+    p = tmp_path / "fourbar_vel.xml"
+    p.write_text(text)
+    with pytest.raises(OffManifoldError, match="velocities"):
+        import_mjcf(p)
+    imp = import_mjcf(p, project=True)
+    numeric("fourbar_connect", "kane").check_consistent(imp.model.initial_q,
+                                                        imp.model.initial_u)
+
+
 # ---- Python model files and entry points --------------------------------------------------------
 def test_python_model_file_loads_with_origin():
     ums = load_model_file(DATA / "user_mechanism.py")
     assert [u.name for u in ums] == ["tethered_mass", "driven_pendulum"]
     assert all(u.kind == "python" and u.origin == "user_mechanism.py:models()" for u in ums)
+    row = describe(ums[0])
+    assert row["coordinates"] == ["x", "y"] and row["origin"] == "user_mechanism.py:models()"
+    xml = describe(load_model_file(DATA / "fourbar_connect.xml")[0])
+    assert xml["kind"] == "mjcf" and xml["constraints"] == ["Q_x", "Q_y", "Q_z"]
 
 
 @pytest.mark.parametrize("source, match", [
