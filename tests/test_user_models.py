@@ -9,7 +9,7 @@ projected onto the constraint manifold.
 TOL_MJCF = 1e-9 relative to max(1, max|qacc|): the issue's bar. Measured (kane and lagrange,
 `PYTHONPATH=$PWD python -m pytest -q tests/test_user_models.py -k mjcf -s` prints the figures):
 pendulum_hinge 6e-16, double_pendulum 1.2e-15, fourbar_connect 4e-15, fourbar_tilted 2e-15,
-spatial_mix 1e-14 (slow test), so the bar has five orders of margin above round-off and far below any modelling error
+fourbar_sites 4e-15, weld_sites 6e-16, spatial_mix 1e-14 (slow test), so the bar has five orders of margin above round-off and far below any modelling error
 (a wrong armature, anchor or axis shows at 1e-3..1).
 """
 from __future__ import annotations
@@ -88,6 +88,15 @@ def worst_error(stem: str, formulation: str, count: int = 4) -> float:
 @pytest.mark.parametrize("formulation", ["kane", "lagrange"])
 def test_mjcf_accelerations_equal_mujoco_rigid(stem, formulation):
     assert worst_error(stem, formulation) < TOL_MJCF
+
+
+@pytest.mark.parametrize("stem, rank, rows", [("fourbar_sites", 2, 3), ("weld_sites", 1, 6)])
+def test_mjcf_site_semantic_connect_and_weld(stem, rank, rows):
+    """connect and weld between sites (site_xpos, site_quat); the weld between two hinged
+    links keeps one of its six rows independent."""
+    nm = numeric(stem, "kane")
+    assert (nm.rank, nm.m) == (rank, rows)
+    assert worst_error(stem, "kane") < TOL_MJCF
 
 
 def test_mjcf_tilted_loop_in_a_frame():
