@@ -408,9 +408,12 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
         configuration_constraints=tuple(rows), constraint_names=tuple(names),
         formulations=("kane", "lagrange", "dalembert"),
         formulation_dependent_rows=tuple((n, _NORM_REASON) for n in norm_names),
-        multiplier_meaning="MuJoCo's equality rows: connect/weld lambda is the force (and "
-                           "moment) on the first object, joint lambda the generalized force "
-                           "on the first joint; with dependent rows, the minimum-norm lambda",
+        multiplier_meaning="MuJoCo's equality rows: connect/weld position rows, the force on "
+                           "the first object at its anchor (world components); weld rotation "
+                           "rows, torquescale * lambda / 2 is the moment on the first object "
+                           "(the second object's frame, on the manifold); joint rows, the "
+                           "generalized force on the first joint; quaternion norm rows depend "
+                           "on the formulation. With dependent rows, the minimum-norm lambda",
         initial_q=tuple(float(x) for x in qpos),
         initial_u=tuple(float(x) for x in rates_from_qvel(joints, qpos, qvel)),
         energy_conserved=conserved, redundant_constraints=True,

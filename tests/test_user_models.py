@@ -9,7 +9,7 @@ projected onto the constraint manifold.
 TOL_MJCF = 1e-9 relative to max(1, max|qacc|): the issue's bar. Measured (kane and lagrange,
 `PYTHONPATH=$PWD python -m pytest -q tests/test_user_models.py -k mjcf -s` prints the figures):
 pendulum_hinge 6e-16, double_pendulum 1.2e-15, fourbar_connect 4e-15, fourbar_tilted 2e-15,
-fourbar_sites 4e-15, weld_sites 6e-16, spatial_mix 1e-14 (slow test), so the bar has five orders of margin above round-off and far below any modelling error
+fourbar_sites 4e-15, weld_sites 6e-16; slow tests: gripper 5e-15, spatial_mix 1e-14, so the bar has five orders of margin above round-off and far below any modelling error
 (a wrong armature, anchor or axis shows at 1e-3..1).
 """
 from __future__ import annotations
@@ -104,6 +104,15 @@ def test_mjcf_tilted_loop_in_a_frame():
     that is a combination of the others (singular value 7e-18 relative), not a zero row."""
     assert numeric("fourbar_tilted", "kane").rank == 2
     assert worst_error("fourbar_tilted", "kane") < TOL_MJCF
+
+
+@pytest.mark.slow
+def test_mjcf_ten_body_gripper():
+    """Two slider-crank loops closed by connect on a plunger, two joint couplings, springs,
+    dampers, armature: 9 coordinates, 8 rows of rank 6 (derivation ~1 min cold)."""
+    nm = numeric("gripper", "kane")
+    assert (nm.rank, nm.m) == (6, 8)
+    assert worst_error("gripper", "kane") < TOL_MJCF
 
 
 @pytest.mark.slow
