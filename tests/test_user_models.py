@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from crosscheck.mjcf_rigid import rigid_forward
+from crosscheck.mjcf_rigid import agreement, rigid_forward, sample_states
 from crosscheck.user_models import (
     describe,
     entry_point_models,
@@ -38,7 +38,6 @@ from reference.errors import (
     UnsupportedModelError,
 )
 from reference.mjcf import import_mjcf, qvel_from_rates, rates_from_qvel
-from reference.mjcf_checks import project_state
 from reference.models import get
 from reference.numeric import NumericModel
 
@@ -56,31 +55,15 @@ def numeric(stem: str, formulation: str) -> NumericModel:
     return NumericModel(imported(stem).model, formulation)
 
 
-def states(imp, count: int, seed: int = 7):
-    """The initial state, then random states projected onto the manifold (MuJoCo's rows)."""
-    m = imp.mj
-    q0 = np.array(imp.model.initial_q)
-    yield q0, qvel_from_rates(imp.joints, q0, imp.model.initial_u, m.nv)
-    rng = np.random.default_rng(seed)
-    for _ in range(count):
-        q = np.array(m.qpos0, float)
-        mujoco.mj_integratePos(m, q, 0.5 * rng.standard_normal(m.nv), 1.0)
-        yield project_state(m, q, rng.standard_normal(m.nv))
-
-
 def worst_error(stem: str, formulation: str, count: int = 4) -> float:
-    imp, nm = imported(stem), numeric(stem, formulation)
-    worst = 0.0
-    for qpos, qvel in states(imp, count):
-        rigid = rigid_forward(imp.mj, qpos, qvel)
-        u = rates_from_qvel(imp.joints, qpos, qvel)
-        nm.check_consistent(qpos, u)
-        fw = nm.forward(qpos, u)
-        qacc = qvel_from_rates(imp.joints, qpos, fw.accelerations, imp.mj.nv)
-        err = np.max(np.abs(qacc - rigid.qacc)) / max(1.0, np.max(np.abs(rigid.qacc)))
-        worst = max(worst, float(err))
+    rows = agreement(imported(stem), numeric(stem, formulation), count)
+    worst = max(r["error"] for r in rows)
     print(f"\n{stem} / {formulation}: worst relative qacc error {worst:.1e}")
     return worst
+
+
+def states(imp, count: int):
+    return sample_states(imp, count)
 
 
 # ---- MJCF into the reference --------------------------------------------------------------------
