@@ -281,8 +281,19 @@ def test_duplicate_and_builtin_names_are_refused():
                  builtin_names=["tethered_mass"])
 
 
-def test_entry_point_group_is_read():
-    assert isinstance(entry_point_models(), list)  # none installed here: an empty list
+def test_entry_point_group_is_read(tmp_path, monkeypatch):
+    """A distribution on sys.path declaring [crosscheck.models] (a real .dist-info, found by
+    importlib.metadata as an installed package's would be)."""
+    (tmp_path / "userpkg_models.py").write_text(
+        (DATA / "user_mechanism.py").read_text())
+    info = tmp_path / "userpkg-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: userpkg\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[crosscheck.models]\nmech = userpkg_models:models\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    found = entry_point_models()
+    assert [u.name for u in found] == ["tethered_mass", "driven_pendulum"]
+    assert found[0].origin == "entry point crosscheck.models:mech"
 
 
 def test_registered_user_model_is_found_by_get():
