@@ -7,7 +7,7 @@ The reference Model is then written in the file's joint coordinates, qpos in MuJ
 - hinge and slide: one coordinate each, measured from the joint's `ref` (MuJoCo's qpos0), as
   mj_kinematics does (rotation about the axis through the anchor; translation along the axis);
 - ball: the quaternion (w, x, y, z) with its unit-norm row (q.q - 1)/2 = 0; free: position and
-  quaternion. The speeds are the coordinate rates (so Lagrange, d'Alembert and Kane all
+  quaternion. The speeds are the coordinate rates (so Lagrange's and Kane's equations both
   apply, as for the top of Exercises 6.5/6.6); MuJoCo's qvel is the local angular velocity
   omega = 2 (w v' - w' v - v x v') of a quaternion (w, v), see `qvel_from_rates`;
 - bodies: mass, mass center (body_ipos) and central inertia (body_inertia rotated by
@@ -406,7 +406,9 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
         bodies=bodies + rotors, gravity=sp.Matrix([num(c) for c in g]),
         loads=loads, potential=passive.potential,
         configuration_constraints=tuple(rows), constraint_names=tuple(names),
-        formulations=("kane", "lagrange", "dalembert"),
+        # d'Alembert with the rates as speeds writes Kane's equations again (Eqs. 7 and 9
+        # differ only in the rates they project on), so it would only double the derivation
+        formulations=("kane", "lagrange"),
         formulation_dependent_rows=tuple((n, _NORM_REASON) for n in norm_names),
         multiplier_meaning="MuJoCo's equality rows: connect/weld position rows, the force on "
                            "the first object at its anchor (world components); weld rotation "
