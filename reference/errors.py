@@ -28,3 +28,15 @@ class SingularSystemError(ModelInputError):
 
 class OffManifoldError(ModelInputError):
     """A state violates the constraints by more than the stated tolerance."""
+
+
+class InconsistentConstraintError(ModelInputError):
+    """Dependent constraint rows that contradict each other: no motion satisfies all of them."""
+
+
+class UnsupportedModelError(ModelInputError):
+    """A model file holds an element the reference cannot represent (named, with the way out)."""
+
+
+class ModelFileError(ModelInputError):
+    """A model file cannot be read: malformed, rejected by its compiler, or defines no models."""

@@ -203,8 +203,15 @@ class Trajectory:
 
 
 # ---- small dense linear algebra ------------------------------------------------------------
-def _min_norm_correction(J: list[float], rows: int, cols: int, r: list[float]) -> list[float]:
-    """-J^T (J J^T)^-1 r for a flat row-major J (rows x cols): the minimum-norm step."""
+def _min_norm_correction(J: list[float], rows: int, cols: int, r: list[float],
+                         redundant: bool = False) -> list[float]:
+    """-J^T (J J^T)^-1 r for a flat row-major J (rows x cols): the minimum-norm step. With
+    `redundant` (a model that allows dependent rows) the pseudo-inverse step -J^+ r at
+    reference.redundant's rank tolerance."""
+    if redundant:
+        from .redundant import RANK_RTOL
+        Jm = np.array(J, float).reshape(rows, cols)
+        return (np.linalg.lstsq(Jm, -np.asarray(r, float), rcond=RANK_RTOL)[0]).tolist()
     if rows == 1:
         jj = sum(v * v for v in J)
         if jj == 0.0:
@@ -443,7 +450,7 @@ class _Projection(_Index1):
                 break
             J = pjac(q, zu, t, p)[0]
             try:
-                dq = _min_norm_correction(J, mc, nq, pos)
+                dq = _min_norm_correction(J, mc, nq, pos, self.nm.redundant)
             except np.linalg.LinAlgError:
                 raise SingularSystemError(
                     f"{self.nm.model.name}: projection at t = {t:.6g}: the constraint "
@@ -465,7 +472,7 @@ class _Projection(_Index1):
             A = self.pjac(q, self.zeros_u, t, self.p)[0]  # A = df/dq when u = q'
         else:
             A = self.mat(q, u, t, self.p)[2]
-        du = _min_norm_correction(A, self.m, self.n, vel)
+        du = _min_norm_correction(A, self.m, self.n, vel, self.nm.redundant)
         return [a + b for a, b in zip(u, du)]
 
     def project(self, t, y):
@@ -487,6 +494,11 @@ class _Nullspace(_Problem):
 
     def __init__(self, nm, energy):
         super().__init__(nm, energy)
+        if nm.redundant and nm.rank < nm.m:
+            raise ModelInputError(
+                f"{nm.model.name}: coordinate partitioning needs independent constraint rows "
+                f"(rank {nm.rank} < {nm.m} rows here); use the projection, baumgarte or index1 "
+                f"method")
         if self.mc and not self.rates:
             raise ModelInputError(
                 f"{nm.model.name}: coordinate partitioning of configuration constraints needs "

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import codegen, compiled
+from . import codegen, compiled, redundant
 from .constraints import check_independent
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
 from .formulations import derive
@@ -69,8 +69,9 @@ def _floats(x) -> list[float]:
 @dataclass
 class Forward:
     accelerations: np.ndarray  # u'
-    multipliers: np.ndarray  # lambda, constraint order
+    multipliers: np.ndarray  # lambda, constraint order (minimum norm when rows are dependent)
     pivot_ratio: float
+    rank: int | None = None  # rank of A where the model allows dependent rows, else None
 
 
 class NumericModel:
@@ -90,6 +91,8 @@ class NumericModel:
         self.n = len(model.speeds)
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]
+        self.redundant = bool(getattr(model, "redundant_constraints", False))
+        self.rank = self.m  # rank of A at the initial state (below m only if redundant)
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
         self._k = self._kernels()
@@ -104,8 +107,13 @@ class NumericModel:
         if compiled.backend() != "numba":
             return None
         path = self._scalar["__cache_path__"]
-        return compiled.load_kernels(self.source, path.stem, path.parent, self.nq, self.n,
-                                     len(self.p), self.m, PIVOT_RATIO_MIN)
+        try:
+            return compiled.load_kernels(self.source, path.stem, path.parent, self.nq, self.n,
+                                         len(self.p), self.m, PIVOT_RATIO_MIN)
+        except RecursionError:
+            # expressions nested deeper than Python's ast printer goes (a large user model):
+            # this model stays on the pure-Python path, the same numbers, only slower
+            return None
 
     def _pack(self):
         """Parameters and Schur references as one array (the kernels' _pa), zero b offsets."""
@@ -117,7 +125,7 @@ class NumericModel:
     def backend(self) -> str:
         return "numba" if self._k is not None else "python"
 
-    def with_params(self, params: dict | None) -> "NumericModel":
+    def with_params(self, params: dict | None) -> NumericModel:
         """The same compiled model with other parameter values, without reading and compiling
         the code again (2-30 ms): the code depends on the model only, the values are
         arguments. The Schur reference is recomputed, so a singular parameter set raises here
@@ -141,6 +149,9 @@ class NumericModel:
         if self._scalar["META"]["augmented"]:
             M = M + A.T @ A * (np.trace(M) / self.n) / max((A * A).sum() / self.m, 1e-300)
         names = self.model.constraint_names or tuple(f"c{j + 1}" for j in range(self.m))
+        if self.redundant:  # dependent rows allowed: remember the rank, solve numerically
+            self.rank, _s = redundant.numerical_rank(A)
+            return (1.0,) * self.m
         check_independent(A, names, where=f"the initial state of {self.model.name}")
         S = A @ np.linalg.solve(M, A.T)
         d = np.diag(S).copy()
@@ -206,7 +217,7 @@ class NumericModel:
     # ---- single state ------------------------------------------------------------------
     def forward(self, q, u, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
-        kf = self._kf
+        kf = None if self.redundant else self._kf  # dependent rows: the rank-revealing solve
         if kf is not None:
             out = np.empty(self._nf)
             try:
@@ -219,6 +230,12 @@ class NumericModel:
             n, nm = self.n, self._nlam
             return Forward(out[:n], out[n:nm], float(out[nm]))
         q, u, t = self._state(q, u, t)
+        if self.redundant:
+            ud, lam, piv = self.forward_raw(q, u, t)
+            if not piv > PIVOT_RATIO_MIN:
+                raise SingularSystemError(self._singular_message(q, piv))
+            return Forward(np.asarray(ud, float), np.asarray(lam, float), float(piv),
+                           self._last_rank)
         try:
             ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
@@ -233,6 +250,8 @@ class NumericModel:
         read past an array's end would return garbage). `db` offsets the constraint rows'
         right side: A u' = b + db (Baumgarte). Lists or float64 vectors in; vectors out on
         the compiled backend, lists on the Python one."""
+        if self.redundant:
+            return self._forward_redundant(q, u, t, db)
         if self._k is None:
             return self._scalar["forward"](q, u, t, self.p, self.sref,
                                            self._no_db if db is None else db)
@@ -273,6 +292,17 @@ class NumericModel:
             return tuple(out[a:b] for a, b in offs)
 
         return call
+
+    def _forward_redundant(self, q, u, t, db=None):
+        """forward_raw for models with dependent rows (reference.redundant): lists out."""
+        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
+        n, m = self.n, self.m
+        b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
+        ud, lam, piv, self._last_rank = redundant.solve(
+            np.array(M, float).reshape(n, n), np.array(f, float),
+            np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
+            augment=self._scalar["META"]["augmented"], where=self.model.name)
+        return ud.tolist(), lam.tolist(), piv
 
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
@@ -390,7 +420,9 @@ class NumericModel:
         if not (np.isfinite(Q).all() and np.isfinite(U).all()):
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
-        if self._k is not None:
+        if self.redundant:  # one rank-revealing numeric solve per state (reference.redundant)
+            UD, LAM, piv = self._forward_batch_redundant(Q, U, t)
+        elif self._k is not None:
             UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
         else:
             UD, LAM, piv = self._forward_batch_python(Q, U, t)
@@ -401,6 +433,12 @@ class NumericModel:
                 f"{bad.sum()} of {N} states are singular; first: index {i}. "
                 + self._singular_message(Q[i], float(piv[i])))
         return UD, LAM, piv
+
+    def _forward_batch_redundant(self, Q, U, t):
+        rows = [self._forward_redundant(Q[i].tolist(), U[i].tolist(), t) for i in range(len(Q))]
+        UD = np.array([r[0] for r in rows], float).reshape(len(Q), self.n)
+        LAM = np.array([r[1] for r in rows], float).reshape(len(Q), self.m)
+        return UD, LAM, np.array([r[2] for r in rows], float)
 
     def _forward_batch_python(self, Q, U, t):
         N = Q.shape[0]

@@ -1,7 +1,7 @@
 """Registry of the unit's systems: name -> factory. Drives the CLI and test parametrization."""
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from importlib import import_module
 
 from ..errors import ModelInputError
@@ -25,15 +25,45 @@ _FACTORIES = {
 }
 
 
+# models added at run time (users' files, entry points: crosscheck.user_models), name ->
+# (Model, origin); `get` finds them beside the built-in ones
+_USER: dict = {}
+
+
 def names() -> list[str]:
     return list(_FACTORIES)
 
 
-@lru_cache(maxsize=None)
+def register(model, origin: str) -> None:
+    """Make a user's Model available to `get` under its name (a built-in name is refused)."""
+    if model.name in _FACTORIES:
+        raise ModelInputError(f"model name {model.name!r} ({origin}) is a built-in model's "
+                              f"name; rename it")
+    model.validate()
+    _USER[model.name] = (model, origin)
+
+
+def user_names() -> list[str]:
+    return list(_USER)
+
+
+def origin(name: str) -> str:
+    """Where a model comes from: 'built-in' or the user's file / entry point."""
+    return _USER[name][1] if name in _USER else "built-in"
+
+
 def get(name: str):
     """The Model called `name` (validated), or an error listing the valid names."""
+    if name in _USER:
+        return _USER[name][0]
+    return _builtin(name)
+
+
+@cache
+def _builtin(name: str):
     if name not in _FACTORIES:
-        raise ModelInputError(f"unknown model {name!r}; valid: {', '.join(_FACTORIES)}")
+        valid = list(_FACTORIES) + list(_USER)
+        raise ModelInputError(f"unknown model {name!r}; valid: {', '.join(valid)}")
     module, factory = _FACTORIES[name].split(":")
     model = getattr(import_module(f"{__name__}.{module}"), factory)()
     model.validate()

@@ -1,0 +1,157 @@
+"""Users' own models: from an MJCF file, a Python file, or an installed package.
+
+- ``.xml``: an MJCF file, compiled by MuJoCo and turned into a reference Model in its own joint
+  coordinates (reference.mjcf; what is supported: docs/user_models.md).
+- ``.py``: a Python file that defines a function ``models()`` returning a Model or a list of
+  Models built with the public API (reference.system, reference.forces). The file is run as a
+  module of its own; nothing else in it is called.
+- the entry-point group ``crosscheck.models``: a package declares, in its pyproject.toml,
+  ``[project.entry-points."crosscheck.models"] name = "package.module:function"``, where the
+  function is a ``models()`` hook as above.
+
+Every failure is one line (reference.errors.ModelFileError): malformed XML, a file MuJoCo
+rejects (its message passed on), an element the reference cannot represent, a Python file that
+raises or defines no models, a name used twice.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+from collections.abc import Iterable
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+
+from reference.errors import ModelFileError, ModelInputError
+from reference.mjcf import MjcfImport, import_mjcf
+from reference.system import Model
+
+ENTRY_POINT_GROUP = "crosscheck.models"
+HOOK = "models"
+
+
+@dataclass(frozen=True)
+class UserModel:
+    """A model from outside the built-in registry and where it came from."""
+
+    model: Model
+    origin: str  # e.g. "fourbar.xml (MJCF)", "mech.py:models()", "entry point crosscheck.models:x"
+    kind: str  # "mjcf", "python" or "entry-point"
+    mjcf: MjcfImport | None = None  # the MJCF import (state maps, compiled model), if any
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+
+def _as_models(result, where: str) -> list[Model]:
+    """A hook's return value as a list of validated Models."""
+    items = [result] if isinstance(result, Model) else result
+    try:
+        items = list(items)
+    except TypeError:
+        raise ModelFileError(f"{where}: {HOOK}() returned {type(result).__name__}, expected a "
+                             f"Model or a list of Models") from None
+    if not items:
+        raise ModelFileError(f"{where}: {HOOK}() returned no models")
+    bad = [type(x).__name__ for x in items if not isinstance(x, Model)]
+    if bad:
+        raise ModelFileError(f"{where}: {HOOK}() returned {', '.join(bad)}, expected "
+                             f"reference.system.Model objects")
+    for mdl in items:
+        try:
+            mdl.validate()
+        except ModelInputError as exc:
+            raise ModelFileError(f"{where}: {exc}") from exc
+    return items
+
+
+def _load_python(path: Path) -> list[UserModel]:
+    tag = hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:10]
+    mod_name = f"crosscheck_user_{_safe(path.stem)}_{tag}"
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    if spec is None or spec.loader is None:
+        raise ModelFileError(f"{path}: cannot be imported as a Python file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module  # dataclasses and pickling need the module registered
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # the user's code: report it in one line, whatever it raised
+        sys.modules.pop(mod_name, None)
+        raise ModelFileError(f"{path}: raised {type(exc).__name__} while loading: {exc}") from exc
+    hook = getattr(module, HOOK, None)
+    if not callable(hook):
+        raise ModelFileError(f"{path}: defines no {HOOK}() function; add one that returns the "
+                             f"file's Model objects (docs/user_models.md)")
+    try:
+        result = hook()
+    except Exception as exc:
+        raise ModelFileError(f"{path}: {HOOK}() raised {type(exc).__name__}: {exc}") from exc
+    return [UserModel(mdl, f"{path.name}:{HOOK}()", "python")
+            for mdl in _as_models(result, str(path))]
+
+
+def _safe(s: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in s)
+
+
+def load_model_file(path, *, project: bool = False) -> list[UserModel]:
+    """The models a file defines, each with its origin: an MJCF file (.xml) gives one, a
+    Python file (.py) what its models() hook returns. project: see reference.mjcf.import_mjcf
+    (an initial state off the constraint manifold is refused unless projected)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ModelFileError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    if suffix in (".xml", ".mjcf"):
+        imp = import_mjcf(path, project=project)
+        return [UserModel(imp.model, f"{path.name} (MJCF)", "mjcf", imp)]
+    if suffix == ".py":
+        return _load_python(path)
+    raise ModelFileError(f"{path}: unknown model file type {suffix!r}; give an MJCF file "
+                         f"(.xml) or a Python file (.py) with a {HOOK}() function")
+
+
+def entry_point_models(group: str = ENTRY_POINT_GROUP) -> list[UserModel]:
+    """Models that installed packages add through the entry-point group `crosscheck.models`."""
+    out = []
+    for ep in metadata.entry_points(group=group):
+        where = f"entry point {ep.name} ({ep.value})"
+        try:
+            hook = ep.load()
+            result = hook() if callable(hook) else hook
+        except Exception as exc:
+            raise ModelFileError(f"{where}: raised {type(exc).__name__}: {exc}") from exc
+        out += [UserModel(mdl, f"entry point {group}:{ep.name}", "entry-point")
+                for mdl in _as_models(result, where)]
+    return out
+
+
+def load_all(paths: Iterable = (), *, entry_points: bool = True,
+             builtin_names: Iterable[str] = (), project: bool = False) -> list[UserModel]:
+    """Models of every file in `paths` (in order) and of the entry points; a name given twice,
+    or the name of a built-in model, is an error naming both origins."""
+    found: list[UserModel] = []
+    for p in paths:
+        found += load_model_file(p, project=project)
+    if entry_points:
+        found += entry_point_models()
+    seen: dict[str, str] = {n: "the built-in models" for n in builtin_names}
+    for um in found:
+        if um.name in seen:
+            raise ModelFileError(f"model name {um.name!r} from {um.origin} is already used by "
+                                 f"{seen[um.name]}; rename it (Model(name=...))")
+        seen[um.name] = um.origin
+    return found
+
+
+def describe(um: UserModel) -> dict:
+    """One row for `crosscheck models`: the model's shape and where it came from."""
+    mdl = um.model
+    return {"name": mdl.name, "origin": um.origin, "kind": um.kind, "title": mdl.title,
+            "coordinates": [s.name for s in mdl.coordinates],
+            "speeds": [s.name for s in mdl.speeds],
+            "parameters": [p.name for p in mdl.parameters],
+            "constraints": list(mdl.constraint_names), "formulations": list(mdl.formulations),
+            "notes": mdl.geometry_note}
