@@ -13,6 +13,7 @@ from typing import Optional
 from ...compare import Tolerance
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from .base import INTEGRATORS
+from .special import KnifeEdge, MovingSupport
 from .planar import PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree, SliderCrankSplit
 
 __all__ = ["ExudynAdapter", "EXUDYN_EXACT"]
@@ -23,6 +24,8 @@ _MODELS = {
     "slider_crank_free": SliderCrankFree,
     "slider_crank": SliderCrank,
     "slider_crank_split": SliderCrankSplit,
+    "knife_edge": KnifeEdge,
+    "pendulum_moving_support": MovingSupport,
 }
 
 _UNSUPPORTED: dict[str, str] = {}
@@ -45,7 +48,7 @@ class ExudynAdapter(EngineAdapter):
 
     name = "exudyn"
     distribution = "exudyn"
-    capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=False,
+    capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=True,
                                 integrators=tuple(INTEGRATORS))
 
     def models(self) -> tuple[str, ...]:

@@ -81,10 +81,15 @@ class ExudynModel(EngineModel):
     n_ref: int
     gravity = (0.0, 0.0, 0.0)  # subclasses set the reference's gravity vector in _build
     rheonomic = False
+    energy_dofs: Optional[tuple[int, ...]] = None  # engine speeds in K (None: all)
 
-    def __init__(self, model_name: str, params: dict[str, float]):
+    def __init__(self, model_name: str, params: dict[str, float], simulation: bool = False):
         self.model_name = model_name
         self.params = dict(params)
+        # simulation: the system simulate() steps (a fresh one, so forward's is undisturbed);
+        # a model may build it differently (the knife edge's row, see special.py)
+        self.simulation = simulation
+        self.time = 0.0  # the time of the state being mapped (rheonomic models use it)
         self.sc = exu.SystemContainer()
         self.mbs = self.sc.AddSystem()
         self.masses: list[tuple[int, int, float]] = []  # (node, object, mass) for V
@@ -153,6 +158,7 @@ class ExudynModel(EngineModel):
         """Timing hook for `crosscheck bench`: the state mapped once; the callable makes the
         three native InitializeSolver calls of forward() (no mapping, no residuals)."""
         q, u = self._check(q, u, t)
+        self.time = float(t)
         qe, ve = self.to_engine_state(q, u)
         return lambda: self._solve(qe, ve, t)
 
@@ -177,6 +183,7 @@ class ExudynModel(EngineModel):
 
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         q, u = self._check(q, u, t)
+        self.time = float(t)
         qe, ve = self.to_engine_state(q, u)
         ae, lam_e = self._solve(qe, ve, t)
         a_plain, l_plain = self._plain_answer(qe, ve, t)
@@ -204,7 +211,12 @@ class ExudynModel(EngineModel):
         self.solver.InitializeSolver(self.mbs, self.settings)
         self.solver.ComputeMassMatrix(self.mbs)
         M = np.asarray(self.solver.GetSystemMassMatrix())
-        K = 0.5 * float(ve @ M @ ve)
+        v = np.asarray(ve, float).copy()
+        if self.energy_dofs is not None:
+            keep = np.zeros(v.size, bool)
+            keep[list(self.energy_dofs)] = True
+            v[~keep] = 0.0
+        K = 0.5 * float(v @ M @ v)
         gvec = np.asarray(self.gravity, float)
         V = self._spring_potential(qe)
         for (_, _, mass), p in zip(self.masses, self._positions(qe)):
