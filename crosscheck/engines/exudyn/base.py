@@ -50,7 +50,8 @@ __all__ = ["ExudynModel", "INTEGRATORS", "RICHARDSON_EPSILON", "DEFAULT_EPSILON"
 # 0.01 the same scan gave up to 1.4e-9. The plain answer at the defaults: 1.3e-8..1.5e-7.
 RICHARDSON_EPSILON = 3e-4
 MINIMUM_COORDINATE_SIZE = 1.0
-DEFAULT_EPSILON = 1e-7  # Exudyn's default relativeEpsilon (the "plain" answer in raw)
+DEFAULT_EPSILON = 1e-7
+VELOCITY_STEP = 1e-6  # Exudyn's default relativeEpsilon (the "plain" answer in raw)
 
 # Exudyn's implicit solvers accepted by simulate() (fixed step: pass ``timestep``):
 # generalized-alpha on the index-3 constraints (spectral radius 0.9, Exudyn's default) and the
@@ -115,9 +116,23 @@ class ExudynModel(EngineModel):
     def _spring_potential(self, qe) -> float:
         return 0.0
 
+    def _position_rows(self, qe, t: float) -> np.ndarray:
+        """The engine's position-level constraint residuals C(q_e, t), written from the
+        joints' definitions (empty without position-level constraints)."""
+        return np.zeros(0)
+
     def constraint_violation(self, qe, t: float = 0.0) -> float:
-        """Largest |C(q)| of the engine's position-level constraints (0 without)."""
-        return 0.0
+        """Largest |C(q_e, t)| (0 without position-level constraints)."""
+        rows = self._position_rows(np.asarray(qe, float), t)
+        return float(np.max(np.abs(rows))) if rows.size else 0.0
+
+    def velocity_violation(self, qe, ve, t: float = 0.0) -> float:
+        """Largest |dC/dt| along (v_e, 1): a central difference of _position_rows, step
+        VELOCITY_STEP (truncation ~1e-12 of the rows' second derivatives)."""
+        qe, ve = np.asarray(qe, float), np.asarray(ve, float)
+        h = VELOCITY_STEP
+        d = (self._position_rows(qe + h * ve, t + h) - self._position_rows(qe - h * ve, t - h))
+        return float(np.max(np.abs(d))) / (2 * h) if d.size else 0.0
 
     # ---- engine calls --------------------------------------------------------------------
     def _set_state(self, qe, ve, t: float) -> None:

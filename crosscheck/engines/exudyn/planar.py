@@ -50,8 +50,8 @@ class PendulumXY(ExudynModel):
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         raw["rod_tension"] = float(lam_e[0])
 
-    def constraint_violation(self, qe, t: float = 0.0):
-        return abs(float(np.hypot(qe[0], qe[1])) - self.params["L"])
+    def _position_rows(self, qe, t):
+        return np.array([np.hypot(qe[0], qe[1]) - self.params["L"]])
 
 
 class PendulumAngle(ExudynModel):
@@ -83,6 +83,10 @@ class PendulumAngle(ExudynModel):
 
     def _acc_to_reference(self, qe, ve, ae):
         return np.array([-ae[2]])
+
+    def _position_rows(self, qe, t):  # the pivot point of the body at the origin
+        L = self.params["L"]
+        return np.array([qe[0] + L * math.sin(qe[2]), qe[1] - L * math.cos(qe[2])])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         to_pivot = -np.asarray(qe[:2]) / np.hypot(qe[0], qe[1])
@@ -140,11 +144,18 @@ class _SliderCrankBase(ExudynModel):
                              l1 * w1 * n1 + l2 * w2 * n2])
         return qe, ve
 
-    def constraint_violation(self, qe, t: float = 0.0):
-        q, _ = self.from_engine_state(qe, np.zeros(8))
-        ideal, _ = self.to_engine_state(q, np.zeros(self.n_ref))
-        worst = float(np.max(np.abs(np.delete(ideal - qe, [2, 5]))))
-        return max(worst, abs(float(qe[7]))) if self.guide else worst
+    def _position_rows(self, qe, t):
+        """Hinge mismatches at A, B, C (world axes) and, with the guide, y_C."""
+        p = self.params
+        r1, l1, l2, b, d = p["r1"], p["l1"], p["l2"], self._rod_b_to_g(), self.rod_direction
+        e1 = np.array([math.cos(qe[2]), math.sin(qe[2])])
+        ep = np.array([math.cos(qe[5]), math.sin(qe[5])])
+        g1, g2, c = qe[0:2], qe[3:5], qe[6:8]
+        rows = [g1 - r1 * e1, g1 + (l1 - r1) * e1 - (g2 - d * b * ep),
+                g2 + d * (l2 - b) * ep - c]
+        if self.guide:
+            rows.append(qe[7:8])
+        return np.concatenate(rows)
 
 
 class SliderCrankFree(_SliderCrankBase):

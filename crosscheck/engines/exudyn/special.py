@@ -141,6 +141,8 @@ class MovingSupport(ExudynModel):
         m1 = self.mbs.AddMarker(MarkerNodeCoordinates(nodeNumber=clock))
 
         def row(mbs, t, item, q, q_t, velocity_level):  # q = (x_s, y_s, tau)
+            if velocity_level:  # the index-2 solver asks for the row's time derivative
+                return [q_t[0] - a * om * math.cos(om * q[2]) * q_t[2]]
             return [q[0] - a * math.sin(om * q[2])]
 
         def jacobian(mbs, t, item, q, q_t, velocity_level):
@@ -177,5 +179,7 @@ class MovingSupport(ExudynModel):
         raw["rod_tension"] = float(lam_e[0])
         raw["support_acceleration"] = float(ae[2])
 
-    def constraint_violation(self, qe, t: float = 0.0):
-        return abs(float(np.hypot(qe[0] - qe[2], qe[1] - qe[3])) - self.params["L"])
+    def _position_rows(self, qe, t):
+        xs, _ = self._support(qe[4])
+        return np.array([np.hypot(qe[0] - qe[2], qe[1] - qe[3]) - self.params["L"], qe[3],
+                         qe[2] - xs, qe[4] - t])
