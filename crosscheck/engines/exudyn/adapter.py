@@ -8,15 +8,19 @@ agreement and the commands that measure it.
 """
 from __future__ import annotations
 
-from typing import Optional
-
 from ...compare import Tolerance
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from .base import INTEGRATORS
+from .planar import (
+    PendulumAngle,
+    PendulumXY,
+    SliderCrank,
+    SliderCrankFree,
+    SliderCrankSplit,
+)
 from .special import KnifeEdge, MovingSupport
-from .planar import PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree, SliderCrankSplit
 
-__all__ = ["ExudynAdapter", "EXUDYN_EXACT"]
+__all__ = ["EXUDYN_EXACT", "ExudynAdapter"]
 
 _MODELS = {
     "pendulum_angle": PendulumAngle,
@@ -28,15 +32,31 @@ _MODELS = {
     "pendulum_moving_support": MovingSupport,
 }
 
-_UNSUPPORTED: dict[str, str] = {}
+# Reference models without an Exudyn model here, each with the reason shown in results.
+_NOT_BUILT = ("not built in the Exudyn adapter yet (Exudyn can express it with rigid-body nodes "
+              "and joints; left for a follow-up of issue 12)")
+_UNSUPPORTED: dict[str, str] = {
+    "frame_bar": "Example 3: " + _NOT_BUILT,
+    "double_pendulum_3d": "Example 4: " + _NOT_BUILT,
+    "top_euler": "Exercises 6.5/6.6: " + _NOT_BUILT,
+    "top_cartesian": "Exercise 6.7: " + _NOT_BUILT,
+    "exercise_6_1": "Exercise 6.1: " + _NOT_BUILT,
+    "exercise_6_2": "Exercise 6.2: " + _NOT_BUILT,
+    "exercise_6_4": "Exercise 6.4: " + _NOT_BUILT,
+}
 
 EXUDYN_EXACT = Tolerance(
     1e-9, "Exudyn's answer Richardson-extrapolated over its finite-difference step (three "
-          "InitializeSolver calls, relativeEpsilon 1e-3, 5e-4, 2.5e-4); placeholder until "
-          "measured")
+          "InitializeSolver calls, relativeEpsilon 3e-4, 1.5e-4, 7.5e-5, minimumCoordinateSize "
+          "1; base.py): measured worst 6.6e-11 scaled error over 100 sampled states per model "
+          "(multipliers of slider_crank; accelerations <= 2.1e-11), against 3.7e-8..8.8e-7 for "
+          "Exudyn's plain answer at its default relativeEpsilon 1e-7 "
+          "(PYTHONPATH=$PWD python -m crosscheck.engines.exudyn.measure --samples 100); 1e-9 "
+          "is the issue's bound, 15x above the worst figure, 100x below the 1e-7 effect of a "
+          "1e-6 parameter fault")
 
 
-def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
+def _resolve(model_name: str, params: dict | None) -> dict[str, float]:
     from reference.models import get
     from reference.numeric import resolve_parameters
 
@@ -57,8 +77,8 @@ class ExudynAdapter(EngineAdapter):
     def unsupported(self) -> dict[str, str]:
         return dict(_UNSUPPORTED)
 
-    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
-              variant: Optional[str] = None):
+    def build(self, model_name: str, params: dict[str, float] | None = None,
+              variant: str | None = None):
         if model_name in _UNSUPPORTED:
             raise EngineUnsupported(_UNSUPPORTED[model_name])
         if model_name not in _MODELS:

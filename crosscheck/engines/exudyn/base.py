@@ -33,14 +33,15 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Optional, Sequence
+from collections.abc import Sequence
+
+import numpy as np
 
 import exudyn as exu
-import numpy as np
 
 from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
 
-__all__ = ["ExudynModel", "INTEGRATORS", "RICHARDSON_EPSILON", "DEFAULT_EPSILON"]
+__all__ = ["DEFAULT_EPSILON", "INTEGRATORS", "RICHARDSON_EPSILON", "ExudynModel"]
 
 # relativeEpsilon of the first of the three extrapolated calls, with minimumCoordinateSize 1
 # (Exudyn's default 0.01 shrinks the step of coordinates near 0 to 1e-2 h, whose round-off
@@ -65,8 +66,8 @@ def _settings() -> exu.SimulationSettings:
     ss.solution.file.write = False
     ss.solution.sensors.active = True
     ss.timeIntegration.verboseMode = 0
-    ss.displayStatistics = False
-    ss.displayComputationTime = False
+    ss.show.statistics = False
+    ss.show.computationTime = False
     # the velocity term of the initial accelerations exists only in dense mode (Exudyn warns)
     ss.linearSolver.solverType = exu.LinearSolverType.EXUdense
     ss.timeIntegration.newton.numericalDifferentiation.minimumCoordinateSize = \
@@ -82,7 +83,7 @@ class ExudynModel(EngineModel):
     n_ref: int
     gravity = (0.0, 0.0, 0.0)  # subclasses set the reference's gravity vector in _build
     rheonomic = False
-    energy_dofs: Optional[tuple[int, ...]] = None  # engine speeds in K (None: all)
+    energy_dofs: tuple[int, ...] | None = None  # engine speeds in K (None: all)
 
     def __init__(self, model_name: str, params: dict[str, float], simulation: bool = False):
         self.model_name = model_name
@@ -107,7 +108,7 @@ class ExudynModel(EngineModel):
     def _acc_to_reference(self, qe, ve, ae) -> np.ndarray:
         raise NotImplementedError
 
-    def _multipliers(self, qe, ve, ae, lam_e) -> Optional[np.ndarray]:
+    def _multipliers(self, qe, ve, ae, lam_e) -> np.ndarray | None:
         return np.zeros(0)
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw) -> None:
@@ -244,7 +245,7 @@ class ExudynModel(EngineModel):
         return self._energy_engine(qe, ve)
 
     def simulate(self, q0, u0, t_eval: Sequence[float], *, integrator: str = "generalized-alpha",
-                 rtol: Optional[float] = None, timestep: Optional[float] = None
+                 rtol: float | None = None, timestep: float | None = None
                  ) -> EngineTrajectory:
         from .trajectory import simulate
 

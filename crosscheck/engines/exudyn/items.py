@@ -2,10 +2,19 @@
 coordinates, so every ODE2 coordinate is an absolute position or angle)."""
 from __future__ import annotations
 
-from exudyn.itemInterface import (LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
-                                  MarkerNodeCoordinate, NodePoint2D, NodePointGround,
-                                  NodeRigidBody2D, ObjectGround, ObjectJointRevolute2D,
-                                  ObjectMassPoint2D, ObjectRigidBody2D)
+from exudyn.itemInterface import (
+    LoadMassProportional,
+    MarkerBodyMass,
+    MarkerBodyPosition,
+    MarkerNodeCoordinate,
+    NodePoint2D,
+    NodePointGround,
+    NodeRigidBody2D,
+    ObjectGround,
+    ObjectJointRevolute2D,
+    ObjectMassPoint2D,
+    ObjectRigidBody2D,
+)
 
 
 def ground(model) -> int:

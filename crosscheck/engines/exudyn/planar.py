@@ -10,13 +10,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from exudyn.itemInterface import (LoadTorqueVector, MarkerBodyRigid, ObjectConnectorCoordinate,
-                                  ObjectConnectorDistance)
+
+from exudyn.itemInterface import (
+    LoadTorqueVector,
+    MarkerBodyRigid,
+    ObjectConnectorCoordinate,
+    ObjectConnectorDistance,
+)
 
 from . import items
 from .base import ExudynModel
 
-__all__ = ["PendulumXY", "PendulumAngle", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
+__all__ = ["PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
 
 
 class PendulumXY(ExudynModel):

@@ -24,10 +24,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from exudyn.itemInterface import (LoadForceVector, LoadTorqueVector, MarkerBodyRigid,
-                                  MarkerNodeCoordinates, Node1D, NodePointGround,
-                                  ObjectConnectorCoordinate, ObjectConnectorCoordinateVector,
-                                  ObjectConnectorDistance, ObjectMass1D)
+
+from exudyn.itemInterface import (
+    LoadForceVector,
+    LoadTorqueVector,
+    MarkerBodyRigid,
+    MarkerNodeCoordinates,
+    Node1D,
+    NodePointGround,
+    ObjectConnectorCoordinate,
+    ObjectConnectorCoordinateVector,
+    ObjectConnectorDistance,
+    ObjectMass1D,
+)
 
 from . import items
 from .base import ExudynModel
@@ -132,7 +141,7 @@ class MovingSupport(ExudynModel):
         self.masses.pop()  # not part of the reference's energy
         self.gravity = saved
         clock = self.mbs.AddNode(Node1D(referenceCoordinates=[0.0]))
-        self.mbs.AddObject(ObjectMass1D(physicsMass=1.0, nodeNumber=clock))
+        self.mbs.AddObject(ObjectMass1D(mass=1.0, nodeNumber=clock))
         self.mbs.AddObject(ObjectConnectorDistance(
             markerNumbers=[items.point(self, support), items.point(self, bob)], distance=p["L"]))
         self.mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import time
 
-import exudyn as exu
 import numpy as np
+
+import exudyn as exu
 from exudyn.itemInterface import SensorNode
 
 from ..base import EngineTrajectory, EngineUnsupported
