@@ -25,8 +25,8 @@ RICHARDSON_EPSILON is the h of the first call. ``forward`` returns the extrapola
 raw["plain_accelerations"] / raw["plain_multipliers"] keep Exudyn's answer at its default
 relativeEpsilon 1e-7 (the figures of both are in docs/engines/exudyn.md).
 
-Coordinates. Every node has zero reference coordinates, so the ODE2 coordinates are the
-absolute positions and angles; the engine world is the reference model's own frame (gravity as
+Coordinates. Engine states q_e are total coordinates (Exudyn stores them relative to the
+nodes' reference coordinates, which are zero except the Euler parameters' (1, 0, 0, 0)); the engine world is the reference model's own frame (gravity as
 the reference writes it, e.g. +g Y for the Y-down pendulum), so no axis is flipped in any map.
 """
 from __future__ import annotations
@@ -100,6 +100,10 @@ class ExudynModel(EngineModel):
         self.settings = _settings()
         self.solver = exu.MainSolverImplicitSecondOrder()
         self.n_engine = self.mbs.systemData.ODE2Size()
+        # engine states hold total coordinates; Exudyn stores them relative to the nodes'
+        # reference coordinates (zero except Euler parameters: (1, 0, 0, 0))
+        self.q_reference = np.array(self.mbs.systemData.GetODE2Coordinates(
+            configuration=exu.ConfigurationType.Reference))
 
     # ---- hooks ---------------------------------------------------------------------------
     def _build(self) -> None:
@@ -139,7 +143,8 @@ class ExudynModel(EngineModel):
     def _set_state(self, qe, ve, t: float) -> None:
         sd = self.mbs.systemData
         init = exu.ConfigurationType.Initial
-        sd.SetODE2Coordinates(np.asarray(qe, float).tolist(), configuration=init)
+        sd.SetODE2Coordinates((np.asarray(qe, float) - self.q_reference).tolist(),
+                              configuration=init)
         sd.SetODE2Coordinates_t(np.asarray(ve, float).tolist(), configuration=init)
         ti = self.settings.timeIntegration
         ti.startTime = float(t)

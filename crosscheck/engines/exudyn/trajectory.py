@@ -78,6 +78,7 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
     for t, k in zip(t_eval, steps):
         qe, ve = np.empty(order.size), np.empty(order.size)
         qe[order] = np.concatenate([r[k, 1:] for r in rec_q])
+        qe += sim.q_reference
         ve[order] = np.concatenate([r[k, 1:] for r in rec_v])
         model.time = float(t)
         q, u = model.from_engine_state(qe, ve)
