@@ -18,7 +18,7 @@ from .planar import (
     SliderCrankFree,
     SliderCrankSplit,
 )
-from .spatial import DoublePendulum3D, TopCartesian
+from .spatial import DoublePendulum3D, TopCartesian, TopEuler
 from .special import KnifeEdge, MovingSupport
 
 __all__ = ["EXUDYN_EXACT", "ExudynAdapter"]
@@ -33,6 +33,7 @@ _MODELS = {
     "pendulum_moving_support": MovingSupport,
     "double_pendulum_3d": DoublePendulum3D,
     "top_cartesian": TopCartesian,
+    "top_euler": TopEuler,
 }
 
 # Reference models without an Exudyn model here, each with the reason shown in results.
@@ -40,7 +41,6 @@ _NOT_BUILT = ("not built in the Exudyn adapter yet (Exudyn can express it with r
               "and joints; left for a follow-up of issue 12)")
 _UNSUPPORTED: dict[str, str] = {
     "frame_bar": "Example 3: " + _NOT_BUILT,
-    "top_euler": "Exercises 6.5/6.6: " + _NOT_BUILT,
     "exercise_6_1": "Exercise 6.1: " + _NOT_BUILT,
     "exercise_6_2": "Exercise 6.2: " + _NOT_BUILT,
     "exercise_6_4": "Exercise 6.4: " + _NOT_BUILT,

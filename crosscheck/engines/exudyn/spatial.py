@@ -23,7 +23,7 @@ from exudyn.rigidBodyUtilities import (EulerParameters2GLocal, EulerParameters2R
 from . import items
 from .base import ExudynModel
 
-__all__ = ["DoublePendulum3D", "TopCartesian"]
+__all__ = ["DoublePendulum3D", "TopCartesian", "TopEuler"]
 
 
 def _rigid_body_ep(model, mass: float, inertia_diag) -> tuple[int, int]:
@@ -180,3 +180,40 @@ class TopCartesian(ExudynModel):
         A = EulerParameters2RotationMatrix(qe[3:7])
         tip = qe[0:3] + A @ np.array([0.0, 0.0, -self.params["L"]])
         return np.concatenate([tip, [qe[3:7] @ qe[3:7] - 1]])
+
+
+class TopEuler(TopCartesian):
+    """Exercises 6.5/6.6: the engine model of Exercise 6.7 (the same top, socket and axes)
+    with the reference's four Euler parameters as its coordinates: eps = (p1, p2, p3, p0),
+    the mass centre x = L A(p) e3 and x' = A (omega_b x L e3) (omega_b = G p') follow.
+    Accelerations: eps'' = (p1'', p2'', p3'', p0''). Multiplier: only the normalization row,
+    whose value depends on the formulation (d'Alembert/Kane: 0, Exercise 6.6; Lagrange:
+    2V - 4K). Exudyn's own normalization multiplier lam_n is mapped as -2 lam_n (the force
+    -2 p lam_n of a row p.p - 1 = 0 onto the reference's eps lambda); measured ~1e-17, it
+    agrees with the d'Alembert value 0, the reference's primary formulation. raw["socket_force"]
+    is F_O = -lam_O."""
+
+    nq_ref = n_ref = 4
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        ep, ep_t = q[[3, 0, 1, 2]], u[[3, 0, 1, 2]]
+        A = EulerParameters2RotationMatrix(ep)
+        lever = np.array([0.0, 0.0, self.params["L"]])
+        omega = EulerParameters2GLocal(ep) @ ep_t
+        return (np.concatenate([A @ lever, ep]),
+                np.concatenate([A @ np.cross(omega, lever), ep_t]))
+
+    def from_engine_state(self, qe, ve):
+        return np.asarray(qe, float)[[4, 5, 6, 3]], np.asarray(ve, float)[[4, 5, 6, 3]]
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return np.asarray(ae, float)[[4, 5, 6, 3]]
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        ae_node = list(self.mbs.systemData.GetNodeLTGAE(self.node))
+        return np.array([-2.0 * float(np.asarray(lam_e)[ae_node][0])])
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        sd = self.mbs.systemData
+        raw["socket_force"] = -np.asarray(lam_e)[list(sd.GetObjectLTGAE(self.joint))]

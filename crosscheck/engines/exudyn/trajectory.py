@@ -20,9 +20,15 @@ from exudyn.itemInterface import SensorNode
 from ..base import EngineTrajectory, EngineUnsupported
 from .base import INTEGRATORS
 
+__all__ = ["ExudynIntegrationError", "simulate"]
+
 NEWTON_RTOL = 1e-10  # relative; absolute NEWTON_ATOL (Exudyn's defaults 1e-8 / 1e-10)
 NEWTON_ATOL = 1e-12
-GRID_TOL = 1e-9  # an output time within GRID_TOL * timestep of a step counts as on the grid
+GRID_TOL = 1e-9
+
+
+class ExudynIntegrationError(RuntimeError):
+    """Exudyn's solver stopped (its Newton iteration failed at the fixed step)."""  # an output time within GRID_TOL * timestep of a step counts as on the grid
 
 
 def _sensors(mbs) -> list[tuple[int, int, int]]:
@@ -68,7 +74,12 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
     ti.newton.relativeTolerance, ti.newton.absoluteTolerance = NEWTON_RTOL, NEWTON_ATOL
     ss.solution.sensors.writePeriod = timestep
     start = time.perf_counter()
-    mbs.SolveDynamic(ss, solverType=INTEGRATORS[integrator])
+    try:
+        mbs.SolveDynamic(ss, solverType=INTEGRATORS[integrator])
+    except Exception as exc:  # Exudyn raises a bare RuntimeError-like "SolveDynamic terminated"
+        raise ExudynIntegrationError(
+            f"{model.model_name}: Exudyn's {integrator} stopped with timestep {timestep:g} "
+            f"({exc}); its Newton iteration did not converge: use a smaller timestep") from exc
     wall = time.perf_counter() - start
     # every node's record: rows (time, coordinates...), one row per step from t0
     rec_q = [np.asarray(mbs.GetSensorStoredData(s_q)) for _, s_q, _ in sensors]
