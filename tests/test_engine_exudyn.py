@@ -131,7 +131,7 @@ def test_slider_crank_guide_force_balances_the_slider():
     """The slider's vertical balance (y_C'' = 0): guide force N, weight -m3 g and the hinge C's
     force on it, -lam_C (items.hinge_2d's sign, checked on the pendulum), so
     N = m3 g + lam_C,y; forward's lambda must be that N."""
-    params, nm, t, q, u = _instances("slider_crank", 1, seed=2)[0]
+    params, _, t, q, u = _instances("slider_crank", 1, seed=2)[0]
     em = ADAPTER.build("slider_crank", params)
     out = em.forward(q, u, t)
     lam_c_y = out.raw["engine_multipliers"][5]
@@ -193,7 +193,7 @@ def test_initial_solve_drops_the_velocity_term_of_a_velocity_level_row():
 
 
 def test_timed_forward_is_forwards_engine_call():
-    params, nm, t, q, u = _instances("slider_crank", 1)[0]
+    params, _, t, q, u = _instances("slider_crank", 1)[0]
     em = ADAPTER.build("slider_crank", params)
     ae, lam = em.timed_forward(q, u, t)()
     out = em.forward(q, u, t)

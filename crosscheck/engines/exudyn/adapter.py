@@ -11,6 +11,7 @@ from __future__ import annotations
 from ...compare import Tolerance
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from .base import INTEGRATORS
+from .exercises import Exercise61, Exercise62
 from .planar import (
     PendulumAngle,
     PendulumXY,
@@ -34,6 +35,8 @@ _MODELS = {
     "double_pendulum_3d": DoublePendulum3D,
     "top_cartesian": TopCartesian,
     "top_euler": TopEuler,
+    "exercise_6_1": Exercise61,
+    "exercise_6_2": Exercise62,
 }
 
 # Reference models without an Exudyn model here, each with the reason shown in results.
@@ -41,8 +44,6 @@ _NOT_BUILT = ("not built in the Exudyn adapter yet (Exudyn can express it with r
               "and joints; left for a follow-up of issue 12)")
 _UNSUPPORTED: dict[str, str] = {
     "frame_bar": "Example 3: " + _NOT_BUILT,
-    "exercise_6_1": "Exercise 6.1: " + _NOT_BUILT,
-    "exercise_6_2": "Exercise 6.2: " + _NOT_BUILT,
     "exercise_6_4": "Exercise 6.4: " + _NOT_BUILT,
 }
 

@@ -16,9 +16,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from exudyn.itemInterface import NodeRigidBodyEP, ObjectJointSpherical, ObjectRigidBody
-from exudyn.rigidBodyUtilities import (EulerParameters2GLocal, EulerParameters2RotationMatrix,
-                                       RotationMatrix2EulerParameters)
+from exudyn.rigidBodyUtilities import (
+    EulerParameters2GLocal,
+    EulerParameters2RotationMatrix,
+    RotationMatrix2EulerParameters,
+)
 
 from . import items
 from .base import ExudynModel
@@ -154,11 +158,12 @@ class TopCartesian(ExudynModel):
         self.joint = self.mbs.AddObject(ObjectJointSpherical(markerNumbers=[
             items.point(self, g0), items.point(self, body, 0.0, 0.0, -p["L"])]))
 
-    _PERM = [0, 1, 2, 6, 3, 4, 5]  # reference index of each engine coordinate
+    _PERM = (0, 1, 2, 6, 3, 4, 5)  # reference index of each engine coordinate
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
-        return q[self._PERM], u[self._PERM]
+        perm = list(self._PERM)
+        return q[perm], u[perm]
 
     def from_engine_state(self, qe, ve):
         inv = np.argsort(self._PERM)
