@@ -237,3 +237,11 @@ def test_short_trajectory_against_reference(name, integrator):
     assert errs[1] < 1e-3
     assert 3.0 < errs[0] / errs[1] < 5.0
 
+
+
+def test_exercise_6_4_pin_force_is_the_bars_momentum_balance():
+    """The pin joint's force mapped to disk axes equals m (a_G - g) of the bar from Exudyn's
+    own accelerations (the pin is the only force on the bar besides gravity)."""
+    params, _, t, q, u = _instances("exercise_6_4", 1, seed=4)[0]
+    out = ADAPTER.build("exercise_6_4", params).forward(q, u, t)
+    assert scaled_error(out.multipliers, out.raw["pin_force_momentum"]) < 1e-10

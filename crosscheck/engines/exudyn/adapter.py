@@ -11,7 +11,7 @@ from __future__ import annotations
 from ...compare import Tolerance
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from .base import INTEGRATORS
-from .exercises import Exercise61, Exercise62
+from .exercises import Exercise61, Exercise62, Exercise64
 from .planar import (
     PendulumAngle,
     PendulumXY,
@@ -37,6 +37,7 @@ _MODELS = {
     "top_euler": TopEuler,
     "exercise_6_1": Exercise61,
     "exercise_6_2": Exercise62,
+    "exercise_6_4": Exercise64,
 }
 
 # Reference models without an Exudyn model here, each with the reason shown in results.
@@ -44,7 +45,6 @@ _NOT_BUILT = ("not built in the Exudyn adapter yet (Exudyn can express it with r
               "and joints; left for a follow-up of issue 12)")
 _UNSUPPORTED: dict[str, str] = {
     "frame_bar": "Example 3: " + _NOT_BUILT,
-    "exercise_6_4": "Exercise 6.4: " + _NOT_BUILT,
 }
 
 EXUDYN_EXACT = Tolerance(
