@@ -245,3 +245,13 @@ def test_exercise_6_4_pin_force_is_the_bars_momentum_balance():
     params, _, t, q, u = _instances("exercise_6_4", 1, seed=4)[0]
     out = ADAPTER.build("exercise_6_4", params).forward(q, u, t)
     assert scaled_error(out.multipliers, out.raw["pin_force_momentum"]) < 1e-10
+
+
+def test_frame_bar_bearing_moment_is_newton_euler():
+    """Example 3: the bearing joint's moment row (lambda = -lam[4]) equals the reference's
+    formula m d a_G . k + (I alpha + omega x I omega) . n1 evaluated on Exudyn's own
+    accelerations."""
+    params, _, t, q, u = _instances("frame_bar", 1, seed=4)[0]
+    out = ADAPTER.build("frame_bar", params).forward(q, u, t)
+    assert out.multipliers[0] == pytest.approx(out.raw["lambda_newton_euler"], rel=1e-9,
+                                               abs=1e-12)

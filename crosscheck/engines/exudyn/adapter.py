@@ -19,7 +19,7 @@ from .planar import (
     SliderCrankFree,
     SliderCrankSplit,
 )
-from .spatial import DoublePendulum3D, TopCartesian, TopEuler
+from .spatial import DoublePendulum3D, FrameBar, TopCartesian, TopEuler
 from .special import KnifeEdge, MovingSupport
 
 __all__ = ["EXUDYN_EXACT", "ExudynAdapter"]
@@ -38,13 +38,13 @@ _MODELS = {
     "exercise_6_1": Exercise61,
     "exercise_6_2": Exercise62,
     "exercise_6_4": Exercise64,
+    "frame_bar": FrameBar,
 }
 
 # Reference models without an Exudyn model here, each with the reason shown in results.
 _NOT_BUILT = ("not built in the Exudyn adapter yet (Exudyn can express it with rigid-body nodes "
               "and joints; left for a follow-up of issue 12)")
 _UNSUPPORTED: dict[str, str] = {
-    "frame_bar": "Example 3: " + _NOT_BUILT,
 }
 
 EXUDYN_EXACT = Tolerance(

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+import exudyn as exu
 from exudyn.itemInterface import NodeRigidBodyEP, ObjectJointSpherical, ObjectRigidBody
 from exudyn.rigidBodyUtilities import (
     EulerParameters2GLocal,
@@ -27,7 +28,7 @@ from exudyn.rigidBodyUtilities import (
 from . import items
 from .base import ExudynModel
 
-__all__ = ["DoublePendulum3D", "TopCartesian", "TopEuler"]
+__all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
 
 
 def _rigid_body_ep(model, mass: float, inertia_diag) -> tuple[int, int]:
@@ -222,3 +223,121 @@ class TopEuler(TopCartesian):
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         sd = self.mbs.systemData
         raw["socket_force"] = -np.asarray(lam_e)[list(sd.GetObjectLTGAE(self.joint))]
+
+
+def _rz(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _ry(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+# a joint frame whose z axis is the body's y axis (columns: joint axes in body components)
+_JOINT_Z_ALONG_Y = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+
+
+class FrameBar(ExudynModel):
+    """Example 3 (k = Z up, no gravity). The light frame F: an Euler-parameter body at O with
+    zero mass and inertia (its rotation about k is carried by the bar through the arm hinge,
+    which keeps the KKT matrix regular), on an ObjectJointRevoluteZ about k at O (markers:
+    ground, F). The bar B: Euler-parameter body at G (principal inertias I1, I2, I3 along
+    e1, e2, e3), hinged to F by an ObjectJointRevoluteZ whose joint z axis is F's and B's
+    y axis (n2 = e2), at F's point (0, d, 0) and B's mass centre. M_phi: a torque about k on
+    F; M_theta: body-fixed torques +M_theta e2 on B and -M_theta n2 on F.
+    q_e = (0, p_F, r_G, p_B) with p_F = EP(Rz(phi)), p_B = EP(Rz(phi) Ry(theta)),
+    r_G = d n2. Speeds: the reference's omega = G(p_B) p_B' (bar components);
+    phi' = -omega1 sin(theta) + omega3 cos(theta) (F's local z rate). Accelerations:
+    omega' = G(p_B) p_B''.
+    Multiplier: the reference's lambda is the n1 component of the moment of the ground's
+    bearing on F about O. The bearing joint's five AE coordinates are its force (3) and the
+    multipliers of its two rotation rows; the second row measures F's tilt about its own x
+    axis n1 (a small rotation about n1 changes it at unit rate), so with the joint's force on
+    marker 1's body (F) being -lam, lambda = -lam[4]. Measured, not assumed:
+    raw["lambda_newton_euler"] recomputes it as m d a_G . k + (I alpha + omega x I omega) . n1
+    from Exudyn's own accelerations (the reference's formula) and the test compares the two.
+    Energy: the bar's only (F is massless)."""
+
+    nq_ref = 2
+    n_ref = 3
+
+    def _build(self):
+        from exudyn.itemInterface import (
+            LoadTorqueVector,
+            MarkerBodyRigid,
+            ObjectJointRevoluteZ,
+        )
+
+        p = self.params
+        g0 = items.ground(self)
+        _, frame_body = _rigid_body_ep(self, 0.0, (0.0, 0.0, 0.0))
+        self.masses.pop()  # massless: no potential, no kinetic energy
+        _, bar = _rigid_body_ep(self, p["m"], (p["I1"], p["I2"], p["I3"]))
+        mbs = self.mbs
+
+        def frame(body, pos, rot=None):
+            rot = np.eye(3) if rot is None else np.asarray(rot)
+            return mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(
+                rotation=rot.tolist(), translation=list(pos))))
+
+        self.bearing = mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
+            frame(g0, [0, 0, 0]), frame(frame_body, [0, 0, 0])]))
+        mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
+            frame(frame_body, [0, p["d"], 0], _JOINT_Z_ALONG_Y),
+            frame(bar, [0, 0, 0], _JOINT_Z_ALONG_Y)]))
+        at_f, at_b = frame(frame_body, [0, 0, 0]), frame(bar, [0, 0, 0])
+        if p["M_phi"] != 0.0:
+            mbs.AddLoad(LoadTorqueVector(markerNumber=at_f, loadVector=[0, 0, p["M_phi"]]))
+        if p["M_theta"] != 0.0:
+            mbs.AddLoad(LoadTorqueVector(markerNumber=at_b, loadVector=[0, p["M_theta"], 0],
+                                         bodyFixed=True))
+            mbs.AddLoad(LoadTorqueVector(markerNumber=at_f, loadVector=[0, -p["M_theta"], 0],
+                                         bodyFixed=True))
+
+    def to_engine_state(self, q, u):
+        phi, th = (float(v) for v in q)
+        w = np.asarray(u, float)
+        phid = -w[0] * math.sin(th) + w[2] * math.cos(th)
+        Af, Ab = _rz(phi), _rz(phi) @ _ry(th)
+        pf, pb = (np.asarray(RotationMatrix2EulerParameters(A)) for A in (Af, Ab))
+        pf, pb = pf / np.linalg.norm(pf), pb / np.linalg.norm(pb)
+        d = self.params["d"]
+        r = Af @ np.array([0.0, d, 0.0])
+        v = Af @ np.array([-d * phid, 0.0, 0.0])
+        wf = np.array([0.0, 0.0, phid])
+        return (np.concatenate([[0.0, 0.0, 0.0], pf, r, pb]),
+                np.concatenate([[0.0, 0.0, 0.0], EulerParameters2GLocal(pf).T @ wf / 4, v,
+                                EulerParameters2GLocal(pb).T @ w / 4]))
+
+    def from_engine_state(self, qe, ve):
+        Af = EulerParameters2RotationMatrix(qe[3:7])
+        rel = Af.T @ EulerParameters2RotationMatrix(qe[10:14])
+        phi, th = math.atan2(Af[1, 0], Af[0, 0]), math.atan2(rel[0, 2], rel[0, 0])
+        return np.array([phi, th]), EulerParameters2GLocal(qe[10:14]) @ np.asarray(ve[10:14])
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return EulerParameters2GLocal(qe[10:14]) @ np.asarray(ae[10:14])
+
+    def _multipliers(self, qe, ve, ae, lam_e):
+        lam = np.asarray(lam_e)[list(self.mbs.systemData.GetObjectLTGAE(self.bearing))]
+        return np.array([-lam[4]])
+
+    def _extra_raw(self, qe, ve, ae, lam_e, raw):
+        p = self.params
+        Ab = EulerParameters2RotationMatrix(qe[10:14])
+        w = EulerParameters2GLocal(qe[10:14]) @ np.asarray(ve[10:14])
+        alpha = EulerParameters2GLocal(qe[10:14]) @ np.asarray(ae[10:14])
+        inertia = np.array([p["I1"], p["I2"], p["I3"]])
+        n1_b = Ab.T @ EulerParameters2RotationMatrix(qe[3:7])[:, 0]
+        euler = inertia * alpha + np.cross(w, inertia * w)
+        raw["lambda_newton_euler"] = float(p["m"] * p["d"] * ae[9] + euler @ n1_b)
+
+    def _position_rows(self, qe, t):
+        Af = EulerParameters2RotationMatrix(qe[3:7])
+        Ab = EulerParameters2RotationMatrix(qe[10:14])
+        arm = Af @ np.array([0.0, self.params["d"], 0.0]) - qe[7:10]
+        return np.concatenate([qe[0:3], Af[2, 0:2], arm, [Ab[:, 1] @ Af[:, 0],
+                               Ab[:, 1] @ Af[:, 2], qe[3:7] @ qe[3:7] - 1,
+                               qe[10:14] @ qe[10:14] - 1]])
