@@ -255,3 +255,24 @@ def test_frame_bar_bearing_moment_is_newton_euler():
     out = ADAPTER.build("frame_bar", params).forward(q, u, t)
     assert out.multipliers[0] == pytest.approx(out.raw["lambda_newton_euler"], rel=1e-9,
                                                abs=1e-12)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_fingerprint_follows_the_physics(name):
+    """Same parameters: same digest; one parameter changed by 1e-6: a different digest."""
+    params = random_params(get(name), np.random.default_rng(1))
+    a, b = ADAPTER.build(name, params), ADAPTER.build(name, params)
+    assert a.fingerprint() == b.fingerprint()
+    key = min(params)
+    changed = ADAPTER.build(name, dict(params, **{key: params[key] * (1 + 1e-6)}))
+    assert changed.fingerprint() != a.fingerprint()
+
+
+def test_angles_read_with_atan2_are_continuous_along_a_trajectory():
+    from crosscheck.engines.exudyn.trajectory import _continuous_angles
+
+    wrapped = np.array([[3.0, 0.1], [-3.1, 0.2], [-2.9, 0.3]])  # angle 0 crosses +pi
+    out = _continuous_angles(wrapped.copy(), np.array([3.0 - 2 * np.pi * 0, 0.1]), (0,))
+    assert np.allclose(np.diff(out[:, 0]), [2 * np.pi - 6.1, 0.2])
+    shifted = _continuous_angles(wrapped.copy(), np.array([3.0 + 2 * np.pi, 0.1]), (0,))
+    assert shifted[0, 0] == pytest.approx(3.0 + 2 * np.pi)

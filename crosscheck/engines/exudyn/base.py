@@ -32,7 +32,6 @@ the reference writes it, e.g. +g Y for the Y-down pendulum), so no axis is flipp
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -84,6 +83,9 @@ class ExudynModel(EngineModel):
     gravity = (0.0, 0.0, 0.0)  # subclasses set the reference's gravity vector in _build
     rheonomic = False
     energy_dofs: tuple[int, ...] | None = None  # engine speeds in K (None: all)
+    # reference coordinates that from_engine_state reads with atan2 (made continuous along a
+    # trajectory, trajectory._continuous_angles)
+    angle_indices: tuple[int, ...] = ()
 
     def __init__(self, model_name: str, params: dict[str, float], simulation: bool = False):
         self.model_name = model_name
@@ -264,13 +266,30 @@ class ExudynModel(EngineModel):
         return simulate(self, q0, u0, np.asarray(t_eval, float), integrator, float(timestep))
 
     def fingerprint(self) -> str:
+        """Digest of the built system: every node, object, marker and load as Exudyn reports
+        it (masses, inertias, positions, stiffnesses, load vectors; user functions by name),
+        plus the parameters the user functions close over (the knife edge's a, the support's
+        a and Omega)."""
         import hashlib
         import json
 
-        blob = json.dumps({"model": self.model_name, "params": self.params,
-                           "class": type(self).__name__}, sort_keys=True)
-        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+        mbs, sd = self.mbs, self.mbs.systemData
 
+        def clean(v):
+            if callable(v):
+                return getattr(v, "__qualname__", type(v).__name__)
+            if isinstance(v, np.ndarray):
+                return v.tolist()
+            if isinstance(v, dict):
+                return {k: clean(x) for k, x in v.items() if k != "visualization"}
+            if isinstance(v, (list, tuple)):
+                return [clean(x) for x in v]
+            return v if isinstance(v, (int, float, str, bool, type(None))) else str(v)
 
-def wall() -> float:
-    return time.perf_counter()
+        blob = {"model": self.model_name, "params": self.params, "gravity": list(self.gravity),
+                "nodes": [clean(mbs.GetNode(i)) for i in range(sd.NumberOfNodes())],
+                "objects": [clean(mbs.GetObject(i)) for i in range(sd.NumberOfObjects())],
+                "markers": [clean(mbs.GetMarker(i)) for i in range(sd.NumberOfMarkers())],
+                "loads": [clean(mbs.GetLoad(i)) for i in range(sd.NumberOfLoads())]}
+        return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
+

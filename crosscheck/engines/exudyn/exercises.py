@@ -200,6 +200,7 @@ class Exercise64(ExudynModel):
     (the disk) and -F on the bar); raw["pin_force_momentum"] recomputes it from the bar's
     momentum balance m (a_G - g) in disk axes."""
 
+    angle_indices = (0, 1)
     nq_ref = n_ref = 4
 
     def _build(self):

@@ -71,6 +71,7 @@ class DoublePendulum3D(ExudynModel):
     link 2) = -lam_A; link 1 gets -lam_O from the ground, and lambda[0:3] = F_O -
     lambda[3:6] = -lam_O + lam_A."""
 
+    angle_indices = (0, 2, 3, 5)
     nq_ref = 6
     n_ref = 12
 
@@ -260,6 +261,7 @@ class FrameBar(ExudynModel):
     from Exudyn's own accelerations (the reference's formula) and the test compares the two.
     Energy: the bar's only (F is massless)."""
 
+    angle_indices = (0, 1)
     nq_ref = 2
     n_ref = 3
 

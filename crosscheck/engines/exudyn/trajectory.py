@@ -54,6 +54,16 @@ def _grid_indices(t_eval: np.ndarray, t0: float, timestep: float) -> np.ndarray:
     return k.astype(int)
 
 
+def _continuous_angles(Q: np.ndarray, q0: np.ndarray, indices) -> np.ndarray:
+    """Angles read back with atan2 jump by 2 pi at +-pi; along a trajectory they are made
+    continuous (np.unwrap) on the branch of the initial state's angle."""
+    for i in indices:
+        if len(Q):
+            Q[:, i] = np.unwrap(Q[:, i])
+            Q[:, i] += 2 * np.pi * np.round((q0[i] - Q[0, i]) / (2 * np.pi))
+    return Q
+
+
 def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
              ) -> EngineTrajectory:
     t0 = float(t_eval[0]) if t_eval.size else 0.0
@@ -98,8 +108,9 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
         viol.append(model.constraint_violation(qe, float(t)))
         vviol.append(model.velocity_violation(qe, ve, float(t)))
         E.append(sum(model._energy_engine(qe, ve)))
+    Q = _continuous_angles(np.array(Q), np.asarray(q0, float), model.angle_indices)
     return EngineTrajectory(
-        t=np.asarray(t_eval, float), q=np.array(Q), u=np.array(U), violation=np.array(viol),
+        t=np.asarray(t_eval, float), q=Q, u=np.array(U), violation=np.array(viol),
         velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
         setting={"timestep": timestep, "newton_rtol": NEWTON_RTOL, "newton_atol": NEWTON_ATOL,
                  "spectral_radius": ti.generalizedAlpha.spectralRadius},
