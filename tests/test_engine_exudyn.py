@@ -83,6 +83,10 @@ def test_every_model_supported_or_refused_with_reason():
         assert len(reason) > 20
         with pytest.raises(EngineUnsupported, match=re.escape(reason[:30])):
             ADAPTER.build(name)
+    with pytest.raises(EngineUnsupported, match="no model 'no_such_model'"):
+        ADAPTER.build("no_such_model")
+    with pytest.raises(EngineUnsupported, match="single variant"):
+        ADAPTER.build("pendulum_xy", variant="tree")
 
 
 @pytest.mark.parametrize("name", MODELS)

@@ -2,9 +2,9 @@
 coordinates, Lagrange multipliers), answered by Exudyn's implicit solver.
 
 How one state is answered, and why the answer is Richardson-extrapolated over Exudyn's
-finite-difference step, is in base.py; the state and multiplier maps of every model are in its
-class docstring (planar.py, special.py, spatial.py); docs/engines/exudyn.md has the measured
-agreement and the commands that measure it.
+finite-difference step, is in base.py; the state and multiplier maps of every model are in
+its class docstring (planar.py, special.py, spatial.py, exercises.py); docs/engines/exudyn.md
+has the measured agreement and the commands that measure it.
 """
 from __future__ import annotations
 
@@ -41,11 +41,9 @@ _MODELS = {
     "frame_bar": FrameBar,
 }
 
-# Reference models without an Exudyn model here, each with the reason shown in results.
-_NOT_BUILT = ("not built in the Exudyn adapter yet (Exudyn can express it with rigid-body nodes "
-              "and joints; left for a follow-up of issue 12)")
-_UNSUPPORTED: dict[str, str] = {
-}
+# Reference models without an Exudyn model here, each with the reason shown in results:
+# none (every built-in model is built; docs/engines/exudyn.md).
+_UNSUPPORTED: dict[str, str] = {}
 
 EXUDYN_EXACT = Tolerance(
     1e-9, "Exudyn's answer Richardson-extrapolated over its finite-difference step (three "
