@@ -222,7 +222,8 @@ def test_bad_input_is_refused():
 
 
 @pytest.mark.parametrize("name", ["pendulum_xy", "slider_crank", "knife_edge",
-                                  "pendulum_moving_support"])
+                                  "pendulum_moving_support", "double_pendulum_3d",
+                                  "exercise_6_1", "exercise_6_4", "frame_bar"])
 @pytest.mark.parametrize("integrator", ["generalized-alpha", "trapezoidal-index2"])
 def test_short_trajectory_against_reference(name, integrator):
     """0.3 s from the model's initial state: both of Exudyn's integrators are second order

@@ -82,6 +82,9 @@ class ExudynModel(EngineModel):
     n_ref: int
     gravity = (0.0, 0.0, 0.0)  # subclasses set the reference's gravity vector in _build
     rheonomic = False
+    mass_matrix_note = ("Exudyn's coordinates are every body's absolute position and angle or "
+                        "Euler parameters, not the reference's; its mass matrix is not mapped "
+                        "onto the reference's speeds (Capabilities.mass_matrix is False)")
     energy_dofs: tuple[int, ...] | None = None  # engine speeds in K (None: all)
     # reference coordinates that from_engine_state reads with atan2 (made continuous along a
     # trajectory, trajectory._continuous_angles)
