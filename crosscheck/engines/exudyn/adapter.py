@@ -8,9 +8,11 @@ has the measured agreement and the commands that measure it.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from ...compare import Tolerance
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
-from .base import INTEGRATORS
+from .base import INTEGRATORS, ExudynModel
 from .exercises import Exercise61, Exercise62, Exercise64
 from .planar import (
     PendulumAngle,
@@ -24,7 +26,7 @@ from .special import KnifeEdge, MovingSupport
 
 __all__ = ["EXUDYN_EXACT", "ExudynAdapter"]
 
-_MODELS = {
+_MODELS: dict[str, Callable[[str, dict[str, float]], ExudynModel]] = {
     "pendulum_angle": PendulumAngle,
     "pendulum_xy": PendulumXY,
     "slider_crank_free": SliderCrankFree,

@@ -160,7 +160,8 @@ class ExudynModel(EngineModel):
         relativeEpsilon: the engine's native call (see the module docstring)."""
         self.settings.timeIntegration.newton.numericalDifferentiation.relativeEpsilon = epsilon
         self._set_state(qe, ve, t)
-        self.solver.InitializeSolver(self.mbs, self.settings)
+        # Exudyn's type stub omits InitializeSolver's arguments (the call is as documented)
+        self.solver.InitializeSolver(self.mbs, self.settings)  # type: ignore[call-arg,misc]
         sd = self.mbs.systemData
         return np.array(sd.GetODE2Coordinates_tt()), np.array(sd.GetAECoordinates())
 
@@ -234,9 +235,9 @@ class ExudynModel(EngineModel):
         centres (nodes at the mass centres), datum the world origin = the reference's, plus
         the reference's springs."""
         self._set_state(qe, ve, 0.0)
-        self.solver.InitializeSolver(self.mbs, self.settings)
+        self.solver.InitializeSolver(self.mbs, self.settings)  # type: ignore[call-arg,misc]
         self.solver.ComputeMassMatrix(self.mbs)
-        M = np.asarray(self.solver.GetSystemMassMatrix())
+        M = np.asarray(self.solver.GetSystemMassMatrix())  # type: ignore[misc]
         v = np.asarray(ve, float).copy()
         if self.energy_dofs is not None:
             keep = np.zeros(v.size, bool)

@@ -108,9 +108,9 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
         viol.append(model.constraint_violation(qe, float(t)))
         vviol.append(model.velocity_violation(qe, ve, float(t)))
         E.append(sum(model._energy_engine(qe, ve)))
-    Q = _continuous_angles(np.array(Q), np.asarray(q0, float), model.angle_indices)
+    q_out = _continuous_angles(np.array(Q), np.asarray(q0, float), model.angle_indices)
     return EngineTrajectory(
-        t=np.asarray(t_eval, float), q=Q, u=np.array(U), violation=np.array(viol),
+        t=np.asarray(t_eval, float), q=q_out, u=np.array(U), violation=np.array(viol),
         velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
         setting={"timestep": timestep, "newton_rtol": NEWTON_RTOL, "newton_atol": NEWTON_ATOL,
                  "spectral_radius": ti.generalizedAlpha.spectralRadius},
