@@ -50,6 +50,18 @@ def parse_perturb(specs: list[str]) -> dict[str, dict[str, float]]:
     return out
 
 
+def check_perturb(names, perturb: dict) -> None:
+    """Before any work: every perturbed parameter exists in every model and stays valid
+    (finite, positive where it must be) at the model's defaults -- a relative change of nan,
+    or of -2 on a mass, is bad input (exit 2), found before the first model runs."""
+    from reference.numeric import resolve_parameters
+    for name in names:
+        model = models.get(name)
+        for ps in perturb.values():
+            resolve_parameters(model, perturbed(
+                name, {p.name: p.default for p in model.parameters}, ps))
+
+
 def consistent_states(nm: NumericModel, count: int):
     """The model's initial state and count-1 seeded random consistent states near it.
 
@@ -269,9 +281,7 @@ def cmd_run(args) -> int:
     names = resolve_models(args.models)  # unknown or repeated names fail before any work
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
-    for name in names:  # a parameter the model lacks fails now, not after the models before it
-        for ps in perturb.values():
-            perturbed(name, {p.name: p.default for p in models.get(name).parameters}, ps)
+    check_perturb(names, perturb)
     output_dir(args.out)  # an unusable --out fails now, not after the computation
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet

@@ -83,7 +83,7 @@ from reference.errors import ModelInputError, SingularSystemError
 
 from . import compare as C
 from .engines.base import EngineUnsupported
-from .run import ENGINE_NAMES, engine_adapter, parse_perturb, perturbed
+from .run import ENGINE_NAMES, check_perturb, engine_adapter, parse_perturb, perturbed
 from .sampling import draw_sample, sample_seed
 
 # ---- named settings, each with its reason ---------------------------------------------------
@@ -489,6 +489,7 @@ class Campaign:
                     if p not in names:
                         raise ModelInputError(f"--perturb {e}:{p}: model {name!r} has no "
                                               f"parameter {p!r}; valid: {', '.join(names)}")
+        check_perturb(self.models, self.perturb)  # nan, or a mass made negative: exit 2
         if self.samples < 1:
             raise ModelInputError(f"--samples must be >= 1, got {self.samples}")
         if self.seed < 0 or self.index < 0:
