@@ -10,7 +10,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
+import signal
 import sys
 
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
@@ -224,7 +226,33 @@ def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) ->
     return out
 
 
+# set by the command-line entry's SIGINT handler: a Ctrl-C that lands inside a C extension's
+# import surfaces as that import's error ("ImportError: initialization failed" from MuJoCo),
+# not as KeyboardInterrupt, and must still be reported as an interrupt
+_SIGINT_SEEN = []
+
+
+def _on_sigint(signum, frame):
+    _SIGINT_SEEN.append(signum)
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
+    entry = argv is None  # the `crosscheck` program itself, not a caller in this process
+    if entry:
+        signal.signal(signal.SIGINT, _on_sigint)
+    code = _main(argv)
+    if entry and code == EXIT_INTERRUPTED:
+        # CPython kills itself with SIGINT at exit (status -2, not 130) when the interrupt
+        # passed through code run by PyRun_* (some extensions' imports), even though it was
+        # handled here: leave with the status the command promises
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _main(argv) -> int:
     args = None
     try:
         from reference.errors import ModelInputError
@@ -237,17 +265,23 @@ def main(argv=None) -> int:
             print(f"crosscheck: error: {exc}", file=sys.stderr)
             return EXIT_USAGE
     except KeyboardInterrupt:
-        print(f"crosscheck: interrupted; no new output written (a command's files are renamed "
-              f"into place only once all are complete){_out_note(args)}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return _interrupted(args)
     except BrokenPipeError:  # pragma: no cover - `crosscheck models | head`
         return 0
     except Exception:  # noqa: BLE001 - a bug: exit 1 is reserved for "a check failed"
+        if _SIGINT_SEEN:  # the interrupt, disguised as the error of what it interrupted
+            return _interrupted(args)
         import traceback
         traceback.print_exc()
         print("crosscheck: internal error (a bug, not a failed check; the traceback above "
               "says where)", file=sys.stderr)
         return EXIT_INTERNAL
+
+
+def _interrupted(args) -> int:
+    print(f"crosscheck: interrupted; no new output written (a command's files are renamed "
+          f"into place only once all are complete){_out_note(args)}", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def _out_note(args) -> str:

@@ -45,3 +45,16 @@ def perturbed(name, params: dict, perturb: dict) -> dict:
                                   f"{', '.join(params)}")
         params[p] *= 1.0 + rel
     return params
+
+
+def check_perturb(names, perturb: dict) -> None:
+    """Before any work: every perturbed parameter exists in every model and stays valid
+    (finite, positive where it must be) at the model's defaults -- a relative change of nan,
+    or of -2 on a mass, is bad input (exit 2), found before the first model runs."""
+    from reference import models
+    from reference.numeric import resolve_parameters
+    for name in names:
+        model = models.get(name)
+        for ps in perturb.values():
+            resolve_parameters(model, perturbed(
+                name, {p.name: p.default for p in model.parameters}, ps))

@@ -20,7 +20,7 @@ from reference.errors import ModelInputError
 from . import compare as C
 from .comparison import engine_records
 from .engines.registry import available_engines, get_engine
-from .perturb import parse_perturb, perturbed
+from .perturb import check_perturb, parse_perturb, perturbed
 
 __all__ = ["consistent_states", "parse_perturb", "perturbed", "run"]
 
@@ -115,9 +115,7 @@ def cmd_run(args) -> int:
     names = resolve_models(args.models)  # unknown or repeated names fail before any work
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
-    for name in names:  # a parameter the model lacks fails now, not after the models before it
-        for ps in perturb.values():
-            perturbed(name, {p.name: p.default for p in models.get(name).parameters}, ps)
+    check_perturb(names, perturb)
     output_dir(args.out)  # an unusable --out fails now, not after the computation
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet

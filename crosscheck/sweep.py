@@ -85,7 +85,7 @@ from . import compare as C
 from .comparison import ReferenceAnswer, build, compare_at_state, rigid_answer, tolerance
 from .engines.base import EngineUnsupported
 from .engines.registry import available_engines, engine_modules, get_engine
-from .perturb import check_parameters, parse_perturb, perturbed
+from .perturb import check_parameters, check_perturb, parse_perturb, perturbed
 from .sampling import draw_sample, sample_seed
 
 # ---- named settings, each with its reason ---------------------------------------------------
@@ -416,6 +416,7 @@ class Campaign:
                                       f"--engines {','.join(self.engines)}")
         for name in self.models:
             check_parameters(name, [p.name for p in models.get(name).parameters], self.perturb)
+        check_perturb(self.models, self.perturb)  # nan, or a mass made negative: exit 2
         if self.samples < 1:
             raise ModelInputError(f"--samples must be >= 1, got {self.samples}")
         if self.seed < 0 or self.index < 0:

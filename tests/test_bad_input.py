@@ -39,6 +39,10 @@ CASES = [
      "model pendulum_angle given more than once"),
     (["run", "no_such_model", "--out", OUT], 2, "unknown model"),
     (["run", "pendulum_angle", "--perturb", "mujoco:m=x", "--out", OUT], 2, "ENGINE:PARAM=REL"),
+    (["run", "slider_crank", "--perturb", "mujoco:m2=nan", "--out", OUT], 2, "m2=nan is not finite"),
+    (["run", "slider_crank", "--perturb", "mujoco:m2=-2", "--out", OUT], 2, "must be > 0"),
+    (["run", "slider_crank", "--perturb", "mujoco:mass=1", "--out", OUT], 2, "no parameter 'mass'"),
+    (["sweep", "slider_crank", "--perturb", "mujoco:m2=nan", "--out", OUT], 2, "is not finite"),
     # bench
     (["bench", "pendulum_angle", "--engines", "ode", "--quick", "--out", OUT], 2,
      "unknown engine 'ode'"),

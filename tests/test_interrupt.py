@@ -73,9 +73,11 @@ def _start(args: list[str]) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-@pytest.mark.parametrize("delay", [1.0, 4.0])
+@pytest.mark.parametrize("delay", [1.0, 3.0, 5.0, 8.0])
 def test_sigint_on_a_real_run(previous_run, delay):
-    """SIGINT to a real `crosscheck run` process, early (loading the models) and later
+    """SIGINT to a real `crosscheck run` process, early (loading the models and engines: a
+    Ctrl-C inside MuJoCo's import surfaced as "ImportError: initialization failed", exit 3, and
+    one inside PyRun-executed code ended the process by the signal, status -2) and later
     (computing): one line, exit 130, the previous files intact."""
     before = _snapshot(previous_run)
     proc = _start(["run", "pendulum_angle", "slider_crank", "--out", str(previous_run)])
@@ -96,12 +98,11 @@ def test_sigint_on_a_real_sweep(tmp_path):
     out = tmp_path / "sweep"
     proc = _start(["sweep", "pendulum_xy", "--samples", "1000000", "--workers", "1",
                    "--engines", "pinocchio", "--out", str(out)])
-    deadline = time.time() + 120
-    while time.time() < deadline:  # interrupt once samples are being evaluated
-        time.sleep(1.0)
-        if proc.poll() is not None or _sampling(proc.pid):
+    deadline = time.time() + 300
+    while time.time() < deadline:  # interrupt once a chunk is finished (and stored)
+        time.sleep(0.5)
+        if proc.poll() is not None or list((out / "sweep.chunks").glob("*-*.json")):
             break
-    time.sleep(2.0)
     proc.send_signal(signal.SIGINT)
     stdout, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
@@ -114,13 +115,3 @@ def test_sigint_on_a_real_sweep(tmp_path):
     # the finished chunks stay for `--resume` (tests/test_sweep_faults.py), nothing else
     assert sorted(p.name for p in out.iterdir()) == ["sweep.chunks", "sweep.json"]
     assert f"crosscheck sweep --resume {out}" in stdout
-
-
-def _sampling(pid: int) -> bool:
-    """The process has been running its own code for a while (past imports and compiling):
-    judged by its CPU time, read from /proc (Linux)."""
-    try:
-        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    except OSError:
-        return True
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK") > 3.0
