@@ -9,9 +9,11 @@ one-line message (exit 2) before doing any work. Argument values are checked at 
 from __future__ import annotations
 
 import argparse
+import errno
 import math
-
-from reference.errors import ModelInputError
+import os
+import tempfile
+from pathlib import Path
 
 # The longest trajectory horizon `run` accepts. The trajectory stage integrates the reference
 # at rtol 1e-12 and every engine at its finest step over the horizon; at 1000 s that is already
@@ -27,6 +29,39 @@ def positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def nonnegative_int(text: str) -> int:
+    """An integer >= 0 (a seed, a first sample index, a number of cases kept)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 0")
+    return value
+
+
+def positive_seconds(text: str) -> float:
+    """A finite duration > 0 (a time budget)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text} s: give a finite number of seconds > 0")
+    return value
+
+
+def finite_float(text: str) -> float:
+    """Any finite number (a time t of `eval`)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text} is not finite")
     return value
 
 
@@ -62,11 +97,18 @@ def name_list(text: str) -> list[str]:
     return names
 
 
+def _refuse(message: str) -> Exception:
+    """A ModelInputError (one line, exit 2), imported on use: this module loads with the CLI
+    before the models, so that a Ctrl-C during their import is answered with one line."""
+    from reference.errors import ModelInputError
+    return ModelInputError(message)
+
+
 def unique(names: list[str], what: str) -> list[str]:
     """The names in order, refusing repeats (a repeated model would duplicate its records)."""
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
-        raise ModelInputError(f"{what} {', '.join(repeated)} given more than once")
+        raise _refuse(f"{what} {', '.join(repeated)} given more than once")
     return list(names)
 
 
@@ -82,8 +124,74 @@ def resolve_models(names: list[str]) -> list[str]:
     return list(names)
 
 
+def resolve_engines(names: list[str] | None) -> list[str]:
+    """The engines to compare: every registered engine that imports here when none is named;
+    a named one must be registered (the error lists the registered ones) and import here."""
+    from .engines.registry import available_engines, get_engine
+
+    if not names:
+        return list(available_engines())
+    for name in unique(names, "engine"):
+        get_engine(name)
+    return list(names)
+
+
+def add_models(parser: argparse.ArgumentParser) -> None:
+    """Positional model names (checked by resolve_models before any work)."""
+    parser.add_argument("models", nargs="*", help="models (default: all)")
+
+
+def add_engines(parser: argparse.ArgumentParser) -> None:
+    """--engines a,b (checked by resolve_engines before any work)."""
+    parser.add_argument("--engines", type=name_list, default="pinocchio,mujoco",
+                        metavar="E1,E2", help="engines, comma-separated (default: all)")
+
+
+def output_dir(path: str, option: str = "--out") -> Path:
+    """Check, before any work, that `path` is or can become a directory this process can write
+    files into; leaves no trace (directories it had to create for the probe are removed again),
+    so a command refused later has written nothing."""
+    p = Path(path)
+    shown = path if len(path) <= 80 else f"{path[:40]}...{path[-20:]}"  # the line stays short
+    where = f"{option} {shown!r}"
+    longest = max((len(os.fsencode(part)) for part in p.parts), default=0)
+    if longest > 255:  # NAME_MAX of every common file system
+        raise _refuse(f"{where}: a name in it is {longest} bytes long, more "
+                              "than the 255 a file system allows; give a shorter directory name")
+    try:
+        a_file = p.exists() and not p.is_dir()
+    except OSError:  # a whole path over PATH_MAX: the probe below says so
+        a_file = False
+    if a_file:
+        raise _refuse(f"{where} is an existing file, not a directory; give a directory "
+                              "(the command writes its files inside it)")
+    created: list[Path] = []
+    try:
+        for d in reversed([p, *p.parents]):
+            if not d.exists():
+                d.mkdir()
+                created.append(d)
+        fd, probe = tempfile.mkstemp(dir=p, prefix=".crosscheck-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        if exc.errno == errno.ENAMETOOLONG:
+            why += "; give a shorter path"
+        raise _refuse(f"{where}: cannot write there ({why}); give a directory you "
+                              "can write to") from None
+    finally:
+        for d in reversed(created):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+    return p
+
+
 class OneLineParser(argparse.ArgumentParser):
     """argparse prints the whole usage block before an error; the CLI promises one line."""
 
     def error(self, message: str):  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+        # "crosscheck: error:" like every other bad input, whichever subcommand refused it
+        self.exit(2, f"crosscheck: error: {message} (see `{self.prog} --help`)\n")

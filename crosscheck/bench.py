@@ -86,7 +86,9 @@ def forward_records(names, quick=False, engines=()):
              "us_per_state": t["median"] / batch * 1e6, "us_per_state_min": t["min"] / batch * 1e6})
         rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
         raw = nm.forward_raw
-        rec("single-raw", 1, per_call_seconds(lambda: raw(ql, ul, 0.0)))
+        # each backend's native inputs: float64 vectors for the kernels, lists for Python
+        qr, ur = (q, u) if nm.backend == "numba" else (ql, ul)
+        rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
         reps = int(np.ceil(BATCH / Q.shape[0]))
         QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
         rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
@@ -106,33 +108,64 @@ def forward_records(names, quick=False, engines=()):
                              "batch": 1, "us_per_state": None, "skipped": True,
                              "reason": str(exc)})
                 continue
-            timed = getattr(em, "timed_forward", None)
-            fn = timed(q, u) if timed else (lambda: em.forward(q, u))
-            rec(f"engine:{engine.name}", 1, per_call_seconds(fn))
+            rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(q, u)))
+            # the engine over the batch's states, one call each (a Python loop)
+            calls = [em.timed_forward(Q[i], U[i]) for i in range(Q.shape[0])]
+            seq = [calls[i % len(calls)] for i in range(BATCH)]
+
+            def loop(seq=seq):
+                for c in seq:
+                    c()
+            rec(f"engine-loop:{engine.name}", BATCH, per_call_seconds(loop, repeats=3))
     return recs
 
 
-def _engines(requested):
-    out = []
-    for name in requested:
-        if name == "pinocchio":
-            from .engines.pinocchio_engine import PinocchioAdapter
-            out.append(PinocchioAdapter())
-        elif name == "mujoco":
-            from .engines.mujoco_engine import MujocoAdapter
-            out.append(MujocoAdapter())
+def forward_ratios(recs) -> list[dict]:
+    """One row of ratios per model (see _ratios), from the forward records of one run."""
+    names = list(dict.fromkeys(r["model"] for r in recs))
+    return [_ratios(n, [r for r in recs if r["model"] == n]) for n in names]
+
+
+def _ratios(name, recs) -> dict:
+    """Issue 13's ratios from this run's records: the reference's checked and raw single-state
+    calls over each engine's call (targets <= 0.5 and <= 0.25 against every engine with exact
+    multipliers), and each engine's loop over the batched reference per state (target >= 20)."""
+    from reference import compiled
+
+    from .engines.registry import get_engine
+    t = {r["path"]: r["us_per_state"] for r in recs if r.get("us_per_state") is not None}
+    out: dict = {"model": name, "backend": compiled.backend()}
+    if "single" not in t:
+        return out
+    met = {}
+    for path in [p for p in t if p.startswith("engine:")]:
+        eng = path.split(":", 1)[1]
+        e, loop = t[path], t.get(f"engine-loop:{eng}")
+        out[f"checked_over_{eng}"] = t["single"] / e
+        out[f"raw_over_{eng}"] = t["single-raw"] / e
+        if loop:
+            out[f"{eng}_loop_over_batched"] = loop / t["batched"]
+        if get_engine(eng).capabilities.exact:
+            met[f"checked <= 0.5 x {eng}"] = out[f"checked_over_{eng}"] <= 0.5
+            met[f"raw <= 0.25 x {eng}"] = out[f"raw_over_{eng}"] <= 0.25
+            if loop:
+                met[f"batched >= 20 x {eng} loop"] = out[f"{eng}_loop_over_batched"] >= 20
+    if met:
+        out["met"] = met
     return out
+
+
+def _engines(requested):
+    from .engines.registry import get_engine
+    return [get_engine(name) for name in requested]
 
 
 def meta(argv) -> dict:
     import scipy
     versions = {"python": platform.python_version(), "numpy": np.__version__,
                 "scipy": scipy.__version__, "sympy": sp.__version__}
-    for mod, key in (("pinocchio", "pin"), ("mujoco", "mujoco")):
-        try:
-            versions[key] = __import__(mod).__version__
-        except ImportError:
-            versions[key] = None
+    from .engines.registry import engine_versions
+    versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
     import shlex
     return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
             "machine": {"platform": platform.platform(), "processor": platform.machine(),
@@ -141,32 +174,33 @@ def meta(argv) -> dict:
 
 
 def cmd_bench(args) -> int:
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
+    from .output import write_atomic
     from .stress import stress_records
-    from .workprecision import (profile_for_missed, skip_savings, targets,
-                                work_precision_records)
+    from .workprecision import (
+        profile_for_missed,
+        skip_savings,
+        targets,
+        work_precision_records,
+    )
 
     t_start = time.perf_counter()
-    names = args.models or models.names()
-    requested = [e for e in args.engines.split(",") if e]
-    try:
-        engines = _engines(requested)
-    except ImportError as exc:  # an adapter still being written: forward records without it
-        print(f"bench: engine unavailable ({exc}); its rows are recorded as skipped",
-              file=sys.stderr)
-        engines = []
-        for e in requested:
-            try:
-                engines += _engines([e])
-            except ImportError:
-                pass
+    names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
+    engines = _engines(resolve_engines(args.engines))  # unknown or unimportable: exit 2
+    output_dir(args.out)  # an unusable --out fails now, not after the benchmark
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
 
     def log(msg):
         print(f"[{time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     result = {"meta": meta(sys.argv[1:]), "forward": forward_records(names, args.quick, engines)}
+    from reference import compiled
+    # per generated module: writing the numba source, importing it, and each kernel's first
+    # call (a compile, or a load from numba's on-disk cache: from_cache says which)
+    result["forward_ratios"] = forward_ratios(result["forward"])
+    result["compiled"] = {"backend": compiled.backend(), "threads": compiled.threads(),
+                          "modules": dict(compiled.TIMINGS)}
     log("forward records done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)
@@ -178,12 +212,16 @@ def cmd_bench(args) -> int:
     log("targets and skip measurements done")
     result["meta"]["quick"] = bool(args.quick)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
-    (out / "bench.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    write_atomic(out / "bench.json", json.dumps(result, indent=2, default=_json_default))
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "
               + (f"{t:10.3f} us/state" if t is not None
                  else f"skipped: {r.get('reason') or r.get('skipped')}"))
+    print("\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20)")
+    for r in result["forward_ratios"]:
+        print(f"{r['model']:22s} ({r['backend']}) " + ", ".join(
+            f"{k} {v:.2f}" for k, v in r.items() if isinstance(v, float)))
     print("\nwork-precision (model engine method setting: wall, error, residual)")
     for r in result["work_precision"]:
         head = (f"{r['model']:20s} {r['engine']:10s} {str(r.get('method')):12s} "
@@ -216,8 +254,9 @@ def cmd_bench(args) -> int:
 
 def register(sub):
     b = sub.add_parser("bench", help="benchmark forward dynamics (and work-precision)")
-    b.add_argument("models", nargs="*", help="models (default: all)")
+    from .arguments import add_engines, add_models
+    add_models(b)
     b.add_argument("--quick", action="store_true")
-    b.add_argument("--engines", default="pinocchio,mujoco")
+    add_engines(b)
     b.add_argument("--out", default="out")
     b.set_defaults(func=cmd_bench)

@@ -1,6 +1,9 @@
 """`crosscheck` command line. Subcommand names and JSON fields are a contract (see README).
 
 Bad input prints one line `crosscheck: error: ...` and exits with status 2, never a traceback.
+Exit 1 means only "a check failed"; Ctrl-C prints one line and exits 130; an unexpected
+exception (a bug) prints its traceback and exits 3; a sweep stopped by its time budget with
+nothing failed exits 4 (incomplete, not passed).
 """
 from __future__ import annotations
 
@@ -10,15 +13,20 @@ import math
 import re
 import sys
 
-from reference.errors import ModelInputError
-
-from .arguments import OneLineParser
+# Only the standard library at import time: the models and engines (numpy, sympy, seconds to
+# import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
+from .arguments import OneLineParser, finite_float
 
 EXIT_USAGE = 2
+EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
+EXIT_INCOMPLETE = 4  # a campaign stopped by its time budget: nothing failed, not all was run
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 
-class UsageError(ModelInputError):
-    pass
+def UsageError(message: str) -> Exception:  # noqa: N802 - used as `raise UsageError(...)`
+    """Bad command-line input: a ModelInputError, printed as one line with exit status 2."""
+    from reference.errors import ModelInputError
+    return ModelInputError(message)
 
 
 def _floats(text: str | None, what: str) -> list[float] | None:
@@ -167,7 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a parameter (repeatable)")
     e.add_argument("--q", help="coordinates, comma-separated (default: the model's initial state)")
     e.add_argument("--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)")
-    e.add_argument("--t", type=float, default=0.0, help="time (rheonomic constraints)")
+    e.add_argument("--t", type=finite_float, default=0.0, help="time (rheonomic constraints)")
     e.add_argument("--project", action="store_true",
                    help="project the state onto the constraint manifold instead of refusing it")
     e.add_argument("--json", action="store_true")
@@ -182,7 +190,7 @@ def _optional_commands():
     """Subcommands that live in their own modules: each has a register(subparsers)."""
     from importlib import import_module
     return [import_module(f"crosscheck.{name}").register
-            for name in ("run", "bench", "report", "gate", "sweep")]
+            for name in ("run", "bench", "report", "gate", "sweep", "engines_command", "sensitivity_command")]
 
 
 # A value that starts with a minus sign: a number or a comma-separated list of numbers
@@ -217,16 +225,34 @@ def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) ->
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = parser.parse_args(_attach_negative_values(parser, argv))
+    args = None
     try:
-        return int(args.func(args) or 0)
-    except ModelInputError as exc:
-        print(f"crosscheck: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
+        from reference.errors import ModelInputError
+        parser = build_parser()
+        argv = list(sys.argv[1:] if argv is None else argv)
+        args = parser.parse_args(_attach_negative_values(parser, argv))
+        try:
+            return int(args.func(args) or 0)
+        except ModelInputError as exc:
+            print(f"crosscheck: error: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"crosscheck: interrupted; no new output written (a command's files are renamed "
+              f"into place only once all are complete){_out_note(args)}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except BrokenPipeError:  # pragma: no cover - `crosscheck models | head`
         return 0
+    except Exception:  # noqa: BLE001 - a bug: exit 1 is reserved for "a check failed"
+        import traceback
+        traceback.print_exc()
+        print("crosscheck: internal error (a bug, not a failed check; the traceback above "
+              "says where)", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+def _out_note(args) -> str:
+    out = getattr(args, "out", None)
+    return f"; {out} holds what it held before" if out else ""
 
 
 if __name__ == "__main__":

@@ -30,12 +30,6 @@ EXACT_KKT = Tolerance(
            "round-off limited (~1e-14 of the largest term); 1e-11 is the issue's bound and "
            "leaves room for the ~1e-12 amplification by small axial inertias (Example 4) and "
            "MuJoCo's 1e-12 light bodies")
-MUJOCO_EXACT = Tolerance(
-    5e-11, "an exact answer in MuJoCo (a tree, no equality rows): MuJoCo rejects massless "
-           "bodies, so the reference's light rods and zero axial inertias get 1e-12 relative "
-           "mass or inertia, which biases the answer by ~1e-12 and is amplified by the nearly "
-           "singular M; measured up to 2.9e-11 (crosscheck sweep exercise_6_4 --seed 3 "
-           "--samples 200 --engines mujoco)")
 STATE_MAP = Tolerance(
     1e-12, "reference -> engine -> reference state map: trigonometric and quaternion round "
            "trips lose a few ulps")
@@ -58,11 +52,6 @@ SOFT_PREDICTION = Tolerance(
 # the ratio would otherwise measure MuJoCo's solver tolerance (seen in a sweep: 6e-5 at a
 # predicted error of ~1e-6 on the slider-crank).
 SOFT_PREDICTION_FLOOR = 1e-5
-
-
-def exact_tolerance(engine: str) -> Tolerance:
-    """The tolerance of an engine's exact (rigid, unregularized) answer."""
-    return MUJOCO_EXACT if engine == "mujoco" else EXACT_KKT
 
 
 def soft_prediction(raw_value, reference, predicted_error) -> tuple[float, float, float]:

@@ -10,12 +10,14 @@ Records are matched by (model, formulation, engine, check, quantity). A regressi
 - a record of the baseline missing from the results (a check that stopped being run);
 - a check that passed in the baseline and now fails, or is now skipped (coverage lost);
 - a record new to the results that fails (failing checks enter the baseline only by --update);
+- a record new to the results at all, unless --accept-new (then listed as accepted): a gate
+  that compared nothing must not pass (a baseline of one model against the whole suite);
 - an accuracy figure (the record's error; with --bench, a work-precision row's error, residual
   or energy drift) worse than FACTOR times its baseline value, both first raised to FLOOR;
 - with --bench, a forward timing that became slower than TIMING_BAND times its baseline, where
   each timing is a ratio to another path timed in the same bench run (never an absolute time).
 Checks failing in the baseline and still failing are known failures: listed, not regressions.
-New records are listed too; `--update` takes them (and everything else) into the baseline.
+`--update` takes new records (and everything else) into the baseline.
 
 `--update` rewrites the baseline from the results (and bench) deliberately, printing what
 changed; it exits 0. The baseline keeps the records, the timing ratios and the work-precision
@@ -29,6 +31,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from .output import write_atomic
 from .report import ReportInputError, check_bench, check_results, load_json
 
 # An accuracy figure may grow by this factor before it is a regression. The figures are worst
@@ -42,7 +45,7 @@ FACTOR = 10.0
 # changes it by 10-100x without any change of method, so values below the floor count as equal.
 ROUND_OFF_FLOOR = 1e-13
 # Timing ratios measured in one run still move with machine load: the same setting's medians
-# vary by 1.3-3x between runs on the 2-core shared machines (crosscheck/timing.py, NUMERICS.md),
+# vary by 1.3-3x between runs on the 2-core shared machines (crosscheck/timing.py, docs/numerics.md),
 # and a ratio combines two such timings. A 5x slowdown is beyond that noise and is what a real
 # loss looks like (falling off the compiled path costs 10-100x).
 TIMING_BAND = 5.0
@@ -52,7 +55,13 @@ WP_KEY_FIELDS = ("model", "engine", "method", "integrator", "setting")
 WP_FIGURES = ("error", "residual", "energy_drift")
 # the timing a path is divided by, in order of preference: the engines' constrained forward
 # calls (the ratio the report shows), else the plain lambdify+solve baseline of the same run
-TIMING_ANCHORS = ("engine:pinocchio", "engine:mujoco", "baseline-lambdify-solve")
+BASELINE_ANCHOR = "baseline-lambdify-solve"
+
+
+def timing_anchors() -> tuple[str, ...]:
+    """Every available engine's forward path in the registry's order, then the baseline."""
+    from .engines.registry import available_engines
+    return tuple(f"engine:{e}" for e in available_engines()) + (BASELINE_ANCHOR,)
 
 
 class GateInputError(ReportInputError):
@@ -127,12 +136,13 @@ def timing_ratios(bench: dict) -> dict[str, dict]:
     of the same model in the same bench run (minimum over repeats: least disturbed by load)."""
     out: dict[str, dict] = {}
     by_model: dict[str, dict[str, float]] = {}
+    anchors = timing_anchors()
     for r in bench.get("forward", []) or []:
         t = _f(r.get("us_per_state_min", r.get("us_per_state")))
         if math.isfinite(t) and t > 0 and not r.get("skipped"):
             by_model.setdefault(str(r.get("model", "?")), {})[str(r.get("path", "?"))] = t
     for model, paths in by_model.items():
-        for anchor in TIMING_ANCHORS:
+        for anchor in anchors:
             if anchor not in paths:
                 continue
             for path, t in paths.items():
@@ -154,12 +164,17 @@ class Outcome:
         self.regressions: list[str] = []
         self.known_failures: list[str] = []
         self.improvements: list[str] = []
-        self.new: list[str] = []
+        self.new: list[str] = []  # records the baseline lacks: regressions, unless accepted
+        self.accepted: list[str] = []  # the same, accepted by --accept-new
         self.notes: list[str] = []
 
 
 def compare(baseline: dict, results: dict, bench: dict | None = None, factor: float = FACTOR,
-            floor: float = ROUND_OFF_FLOOR, band: float = TIMING_BAND) -> Outcome:
+            floor: float = ROUND_OFF_FLOOR, band: float = TIMING_BAND,
+            accept_new: bool = False) -> Outcome:
+    """The gate's verdict. A record the baseline lacks is ungated: a regression (a baseline of
+    one model must not pass a run of the whole suite by comparing nothing) unless accept_new,
+    which lists it as accepted; a new record that fails is a regression either way."""
     out = Outcome()
     old = index(baseline.get("records", []), record_key)
     new = index(results.get("records", []), record_key)
@@ -200,6 +215,11 @@ def compare(baseline: dict, results: dict, bench: dict | None = None, factor: fl
         else:
             out.new.append(f"{k}: new record ({verdict(r)})")
     _compare_bench(baseline.get("bench"), bench, out, factor, floor, band)
+    if accept_new:
+        out.accepted, out.new = out.new, []
+    else:
+        out.regressions += [f"{n}; not in the baseline (gate it with --update, or accept it "
+                            f"with --accept-new)" for n in out.new]
     return out
 
 
@@ -284,6 +304,11 @@ def cmd_gate(args) -> int:
     bench = check_bench(load_json(args.bench, "bench"), args.bench) if args.bench else None
     baseline_path = Path(args.baseline)
     if args.update:
+        from .arguments import output_dir
+        if baseline_path.is_dir():
+            raise GateInputError(f"--baseline {args.baseline!r} is a directory; give the "
+                                 f"baseline file's path (e.g. reports/baseline.json)")
+        output_dir(str(baseline_path.parent), "--baseline")  # writable, before the comparison
         old = _load_baseline(args.baseline) if baseline_path.exists() else None
         argv = ["crosscheck", "gate", "--baseline", args.baseline, "--results", args.results]
         if args.bench:
@@ -300,32 +325,34 @@ def cmd_gate(args) -> int:
                          f"{_fmt(r.get('tolerance'))}" for r in new["records"]
                          if verdict(r) == "failed"])
         else:
-            o = compare(old, results, bench, args.factor, args.floor, args.timing_band)
+            o = compare(old, results, bench, args.factor, args.floor, args.timing_band,
+                        accept_new=True)  # what is new is listed as new, not as a regression
             if bench is None and old.get("bench"):
                 new["bench"] = old["bench"]  # keep the benchmark part: not re-measured here
                 new["meta"]["bench_meta"] = old.get("meta", {}).get("bench_meta", {})
-            changed = o.regressions + o.improvements + o.new
+            changed = o.regressions + o.improvements + o.accepted
             print(f"crosscheck gate: updating baseline {args.baseline}: {len(old['records'])} "
                   f"-> {len(new['records'])} records; what changed against the old baseline:")
             _print_list("would have been regressions", o.regressions)
             _print_list("improvements", o.improvements)
-            _print_list("new", o.new)
+            _print_list("new", o.accepted)
             _print_list("still failing", o.known_failures)
             if not changed:
                 print("  nothing beyond the gate's factor and floor (figures refreshed)")
-        baseline_path.parent.mkdir(parents=True, exist_ok=True)
-        baseline_path.write_text(json.dumps(new, indent=2, allow_nan=True) + "\n")
+        write_atomic(baseline_path, json.dumps(new, indent=2, allow_nan=True) + "\n")
         return 0
     if not baseline_path.exists():
         raise GateInputError(f"baseline file {args.baseline!r} not found (create it "
                              f"deliberately with `crosscheck gate --baseline {args.baseline} "
                              f"--results {args.results} --update`)")
     baseline = _load_baseline(args.baseline)
-    o = compare(baseline, results, bench, args.factor, args.floor, args.timing_band)
+    o = compare(baseline, results, bench, args.factor, args.floor, args.timing_band,
+                args.accept_new)
     _print_list("REGRESSIONS", o.regressions)
     _print_list("known failures (failing in the baseline too)", o.known_failures)
     _print_list("improvements (run --update to keep them)", o.improvements)
-    _print_list("not in the baseline (run --update to gate them)", o.new)
+    _print_list("not in the baseline, accepted by --accept-new (run --update to gate them)",
+                o.accepted)
     for n in o.notes:
         print(f"note: {n}")
     n_old = len(baseline.get("records", []))
@@ -354,6 +381,9 @@ def register(sub):
     g.add_argument("--update", action="store_true",
                    help="rewrite the baseline from these results (deliberately), printing what "
                         "changed")
+    g.add_argument("--accept-new", action="store_true",
+                   help="records the baseline lacks pass (listed as accepted) instead of "
+                        "failing the gate; a new record that fails still fails it")
     g.add_argument("--factor", type=float, default=FACTOR,
                    help=f"an accuracy figure may worsen by this factor (default {FACTOR:g})")
     g.add_argument("--floor", type=float, default=ROUND_OFF_FLOOR,

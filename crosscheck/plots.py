@@ -19,8 +19,11 @@ import math
 ZERO_AT = 1e-17  # below every double round-off figure of a quantity scaled to 1 (eps = 2.2e-16)
 
 # one colour per engine, the same in every figure of the report
-ENGINE_COLORS = {"reference": "#6b6b6b", "pinocchio": "#1f77b4", "mujoco": "#ff7f0e"}
-_EXTRA_COLORS = ["#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22"]
+# (the engines' colours: ENGINE_PALETTE cycled in the registry's order, then the other engines
+# of the figure in its order)
+REFERENCE_COLOR = "#6b6b6b"
+ENGINE_PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf",
+                  "#bcbd22"]
 _LINE_COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf",
                 "#bcbd22", "#7f7f7f", "#d62728"]
 _MARKERS = ["o", "s", "^", "D", "v", "P", "X", "<", ">", "*"]
@@ -28,11 +31,13 @@ FAIL_COLOR = "#d62728"
 
 
 def engine_color(engine: str, order: list[str] | None = None) -> str:
-    if engine in ENGINE_COLORS:
-        return ENGINE_COLORS[engine]
-    extra = [e for e in (order or []) if e not in ENGINE_COLORS]
-    i = extra.index(engine) if engine in extra else len(extra)
-    return _EXTRA_COLORS[i % len(_EXTRA_COLORS)]
+    if engine == "reference":
+        return REFERENCE_COLOR
+    from .engines.registry import available_engines
+    known = list(available_engines())
+    seq = known + [e for e in (order or []) if e not in known and e != "reference"]
+    i = seq.index(engine) if engine in seq else len(seq)
+    return ENGINE_PALETTE[i % len(ENGINE_PALETTE)]
 
 
 def _num(x) -> float:

@@ -28,8 +28,19 @@ from pathlib import Path
 from reference.errors import ModelInputError
 
 DEFAULT_RESULTS = "out/results.json"
-VERSION_KEYS = ("python", "numpy", "scipy", "sympy", "pin", "mujoco")
-ENGINE_ANCHORS = (("pinocchio", "Pinocchio"), ("mujoco", "MuJoCo"))
+BASE_VERSION_KEYS = ("python", "numpy", "scipy", "sympy")
+
+
+def version_keys() -> tuple[str, ...]:
+    """The versions results record: the numerical stack and every available engine's package."""
+    from .engines.registry import engine_distributions
+    return BASE_VERSION_KEYS + engine_distributions()
+
+
+def engine_anchors() -> tuple[tuple[str, str], ...]:
+    """(engine, label) of every available engine, in the registry's order."""
+    from .engines.registry import available_engines, engine_label
+    return tuple((e, engine_label(e)) for e in available_engines())
 # record fields shown in their own columns; any other field goes to the "details" column
 STANDARD_FIELDS = {"model", "formulation", "engine", "check", "quantity", "error", "tolerance",
                    "passed", "skipped", "reason"}
@@ -58,11 +69,34 @@ def load_json(path: str | Path, what: str) -> dict:
     return data
 
 
+def _record_problem(r) -> str | None:
+    """What is wrong with one record, or None: the fields every report and gate reads."""
+    if not isinstance(r, dict):
+        return "is not an object"
+    for key in ("model", "engine", "check", "quantity"):
+        if not isinstance(r.get(key), str) or not r[key]:
+            return f"has no {key!r} name"
+    if r.get("passed") not in (True, False, None):
+        return f"has \"passed\": {r.get('passed')!r} (expected true, false or null)"
+    for key in ("error", "tolerance"):
+        v = r.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            return f"has {key!r}: {v!r} (expected a number or null)"
+    if r.get("passed") is not None and r.get("tolerance") is None:
+        return "is judged (\"passed\" set) but has no tolerance"
+    return None
+
+
 def check_results(data: dict, path) -> dict:
     recs = data.get("records")
-    if not isinstance(recs, list) or not all(isinstance(r, dict) for r in recs):
+    if not isinstance(recs, list):
         raise ReportInputError(f"results file {str(path)!r} has no \"records\" list of objects "
                                f"(is it a results.json written by `crosscheck run`?)")
+    for i, r in enumerate(recs):
+        problem = _record_problem(r)
+        if problem:
+            raise ReportInputError(f"results file {str(path)!r}: record {i} {problem} (is it "
+                                   f"a results.json written by `crosscheck run`?)")
     series = data.get("series")
     if series is not None and not (isinstance(series, list)
                                    and all(isinstance(s, dict) for s in series)):
@@ -303,7 +337,7 @@ class Content:
         """Forward rows with ratios against each engine's forward call in the same bench run."""
         rows = self.forward_of(model)
         anchors = {}
-        for key, label in ENGINE_ANCHORS:
+        for key, label in engine_anchors():
             for r in rows:
                 if r.get("path") == f"engine:{key}" and _f(r.get("us_per_state")) > 0:
                     anchors[key] = (label, _f(r["us_per_state"]))
@@ -343,7 +377,7 @@ def _machine(meta: dict) -> str:
 def _versions(meta: dict) -> dict:
     v = meta.get("versions") or {}
     return {k: (v.get(k) if v.get(k) is not None else "not installed") if k in v
-            else "not recorded" for k in VERSION_KEYS}
+            else "not recorded" for k in version_keys()}
 
 
 # ---- HTML ------------------------------------------------------------------------------------
@@ -480,8 +514,9 @@ def _timing_html(c: Content, model: str) -> str:
                 f"machines; &lt; 1× means faster than the engine).</p>")
     else:
         out += ('<p class="note">No engine was timed in this bench run, so there are no ratios '
-                "against Pinocchio or MuJoCo (run <code>crosscheck bench --engines "
-                "pinocchio,mujoco</code>).</p>")
+                f"against {' or '.join(label for _, label in engine_anchors())} (run "
+                f"<code>crosscheck bench --engines "
+                f"{','.join(e for e, _ in engine_anchors())}</code>).</p>")
     return out
 
 
@@ -573,7 +608,7 @@ def _footer_html(c: Content) -> str:
                                for _, m in metas],
                 ["date (UTC)"] + [_e(m.get("date", "not recorded")) for _, m in metas],
                 ["machine"] + [_e(_machine(m)) for _, m in metas]]
-        for k in VERSION_KEYS:
+        for k in version_keys():
             rows.append([k] + [_e(_versions(m)[k]) for _, m in metas])
         out.append("<h3>Machine and versions</h3>")
         out.append(_table(headers, rows))
@@ -895,7 +930,7 @@ def render_md(c: Content) -> str:
     for label, m in c.meta_rows():
         v = _versions(m)
         out += [f"- {label}: `{m.get('command', 'not recorded')}` on {m.get('date', 'undated')}, "
-                f"machine {_machine(m)}; " + ", ".join(f"{k} {v[k]}" for k in VERSION_KEYS)]
+                f"machine {_machine(m)}; " + ", ".join(f"{k} {v[k]}" for k in version_keys())]
     out += ["", "Generated by `crosscheck report`; do not edit by hand.", ""]
     return "\n".join(out)
 
@@ -945,26 +980,40 @@ def render_junit(c: Content) -> str:
 # ---- entry points ----------------------------------------------------------------------------
 def write_report(results: dict | None, bench: dict | None, out_dir: str | Path, command: str,
                  results_path: str | None = None, bench_path: str | None = None,
-                 sweep: dict | None = None, sweep_path: str | None = None) -> dict:
-    """Write index.html, report.md and junit.xml into out_dir; returns their paths."""
+                 sweep: dict | None = None, sweep_path: str | None = None,
+                 outputs=None) -> dict:
+    """Write index.html, report.md and junit.xml into out_dir; returns their paths.
+
+    The files are staged and renamed into place together (crosscheck.output), so an interrupt
+    leaves the previous report or this one, never a mix; with `outputs` given (a run staging
+    its results.json too) they are only staged, and the caller commits them all at once."""
+    from .output import Outputs
     c = Content(results, bench, command, results_path, bench_path, sweep, sweep_path)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {"html": out / "index.html", "md": out / "report.md", "junit": out / "junit.xml"}
-    paths["html"].write_text(render_html(c), encoding="utf-8")
-    paths["md"].write_text(render_md(c), encoding="utf-8")
-    if results is not None:
-        paths["junit"].write_text(render_junit(c), encoding="utf-8")
-    else:
-        paths.pop("junit")
-    return paths
+    names = {"html": "index.html", "md": "report.md", "junit": "junit.xml"}
+    if results is None:
+        names.pop("junit")
+    renderers = {"html": render_html, "md": render_md, "junit": render_junit}
+    if outputs is not None:
+        for key, name in names.items():
+            outputs.stage(name, renderers[key](c))
+        return {k: outputs.path(v) for k, v in names.items()}
+    with Outputs(out_dir) as staged:
+        for key, name in names.items():
+            staged.stage(name, renderers[key](c))
+        staged.commit(stale=("junit.xml",))  # no results: an old junit.xml is not this one
+    return {k: staged.path(v) for k, v in names.items()}
 
 
 def generate(results_path: str | None, bench_path: str | None, out_dir: str,
-             sweep_path: str | None = None) -> dict:
-    """Load and check the inputs, then write the report (the lead's `run` may call this)."""
-    results = check_results(load_json(results_path, "results"), results_path) \
-        if results_path else None
+             sweep_path: str | None = None, outputs=None, results_text: str | None = None
+             ) -> dict:
+    """Load and check the inputs, then write the report (`run` calls this with its staged
+    outputs and the results.json text it is about to commit)."""
+    if results_text is not None:
+        results = check_results(json.loads(results_text), results_path)
+    else:
+        results = check_results(load_json(results_path, "results"), results_path) \
+            if results_path else None
     bench = check_bench(load_json(bench_path, "bench"), bench_path) if bench_path else None
     sweep = check_sweep(load_json(sweep_path, "sweep"), sweep_path) if sweep_path else None
     argv = ["crosscheck", "report"]
@@ -976,7 +1025,7 @@ def generate(results_path: str | None, bench_path: str | None, out_dir: str,
         argv += ["--sweep", str(sweep_path)]
     argv += ["--out", str(out_dir)]
     return write_report(results, bench, out_dir, shlex.join(argv), results_path, bench_path,
-                        sweep, sweep_path)
+                        sweep, sweep_path, outputs)
 
 
 def cmd_report(args) -> int:
@@ -999,6 +1048,8 @@ def cmd_report(args) -> int:
         if beside.is_file():
             sweep_path = str(beside)
     out_dir = args.out or str(Path(results_path or bench_path or sweep_path).parent)
+    from .arguments import output_dir
+    output_dir(out_dir)
     paths = generate(results_path, bench_path, out_dir, sweep_path)
     print("crosscheck report: " + ", ".join(str(p) for p in paths.values()))
     return 0

@@ -48,8 +48,10 @@ class Threshold:
 Evaluate = Callable[[float], str]
 
 
-def threshold(evaluate: Evaluate) -> tuple[Optional[int], Optional[int], str, int]:
-    """(caught decade k, largest decade not caught, failing record at k, evaluations)."""
+def threshold(evaluate: Evaluate, decades: tuple[int, ...] = DECADES
+              ) -> tuple[Optional[int], Optional[int], str, int]:
+    """(caught decade k, largest decade not caught, failing record at k, evaluations) over
+    `decades` (ascending; the largest is checked first)."""
     calls = 0
 
     def failing(k: int) -> str:
@@ -57,32 +59,34 @@ def threshold(evaluate: Evaluate) -> tuple[Optional[int], Optional[int], str, in
         calls += 1
         return evaluate(10.0 ** k)
 
-    top = failing(DECADES[-1])
+    top = failing(decades[-1])
     if not top:
-        return None, DECADES[-1], "", calls
-    lo, hi, hi_fail = -1, len(DECADES) - 1, top  # DECADES[hi] caught; DECADES[lo] not (or none)
+        return None, decades[-1], "", calls
+    lo, hi, hi_fail = -1, len(decades) - 1, top  # decades[hi] caught; decades[lo] not (or none)
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        name = failing(DECADES[mid])
+        name = failing(decades[mid])
         if name:
             hi, hi_fail = mid, name
         else:
             lo = mid
-    return DECADES[hi], (DECADES[lo] if lo >= 0 else None), hi_fail, calls
+    return decades[hi], (decades[lo] if lo >= 0 else None), hi_fail, calls
 
 
 def search(model: str, engine: str, parameter: str, evaluate: Evaluate,
-           unused_reason: str = "") -> Threshold:
+           unused_reason: str = "", largest: int = DECADES[-1]) -> Threshold:
     """The threshold of one parameter; `unused_reason` marks a parameter the engine's model does
-    not contain (nothing is searched, the reason is reported)."""
+    not contain (nothing is searched, the reason is reported); `largest` is the largest decade
+    the engine accepts as a change (a principal inertia at the edge of the triangle
+    inequality admits only small ones)."""
     if unused_reason:
         return Threshold(model, engine, parameter, None, None, reason=unused_reason)
-    k, below, name, calls = threshold(evaluate)
+    k, below, name, calls = threshold(evaluate, tuple(d for d in DECADES if d <= largest))
     if k is None:
         return Threshold(model, engine, parameter, None, 10.0 ** below, evaluations=calls,
-                         reason="no instantaneous check failed for a change of up to 10 %: the "
-                                "compared quantities do not depend on this parameter at these "
-                                "states")
+                         reason=f"no instantaneous check failed for a change of up to "
+                                f"{10.0 ** below:.0e}: the compared quantities do not depend "
+                                "on this parameter at these states")
     return Threshold(model, engine, parameter, 10.0 ** k,
                      None if below is None else 10.0 ** below, failing_check=name,
                      evaluations=calls)

@@ -4,6 +4,7 @@
                      [--workers K | --dask ADDRESS] [--chunk C] [--max-seconds T]
                      [--perturb ENGINE:PARAM=REL] [--formulation F] [--worst K] [--out DIR]
     crosscheck sweep [MODEL ...] --bench --samples N [--out DIR]   # throughput -> sweep_bench.json
+    crosscheck sweep --resume DIR [--workers K | --dask ADDRESS]   # finish an interrupted one
 
 Samples. Sample i of model M (i = I .. I+N-1) is one random parameter set, one time t and one
 consistent state, drawn by crosscheck.sampling (the property tests' generator) from a numpy
@@ -11,8 +12,8 @@ Generator seeded with sampling.sample_seed(S, M, i): its randomness depends on (
 never on the worker that ran it, the chunking, the executor or the other models.
 
 Checks. For every sample and every engine variant, the instantaneous cross-checks of
-`crosscheck run` (crosscheck.run._engine_records; the same metrics and named tolerances of
-crosscheck.compare): state map, mass matrix (where the coordinates map one to one), energy,
+`crosscheck run` (crosscheck.comparison.compare_at_state, the one comparison path; the same
+metrics and named tolerances): state map, mass matrix (where the coordinates map one to one), energy,
 accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer recovered
 from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
 `*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance
@@ -21,7 +22,7 @@ a chunk in one batched call of its compiled code, with per-sample parameter arra
 
 Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding,
 executor), "status" (complete, stopped, completed sample ranges per model, outside_tolerance,
-faults, passed), "series" (per model x engine x variant: evaluated, faults, or why it is not
+faults, verdict, passed: true only for a complete campaign with nothing failed), "series" (per model x engine x variant: evaluated, faults, or why it is not
 run), "results" (per model x engine x variant x quantity: tolerance and its reason, count,
 max, mean, quantiles, a log10 histogram, outside_tolerance, the worst cases), "faults" (groups
 with counts, the first FAULTS_KEPT records per group), "timing" (where the time went; the only
@@ -33,7 +34,11 @@ reference's accelerations and multipliers at that case, to round-off of the scal
 Faults (a draw whose projection fails, a singular reference, an engine that raises while
 building or evaluating) are recorded per sample with the stage, the exception and its message;
 the campaign goes on. An interrupted campaign (Ctrl-C, or --max-seconds) writes what it
-completed, as sample-index ranges per model, and says why it stopped.
+completed, as sample-index ranges per model, and says why it stopped; every finished chunk is
+also kept in DIR/sweep.chunks (crosscheck.sweep_store), and `--resume DIR` computes only the
+samples no stored chunk covers, ending with the sweep.json of an uninterrupted run (meta and
+timing aside). A Dask worker lost mid-campaign costs only the rerun of its tasks (the scheduler
+reschedules them; the results do not depend on where a chunk ran).
 
 Execution: local worker processes by default (all cores; ProcessPoolExecutor, chunks of at most
 LOCAL_CHUNK_MAX samples), in-process with --workers 1, or a Dask distributed cluster with
@@ -50,9 +55,11 @@ builds); --max-seconds compares wall clocks (time.time) on the workers; one-thre
 error value (8 bytes per sample per quantity, ~20 quantities per model) to give exact quantiles:
 10^6 samples of one model is ~160 MB, so run models one at a time at that scale.
 
-Exit status: 0 when every completed sample is within every tolerance and nothing faulted
-(including a campaign stopped by --max-seconds, which says so), 1 when a sample is outside a
-tolerance or faulted, 2 on bad input (one line), 130 when interrupted (after writing sweep.json).
+Exit status: 0 when the campaign completed with every sample within every tolerance and nothing
+faulted (status.verdict "passed"), 1 when a sample is outside a tolerance or faulted ("failed"),
+4 when it stopped early (--max-seconds) with nothing failed in what it ran ("incomplete": not
+passed), 2 on bad input (one line), 130 when interrupted (after writing sweep.json, whose
+status.passed is then false).
 """
 from __future__ import annotations
 
@@ -75,8 +82,10 @@ from reference import NumericModel, models
 from reference.errors import ModelInputError, SingularSystemError
 
 from . import compare as C
+from .comparison import ReferenceAnswer, build, compare_at_state, rigid_answer, tolerance
 from .engines.base import EngineUnsupported
-from .run import ENGINE_NAMES, engine_adapter, parse_perturb, perturbed
+from .engines.registry import available_engines, engine_modules, get_engine
+from .perturb import check_parameters, parse_perturb, perturbed
 from .sampling import draw_sample, sample_seed
 
 # ---- named settings, each with its reason ---------------------------------------------------
@@ -105,7 +114,6 @@ SOFT_ERROR_REASON = (
     "MuJoCo's raw (soft) answer against the rigid reference: the error its impedance "
     "d = 0.9999 makes by design (~1e-4 relative); reported, not judged here -- the "
     "*_soft_vs_predicted quantity holds it to the error the impedance predicts")
-RIGID_ANSWER = "rigid, recovered from MuJoCo's soft solution"
 REFERENCE = "reference"
 
 
@@ -142,67 +150,12 @@ def base_model(name: str, formulation: str | None = None) -> NumericModel:
 
 
 def _adapter(engine: str):
-    return _cached(("adapter", engine), lambda: engine_adapter(engine))
-
-
-def _finite(x: float) -> float:
-    x = float(x)
-    return x if math.isfinite(x) else math.inf
+    return _cached(("adapter", engine), lambda: get_engine(engine))
 
 
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return (text[0] if text else "")[:400]
-
-
-def _soft(raw_value, reference, predicted) -> tuple[float, float]:
-    """(miss of the predicted soft error, raw soft error), as crosscheck.run holds them."""
-    miss, raw_err, _pred = C.soft_prediction(raw_value, reference, predicted)
-    return miss, raw_err
-
-
-def engine_errors(em, q, u, t, acc, lam, M_ref, energy_ref, n_rows):
-    """Errors of one engine model at one state against the reference's values there.
-
-    Returns (values {quantity: error}, skips {quantity: reason}, soft). The metrics are those
-    of crosscheck.run._engine_records for one state (tests/test_sweep.py checks they agree)."""
-    vals: dict[str, float] = {}
-    skips: dict[str, str] = {}
-    qe, ve = em.to_engine_state(q, u)
-    q2, u2 = em.from_engine_state(qe, ve)
-    vals["state_map"] = max(C.scaled_error(q2, q), C.scaled_error(u2, u))
-    M_e = em.mass_matrix(q) if hasattr(em, "mass_matrix") else None
-    if M_e is None:
-        skips["mass_matrix"] = getattr(em, "mass_matrix_note", None) or (
-            "engine coordinates do not map one to one onto the reference's, so their mass "
-            "matrices are not comparable")
-    else:
-        vals["mass_matrix"] = C.scaled_error(M_e, M_ref)
-    ef = em.forward(q, u, t)
-    raw = ef.raw or {}
-    Ke, Ve = em.energy(q, u)
-    Kr, Vr = energy_ref
-    vals["energy"] = abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0)
-    soft = "rigid_accelerations" in raw and "predicted_acceleration_error" in raw
-    if n_rows == 0:
-        skips["multipliers"] = ("no constraints: the engine runs plain forward dynamics "
-                                "(ABA / unconstrained step), no multipliers to compare")
-    elif ef.multipliers is None:
-        skips["multipliers"] = raw.get("multipliers_note") or (
-            "the engine model has no constraint forces that map onto the reference's rows")
-    if soft:
-        vals["accelerations"] = C.scaled_error(raw["rigid_accelerations"], acc)
-        vals["accelerations_soft_vs_predicted"], vals["accelerations_soft_error"] = _soft(
-            ef.accelerations, acc, raw["predicted_acceleration_error"])
-        if "multipliers" not in skips:
-            vals["multipliers"] = C.scaled_error(raw["rigid_multipliers"], lam)
-            vals["multipliers_soft_vs_predicted"], vals["multipliers_soft_error"] = _soft(
-                ef.multipliers, lam, raw["predicted_multiplier_error"])
-    else:
-        vals["accelerations"] = C.scaled_error(ef.accelerations, acc)
-        if "multipliers" not in skips:
-            vals["multipliers"] = C.scaled_error(ef.multipliers, lam)
-    return {k: _finite(v) for k, v in vals.items()}, skips, soft
 
 
 def reference_batch(base: NumericModel, nms, T, Q, U):
@@ -309,15 +262,16 @@ def run_chunk(spec: ChunkSpec) -> dict:
             per_series[(engine, variant)][2] += 1
             try:
                 params = perturbed(name, nm.params, perturb.get(engine, {}))
-                ad = _adapter(engine)
-                em = ad.build(name, params, variant=variant) if variant else ad.build(name, params)
+                em = build(_adapter(engine), name, params, variant)
             except Exception as exc:  # noqa: BLE001
                 fault(i, s, engine, variant, "build", exc)
                 per_series[(engine, variant)][0] += time.perf_counter() - tb
                 continue
             te = time.perf_counter()
             try:
-                vals, sk, sf = engine_errors(em, q, u, t, acc, lam, M_ref, E_ref, base.m)
+                sc = compare_at_state(em, q, u, t, ReferenceAnswer(acc, lam, M_ref, E_ref),
+                                      base.m)
+                vals, sk, sf = sc.values, sc.skips, sc.soft
             except Exception as exc:  # noqa: BLE001
                 fault(i, s, engine, variant, "evaluate", exc)
                 vals, sk, sf = None, {}, None
@@ -414,21 +368,6 @@ def _histogram(v: np.ndarray) -> dict:
             "nonfinite": int((~np.isfinite(v)).sum())}
 
 
-def _tolerance(quantity: str, soft: bool, engine: str) -> tuple[C.Tolerance | None, str]:
-    """(named tolerance, metric) of a quantity, as crosscheck.run holds it."""
-    if quantity == "state_map":
-        return C.STATE_MAP, "scaled_error"
-    if quantity == "mass_matrix":
-        return C.MASS_MATRIX, "scaled_error"
-    if quantity == "energy":
-        return C.ENERGY, "relative_energy_error"
-    if quantity.endswith("_soft_vs_predicted"):
-        return C.SOFT_PREDICTION, "relative_miss"
-    if quantity.endswith("_soft_error"):
-        return None, "scaled_error"
-    return (C.RIGID_RECOVERY if soft else C.exact_tolerance(engine)), "scaled_error"
-
-
 def _fmt_floats(x) -> str:
     return ",".join(repr(float(v)) for v in np.asarray(x, float).ravel())
 
@@ -459,31 +398,24 @@ class Campaign:
     samples: int
     seed: int = 0
     index: int = 0
-    engines: tuple = ENGINE_NAMES
+    engines: tuple = field(default_factory=available_engines)
     perturb: dict = field(default_factory=dict)
     formulation: str | None = None
     worst: int = WORST_CASES
     out: str | None = None
 
     def validate(self) -> None:
+        from .arguments import resolve_engines, resolve_models
         if not self.models:
             raise ModelInputError("no models given")
-        for name in self.models:
-            models.get(name)  # unknown names fail before any work
-        for e in self.engines:
-            if e not in ENGINE_NAMES:
-                raise ModelInputError(f"unknown engine {e!r}; valid: {', '.join(ENGINE_NAMES)}")
+        resolve_models(list(self.models))  # unknown or repeated names fail before any work
+        resolve_engines(list(self.engines))
         for e in self.perturb:
             if e not in self.engines:
                 raise ModelInputError(f"--perturb names engine {e!r}, which is not in "
                                       f"--engines {','.join(self.engines)}")
         for name in self.models:
-            names = [p.name for p in models.get(name).parameters]
-            for e, ps in self.perturb.items():
-                for p in ps:
-                    if p not in names:
-                        raise ModelInputError(f"--perturb {e}:{p}: model {name!r} has no "
-                                              f"parameter {p!r}; valid: {', '.join(names)}")
+            check_parameters(name, [p.name for p in models.get(name).parameters], self.perturb)
         if self.samples < 1:
             raise ModelInputError(f"--samples must be >= 1, got {self.samples}")
         if self.seed < 0 or self.index < 0:
@@ -501,10 +433,9 @@ def _plan(cfg: Campaign):
         series, unsupported = [], {}
         for e in cfg.engines:
             ad = _adapter(e)
-            variants = list(ad.variants(name)) if hasattr(ad, "variants") else [None]
-            for v in variants:
+            for v in ad.variants(name):
                 try:  # the model structure, not the parameters, decides this
-                    ad.build(name, None, variant=v) if v else ad.build(name, None)
+                    build(ad, name, None, v)
                 except EngineUnsupported as exc:
                     unsupported[(e, v)] = _first_line(exc)
                     continue
@@ -517,13 +448,17 @@ def _plan(cfg: Campaign):
 
 
 def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
+    """The chunks still to run: every sample no merged chunk covers (all of them, unless the
+    campaign resumes from stored chunks)."""
     specs = []
     perturb = tuple((e, tuple(sorted(p.items()))) for e, p in sorted(cfg.perturb.items()))
+    end = cfg.index + cfg.samples
     for name, agg in aggs.items():
-        for a in range(cfg.index, cfg.index + cfg.samples, chunk):
-            specs.append(ChunkSpec(name, agg.formulation, cfg.seed, a,
-                                   min(a + chunk, cfg.index + cfg.samples),
-                                   tuple(agg.series), perturb, deadline))
+        for a in range(cfg.index, end, chunk):
+            b = min(a + chunk, end)
+            for lo, hi in _ranges(~agg.completed[a - cfg.index:b - cfg.index], a):
+                specs.append(ChunkSpec(name, agg.formulation, cfg.seed, lo, hi,
+                                       tuple(agg.series), perturb, deadline))
     return specs
 
 
@@ -545,8 +480,7 @@ def _mp_context():
     engines), so they start fast and inherit no threads of the parent (a Dask client, tqdm)."""
     import multiprocessing as mp
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["crosscheck.sweep", "crosscheck.engines.pinocchio_engine",
-                                "crosscheck.engines.mujoco_engine"])
+    ctx.set_forkserver_preload(["crosscheck.sweep", *engine_modules()])
     return ctx
 
 
@@ -702,13 +636,16 @@ def local_chunk(n_samples: int, workers: int) -> int:
 
 
 def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | None = None,
-             max_seconds: float | None = None, progress=None, on_chunk=None) -> dict:
+             max_seconds: float | None = None, progress=None, on_chunk=None,
+             store=None, resume: bool = False) -> dict:
     """Run a campaign and return the sweep.json content.
 
     workers: local processes (default: all cores; 1 = in this process); dask: a scheduler
     address, "local[:K]" or a distributed.Client (then workers is ignored); chunk: samples per
     task (default: local_chunk / dask_chunk); max_seconds: time budget; on_chunk(result) is
-    called after each chunk is merged (tests use it to interrupt)."""
+    called after each chunk is merged (tests use it to interrupt); store: a
+    sweep_store.ChunkStore that keeps every finished chunk on disk, and with resume=True
+    supplies the chunks an interrupted run of the same campaign finished (not recomputed)."""
     from .bench import meta
     cfg.validate()
     if max_seconds is not None and not max_seconds > 0:
@@ -732,6 +669,7 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
                     "chunk": chunk}
     if chunk < 1:
         raise ModelInputError(f"--chunk must be >= 1, got {chunk}")
+    loaded = _load_stored(cfg, aggs, store, resume, progress)
     specs = _specs(cfg, aggs, chunk, deadline)
     stopped = None
     seen = set()
@@ -744,6 +682,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
                                      "type": type(res).__name__, "reason": _first_line(res)})
             return
         agg.merge(res)
+        if store is not None:
+            store.save(res)
         if progress:
             progress(res["completed"])
         if on_chunk:
@@ -761,6 +701,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
             for spec, res in runner.stop():  # chunks that finished while stopping
                 if (spec.model, spec.start) not in seen:
                     aggs[spec.model].merge(res)
+                    if store is not None:
+                        store.save(res)
     finally:
         if runner is not None:
             runner.close()
@@ -775,8 +717,27 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
             stopped = "chunks failed as a whole (see faults.chunks)"
     out = _summarize(cfg, aggs, stopped, done)
     out["meta"] = {**meta(sys.argv[1:]), **_campaign_meta(cfg, aggs), "executor": executor}
+    if resume:
+        out["meta"]["resumed"] = loaded
     out["timing"] = _timing(aggs, time.perf_counter() - t_start)
     return out
+
+
+def _load_stored(cfg: Campaign, aggs, store, resume: bool, progress) -> dict:
+    """Merge the chunks a stored, interrupted run of this campaign finished (resume), or start
+    a fresh store; returns what was loaded (for meta)."""
+    if store is None:
+        return {}
+    if not resume:
+        store.start()
+        return {}
+    chunks = [r for r in store.load() if r["model"] in aggs]
+    for res in chunks:
+        aggs[res["model"]].merge(res)
+        if progress:
+            progress(res["completed"])
+    return {"chunks": len(chunks), "samples": sum(r["completed"] for r in chunks),
+            "from": str(store.dir)}
 
 
 def _campaign_meta(cfg: Campaign, aggs) -> dict:
@@ -838,7 +799,7 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
                                 "faults": n_faults})
             soft = bool(agg.soft.get((e, v)))
             for qn in keys:
-                tol, metric = _tolerance(qn, soft, e)
+                tol, metric = tolerance(qn, soft, _adapter(e), name)
                 row = {"model": name, "formulation": agg.formulation, "engine": e,
                        "variant": v, "quantity": qn}
                 if (e, v, qn) not in agg.values:
@@ -877,7 +838,7 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
                            if len(vals) else {}),
                        "histogram": _histogram(vals), "worst": worst}
                 if soft and qn in ("accelerations", "multipliers"):
-                    rec["answer"] = RIGID_ANSWER
+                    rec["answer"] = rigid_answer(e)
                 results.append(rec)
     n_faults = sum(g["count"] for g in fault_groups.values())
     complete = stopped is None and all(d == cfg.samples for d in done.values())
@@ -887,8 +848,11 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
         "completed": done,
         "completed_ranges": {n: _ranges(a.completed, cfg.index) for n, a in aggs.items()},
         "outside_tolerance": outside_total, "faults": n_faults + len(chunk_faults),
-        "passed": outside_total == 0 and n_faults == 0 and not chunk_faults,
     }
+    # an incomplete campaign never reads as passed: what it did not run, it did not check
+    clean = outside_total == 0 and n_faults == 0 and not chunk_faults
+    status["verdict"] = "failed" if not clean else "passed" if complete else "incomplete"
+    status["passed"] = status["verdict"] == "passed"
     return {"status": status, "series": series_rows, "results": results,
             "faults": {"groups": list(fault_groups.values()), "records": fault_records,
                        "kept_per_group": FAULTS_KEPT, "chunks": chunk_faults}}
@@ -951,7 +915,7 @@ def _machine_scaling(workers=(1, 2), tasks: int = 8, n: int = 2_000_000) -> list
     return out
 
 
-def bench(model_names=None, samples: int = 200, seed: int = 0, engines=ENGINE_NAMES,
+def bench(model_names=None, samples: int = 200, seed: int = 0, engines=None,
           scaling_workers=(1, 2), log=None) -> dict:
     """Throughput of campaigns, measured (not asserted). For `crosscheck sweep --bench` and for
     crosscheck.bench to call.
@@ -966,6 +930,7 @@ def bench(model_names=None, samples: int = 200, seed: int = 0, engines=ENGINE_NA
       scaling of pure-Python work over the same kind of pool.
     """
     names = list(model_names or models.names())
+    engines = tuple(available_engines() if engines is None else engines)
     log = log or (lambda msg: None)
     rows = []
     for name in names:
@@ -1053,26 +1018,6 @@ def _print_bench(b: dict) -> None:
 
 
 # ---- command line ---------------------------------------------------------------------------
-def _int(text, what, minimum=0) -> int:
-    try:
-        v = int(text)
-    except (TypeError, ValueError):
-        raise ModelInputError(f"{what}: {text!r} is not an integer")
-    if v < minimum:
-        raise ModelInputError(f"{what} must be >= {minimum}, got {v}")
-    return v
-
-
-def _float(text, what) -> float:
-    try:
-        v = float(text)
-    except (TypeError, ValueError):
-        raise ModelInputError(f"{what}: {text!r} is not a number")
-    if not (math.isfinite(v) and v > 0):
-        raise ModelInputError(f"{what} must be a positive number, got {text}")
-    return v
-
-
 def _print_summary(res: dict, path: Path) -> None:
     st = res["status"]
     for r in res["results"]:
@@ -1097,78 +1042,137 @@ def _print_summary(res: dict, path: Path) -> None:
 
 
 def cmd_sweep(args) -> int:
+    from .arguments import output_dir, resolve_engines, resolve_models
     from .cli import _json_default
-    samples = _int(args.samples, "--samples", 1)
-    seed = _int(args.seed, "--seed", 0)
-    index = _int(args.index, "--index", 0)
-    worst = _int(args.worst, "--worst", 0)
-    workers = None if args.workers is None else _int(args.workers, "--workers", 1)
-    chunk = None if args.chunk is None else _int(args.chunk, "--chunk", 1)
-    max_seconds = None if args.max_seconds is None else _float(args.max_seconds,
-                                                               "--max-seconds")
-    if workers is not None and args.dask is not None:
+    from .output import write_atomic
+    from .sweep_store import ChunkStore
+    if args.workers is not None and args.dask is not None:
         raise ModelInputError("give --workers or --dask, not both")
-    names = args.models or models.names()
-    engines = tuple(e for e in args.engines.split(",") if e)
-    if not engines:
-        raise ModelInputError(f"--engines: give at least one of {', '.join(ENGINE_NAMES)}")
-    out = Path(args.out)
-    if args.bench:
-        cfg = Campaign(list(names), samples, seed, index, engines)
-        cfg.validate()
-        b = bench(names, samples, seed, engines,
-                  log=lambda m: print(m, file=sys.stderr, flush=True))
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "sweep_bench.json").write_text(json.dumps(b, indent=2, default=_json_default))
-        _print_bench(b)
-        print(f"wrote {out / 'sweep_bench.json'}")
-        return 0
-    cfg = Campaign(list(names), samples, seed, index, engines, parse_perturb(args.perturb),
-                   args.formulation, worst, str(out))
+    if args.resume is not None:
+        cfg, out = _resumed_campaign(args)
+    else:
+        names = resolve_models(args.models)
+        engines = tuple(resolve_engines(args.engines))
+        out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
+        if args.bench:
+            return _cmd_bench(args, names, engines, out)
+        cfg = Campaign(list(names), args.samples, args.seed, args.index, engines,
+                       parse_perturb(args.perturb), args.formulation, args.worst, str(out))
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
-        bar = tqdm(total=samples * len(names), desc="samples", unit="sample", file=sys.stderr)
-    code = None
+        bar = tqdm(total=cfg.samples * len(cfg.models), desc="samples", unit="sample",
+                   file=sys.stderr)
+    store = ChunkStore(out, cfg)
     try:
-        res = campaign(cfg, workers=workers, dask=args.dask, chunk=chunk,
-                       max_seconds=max_seconds, progress=bar.update if bar else None)
+        res = campaign(cfg, workers=args.workers, dask=args.dask, chunk=args.chunk,
+                       max_seconds=args.max_seconds, progress=bar.update if bar else None,
+                       store=store, resume=args.resume is not None)
     finally:
         if bar:
             bar.close()
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "sweep.json"
-    path.write_text(json.dumps(res, indent=2, default=_json_default, allow_nan=True))
+    path = write_atomic(out / "sweep.json",
+                        json.dumps(res, indent=2, default=_json_default, allow_nan=True))
     _print_summary(res, path)
-    if res["status"]["stopped"] == "interrupted":
-        code = 130
-    return code if code is not None else (0 if res["status"]["passed"] else 1)
+    if res["status"]["complete"]:
+        store.remove()  # after sweep.json is in place: nothing left to resume
+    else:
+        print(f"finished chunks kept in {store.dir}; continue with: "
+              f"{shlex.join(['crosscheck', 'sweep', '--resume', str(out)])}")
+    return exit_code(res["status"])
+
+
+# campaign options of the command line, with their defaults: under --resume each must be left
+# at its default or agree with the stored campaign
+_CAMPAIGN_OPTIONS = {"models": [], "samples": 100, "seed": 0, "index": 0,
+                     "engines": None, "perturb": [], "formulation": None,
+                     "worst": WORST_CASES}
+
+
+def _resumed_campaign(args):
+    """The campaign stored in --resume DIR; options that contradict it are refused."""
+    from .arguments import output_dir
+    from .sweep_store import stored_settings
+    if args.bench:
+        raise ModelInputError("--resume continues a campaign; --bench measures throughput: "
+                              "give one of them")
+    out = output_dir(args.resume, "--resume")
+    if args.out not in ("out", args.resume):
+        raise ModelInputError(f"--resume {args.resume!r} writes there; drop --out {args.out!r}")
+    st = stored_settings(out)
+    given = {"perturb": parse_perturb(args.perturb)}
+    for key, default in _CAMPAIGN_OPTIONS.items():
+        value = getattr(args, key)
+        if value != default and given.get(key, value) != st[key]:
+            raise ModelInputError(
+                f"--resume {args.resume!r} continues the campaign stored there ({key} "
+                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out")
+    cfg = Campaign(list(st["models"]), st["samples"], st["seed"], st["index"],
+                   tuple(st["engines"]), st["perturb"], st["formulation"], st["worst"],
+                   str(out))
+    return cfg, out
+
+
+def _cmd_bench(args, names, engines, out) -> int:
+    from .cli import _json_default
+    from .output import write_atomic
+    cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
+    cfg.validate()
+    b = bench(names, args.samples, args.seed, engines,
+              log=lambda m: print(m, file=sys.stderr, flush=True))
+    write_atomic(out / "sweep_bench.json", json.dumps(b, indent=2, default=_json_default))
+    _print_bench(b)
+    print(f"wrote {out / 'sweep_bench.json'}")
+    return 0
+
+
+def exit_code(status: dict) -> int:
+    """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
+    stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
+    from .cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+    if status["stopped"] == "interrupted":
+        return EXIT_INTERRUPTED
+    return {"passed": 0, "failed": 1}.get(status["verdict"], EXIT_INCOMPLETE)
 
 
 def register(sub):
+    from .arguments import (
+        add_engines,
+        add_models,
+        nonnegative_int,
+        positive_int,
+        positive_seconds,
+    )
     s = sub.add_parser(
         "sweep", help="seeded random campaigns of the cross-checks (local workers or Dask)",
         description="Draw N seeded random parameter sets and consistent states per model, run "
                     "the instantaneous cross-checks on each, write DIR/sweep.json.")
-    s.add_argument("models", nargs="*", help="models (default: all)")
-    s.add_argument("--samples", default="100", help="samples per model (default 100)")
-    s.add_argument("--seed", default="0", help="campaign seed (default 0)")
-    s.add_argument("--index", default="0",
+    add_models(s)
+    s.add_argument("--samples", type=positive_int, default=100,
+                   help="samples per model (default 100)")
+    s.add_argument("--seed", type=nonnegative_int, default=0, help="campaign seed (default 0)")
+    s.add_argument("--index", type=nonnegative_int, default=0,
                    help="first sample index (default 0): --index I --samples 1 reruns sample I")
-    s.add_argument("--engines", default=",".join(ENGINE_NAMES))
+    add_engines(s)
     s.add_argument("--formulation", default=None,
                    help="reference formulation (default: each model's first)")
     s.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL",
                    help="fault injection, as in crosscheck run")
-    s.add_argument("--workers", default=None, help="local worker processes (default: all cores; "
+    s.add_argument("--workers", type=positive_int, default=None, help="local worker processes (default: all cores; "
                                                    "1 runs in this process)")
     s.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]")
-    s.add_argument("--chunk", default=None, help="samples per task (default: sized per executor)")
-    s.add_argument("--max-seconds", default=None, help="time budget: stop and report what is done")
-    s.add_argument("--worst", default=str(WORST_CASES), help="worst cases kept per quantity")
+    s.add_argument("--chunk", type=positive_int, default=None,
+                   help="samples per task (default: sized per executor)")
+    s.add_argument("--max-seconds", type=positive_seconds, default=None,
+                   help="time budget: stop and report what is done")
+    s.add_argument("--worst", type=nonnegative_int, default=WORST_CASES,
+                   help="worst cases kept per quantity")
     s.add_argument("--bench", action="store_true",
                    help="measure throughput (per model and engine, 1 vs 2 workers) and write "
                         "DIR/sweep_bench.json instead of running a campaign")
     s.add_argument("--out", default="out")
+    s.add_argument("--resume", default=None, metavar="DIR",
+                   help="continue the interrupted campaign whose --out was DIR: its finished "
+                        "chunks (DIR/sweep.chunks) are kept, only the rest is computed")
     s.set_defaults(func=cmd_sweep)

@@ -2,9 +2,12 @@
 
 - reference: DOP853 with coordinate projection at rtol = atol = 1e-12 (reference.integrate),
   its own accuracy measured in the same run against rtol = atol = 1e-13;
-- Pinocchio: its forward dynamics integrated by the same scipy DOP853 at rtol = atol = 1e-10 in
-  its own coordinates, no stabilization (index-1 drift is part of what is measured);
-- MuJoCo: its own RK4 on a time-step ladder (h and h/2).
+- each engine with the first of its integrators (Capabilities.integrators): an error-controlled
+  one at rtol = atol = 1e-10 in the engine's own coordinates, no stabilization (index-1 drift
+  is part of what is measured; Pinocchio: scipy's DOP853 on its forward dynamics), a fixed-step
+  one on a time-step ladder h and h/2 (MuJoCo: its own RK4; h = 1 ms, or for a horizon that
+  is not a whole number of ms the largest step below 1 ms that divides it, see step_ladder),
+  every run recorded on the reference's output times (output_grid).
 Each run yields records (state error against the reference, constraint drift, energy drift)
 and a series for the report's plots.
 
@@ -14,20 +17,55 @@ removed, so a coordinate reported modulo 2 pi does not count as an error.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from reference import NumericModel
-from reference.errors import ModelInputError
 from reference.integrate import simulate
 
 from . import compare as C
+from .comparison import build
 from .engines.base import EngineUnsupported
+from .engines.registry import engine_label
 
 T_END = 5.0
 N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots
 REF_RTOL, REF_CHECK_RTOL = 1e-12, 1e-13
-PIN_RTOL = 1e-10
-MUJOCO_STEPS = (1e-3, 5e-4)
+ENGINE_RTOL = 1e-10  # engines' error-controlled integrators (rtol = atol)
+FIXED_STEPS = (1e-3, 5e-4)  # engines' fixed-step integrators: a step and its half
+# how close t_end / h must be to a whole number for t_end to count as a multiple of the step:
+# far above the float error of 5.0 / 1e-3 (~1e-16 relative), far below any step a user means
+GRID_SLACK = 1e-9
+
+
+def step_ladder(t_end: float) -> tuple[float, float]:
+    """The two fixed steps for a horizon: FIXED_STEPS when t_end is a whole number of the
+    coarse step, otherwise the largest h <= FIXED_STEPS[0] that divides t_end (and h / 2).
+
+    Both rungs must end exactly at t_end and share output times, or their trajectories (and the
+    halving estimate between them) would be on different grids; a horizon shorter than the
+    coarse step (1e-9 s) gets a single step of t_end."""
+    h0, h1 = FIXED_STEPS
+    n = round(t_end / h0)
+    if n >= 1 and abs(n * h0 - t_end) <= GRID_SLACK * t_end:
+        return h0, h1
+    n = max(1, math.ceil(t_end / h0 - GRID_SLACK))
+    h = t_end / n
+    return h, h * h1 / h0
+
+
+def output_grid(t_end: float) -> np.ndarray:
+    """The output times, common to the reference and every engine run: at most N_OUT times on
+    the coarse step of step_ladder (so both rungs land on them), plus t_end itself (the last
+    interval may be shorter)."""
+    h0, _ = step_ladder(t_end)
+    n = max(1, round(t_end / h0))
+    if n % (N_OUT - 1) == 0:  # 5 s: the plain 20 ms grid
+        return np.linspace(0.0, t_end, N_OUT)
+    every = math.ceil(n / (N_OUT - 1))
+    steps = sorted(set(range(0, n + 1, every)) | {n})
+    return np.linspace(0.0, t_end, n + 1)[steps]
 
 REFERENCE_ACCURACY = C.Tolerance(
     1e-8, "the reference trajectory (rtol 1e-12) against a tighter one (rtol 1e-13): the "
@@ -38,7 +76,7 @@ PROJECTED_DRIFT = C.Tolerance(
            "tolerance (~1e-15 relative) on unit-size coordinates")
 INDEX1_DRIFT = C.Tolerance(
     1e-7, "no stabilization: the position drift follows the integrator's error, ~10..100x its "
-          "tolerance over 5..10 s (NUMERICS.md 1.1; Pinocchio adapter docstring); 1e3x rtol")
+          "tolerance over 5..10 s (docs/numerics.md); 1e3x rtol")
 SOFT_STATE = C.Tolerance(
     5e-2, "characterization, not a physics bound: MuJoCo's equality constraints are soft "
           "(solref 0.02 s, d = 0.9999), so its trajectory follows slightly different dynamics; "
@@ -47,10 +85,10 @@ SOFT_STATE = C.Tolerance(
           "tracks this figure against its baseline")
 SOFT_DRIFT = C.Tolerance(
     1e-5, "MuJoCo's soft constraints settle at a violation set by solref (time constant "
-          "0.02 s): measured 5e-7..2.2e-6 here, 2.6e-6 in ENGINES.md 3.5")
+          "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md")
 SOFT_ENERGY = C.Tolerance(
     1e-2, "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
-          "characterization (ENGINES.md 3.5: 6e-4 J of 7 J for the slider-crank, RK4)")
+          "characterization (docs/engines/mujoco.md: 6e-4 J of 7 J for the slider-crank, RK4)")
 
 
 def state_error(q, u, ref_q, ref_u) -> np.ndarray:
@@ -95,12 +133,60 @@ def _series(model, engine, formulation, label, t, err, res, E, variant=None):
     return s
 
 
+def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
+    """An error-controlled engine integrator at ENGINE_RTOL, held to 10x the reference's own
+    global error (and energy error) at that rtol, measured in this run."""
+    tr = em.simulate(q0, u0, grid, integrator=integrator, rtol=ENGINE_RTOL)
+    label = f"{integrator} rtol={ENGINE_RTOL:g} (no stabilization)"
+    state_tol = C.Tolerance(
+        10 * loose_err + 1e-10,
+        f"the same {integrator} at the same rtol {ENGINE_RTOL:g}: its global error, measured "
+        f"on the reference in this run ({loose_err:.1e}), times 10 for another "
+        f"choice of coordinates")
+    energy_tol = C.Tolerance(10 * loose_E + 1e-10,
+                             f"10x the reference's energy drift at rtol "
+                             f"{ENGINE_RTOL:g} without stabilization ({loose_E:.1e}; "
+                             f"the work-energy balance where energy is not conserved)")
+    return [(label, tr.t, tr.q, tr.u, {"nfev": tr.steps})], state_tol, INDEX1_DRIFT, energy_tol
+
+
+def _fixed_step_runs(nm, em, integrator, q0, u0, t_end, conserved, work):
+    """A fixed-step engine integrator on the step ladder (step_ladder): soft constraint rows
+    are characterized (SOFT_*), otherwise the tolerances come from halving the step."""
+    grid = output_grid(t_end)
+    ladder = step_ladder(t_end)
+    runs, trs = [], {}
+    for h in ladder:  # both rungs record on the same output times
+        trs[h] = em.simulate(q0, u0, grid, integrator=integrator, timestep=h)
+        info = {"steps": trs[h].steps}
+        if trs[h].warnings:  # an unstable step reset the engine's state
+            info["engine_warnings"] = trs[h].warnings
+        runs.append((f"{integrator} h={h:g}", trs[h].t, trs[h].q, trs[h].u, info))
+    if em.soft_constraints:
+        return runs, SOFT_STATE, SOFT_DRIFT, SOFT_ENERGY
+    h0, h1 = ladder
+    halving = float(np.max(state_error(trs[h0].q, trs[h0].u, trs[h1].q, trs[h1].u)))
+    state_tol = C.Tolerance(
+        10 * halving + 1e-10,
+        f"no constraint rows in {engine_label(em.engine)}'s model: {integrator}'s global "
+        f"error, estimated "
+        f"in this run by halving the step ({halving:.1e}), times 10, plus the "
+        f"reference's own accuracy")
+    E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
+    E0, E1 = ((_energy_drift(E0), _energy_drift(E1)) if conserved
+              else (_balance(E0, work), _balance(E1, work)))
+    energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
+                             f"{integrator}'s energy error estimated by halving the step "
+                             f"({abs(E0 - E1):.1e}), times 10")
+    return runs, state_tol, INDEX1_DRIFT, energy_tol
+
+
 def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
                        engine_params: dict | None = None):
     """Records and plot series for one model: the reference, then every engine variant."""
     model = nm.model
     f = nm.formulation
-    grid = np.linspace(0.0, t_end, N_OUT)
+    grid = output_grid(t_end)
     q0, u0 = nm.project(model.initial_q, model.initial_u)
     records, series = [], []
     ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL, t_eval=grid)
@@ -128,7 +214,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                            PROJECTED_DRIFT, label="DOP853+projection"))
     ref_energy_tol = C.Tolerance(
         1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
-              "(projection does not conserve energy exactly, NUMERICS.md 1.3)")
+              "(projection does not conserve energy exactly, docs/numerics.md)")
     if conserved:
         records.append(rec("reference", "energy_drift", _energy_drift(E_ref), ref_energy_tol))
     else:
@@ -138,69 +224,39 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                           ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref))
 
     # the reference's own global error at the engines' tolerance, for Pinocchio's bound
-    loose = simulate(nm, q0, u0, t_end, "index1", rtol=PIN_RTOL, atol=PIN_RTOL, t_eval=grid)
+    loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL, t_eval=grid)
     loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
     E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
     loose_E = _energy_drift(E_loose) if conserved else _balance(E_loose, work)
 
     for adapter in adapters:
-        variants = adapter.variants(name) if hasattr(adapter, "variants") else (None,)
-        for variant in variants:
+        for variant in adapter.variants(name):
             params = (engine_params or {}).get(adapter.name, nm.params)
+            integrators = adapter.capabilities.integrators
+            if not integrators:
+                records.append(rec(adapter.name, "state_error", None, None,
+                                   f"{adapter.name} has no trajectories in this suite"))
+                break
             try:
-                em = adapter.build(name, params, variant=variant) if variant else \
-                    adapter.build(name, params)
+                em = build(adapter, name, params, variant)
             except EngineUnsupported as exc:
                 records.append(rec(adapter.name, "state_error", None, None,
                                    f"engine cannot represent the model: {exc}"))
                 continue
             extra = {"variant": variant} if variant else {}
-            runs = []
-            if adapter.name == "pinocchio":
-                tr = em.simulate(q0, u0, t_end, rtol=PIN_RTOL, atol=PIN_RTOL, t_eval=grid)
-                label = f"DOP853 rtol={PIN_RTOL:g} (no stabilization)"
-                state_tol = C.Tolerance(
-                    10 * loose_err + 1e-10,
-                    f"the same DOP853 at the same rtol {PIN_RTOL:g}: its global error, measured "
-                    f"on the reference in this run ({loose_err:.1e}), times 10 for another "
-                    f"choice of coordinates")
-                drift_tol = INDEX1_DRIFT
-                energy_tol = C.Tolerance(10 * loose_E + 1e-10,
-                                         f"10x the reference's energy drift at rtol "
-                                         f"{PIN_RTOL:g} without stabilization ({loose_E:.1e}; "
-                                       f"the work-energy balance where energy is not conserved)")
-                runs.append((label, tr.t, tr.q, tr.u, {"nfev": tr.nfev}))
+            if integrators[0] in adapter.capabilities.adaptive_integrators:
+                runs, state_tol, drift_tol, energy_tol = _adaptive_runs(
+                    em, integrators[0], q0, u0, grid, loose_err, loose_E)
             else:
-                soft = getattr(getattr(em, "m", None), "neq", 0) > 0
-                trs = {}
-                for h in MUJOCO_STEPS:
-                    every = max(1, int(round((t_end / (N_OUT - 1)) / h)))
-                    trs[h] = em.simulate(q0, u0, t_end, h, "RK4", record_every=every)
-                    info = {"steps": trs[h].n_steps}
-                    if trs[h].raw.get("warnings"):  # an unstable step reset MuJoCo's state
-                        info["engine_warnings"] = trs[h].raw["warnings"]
-                    runs.append((f"RK4 h={h:g}", trs[h].t, trs[h].q, trs[h].u, info))
-                h0, h1 = MUJOCO_STEPS
-                halving = float(np.max(state_error(trs[h0].q, trs[h0].u, trs[h1].q, trs[h1].u)))
-                if soft:
-                    state_tol, drift_tol, energy_tol = SOFT_STATE, SOFT_DRIFT, SOFT_ENERGY
-                else:
-                    state_tol = C.Tolerance(
-                        10 * halving + 1e-10,
-                        f"no constraint rows in MuJoCo's model: RK4's global error, estimated "
-                        f"in this run by halving the step ({halving:.1e}), times 10, plus the "
-                        f"reference's own accuracy")
-                    drift_tol = INDEX1_DRIFT
-                    E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
-                    E0, E1 = ((_energy_drift(E0), _energy_drift(E1)) if conserved
-                              else (_balance(E0, work), _balance(E1, work)))
-                    energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
-                                             "RK4's energy error estimated by halving the step "
-                                             f"({abs(E0 - E1):.1e}), times 10")
+                runs, state_tol, drift_tol, energy_tol = _fixed_step_runs(
+                    nm, em, integrators[0], q0, u0, t_end, conserved, work)
             for k, (label, t, q, u, info) in enumerate(runs):
-                if len(t) != len(ref.t) or np.max(np.abs(np.asarray(t) - ref.t)) > 1e-9:
-                    raise ModelInputError(f"{adapter.name} trajectory of {name} is not on the "
-                                          f"reference's output grid")
+                if len(t) != len(ref.t) or \
+                        np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(t_end, 1.0):
+                    raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, "
+                                       f"{len(t)} times) is not on the reference's output grid "
+                                       f"({len(ref.t)} times over {t_end:g} s): a bug in "
+                                       f"output_grid / step_ladder")
                 err = state_error(q, u, ref.q, ref.u)
                 res = _residual_series(nm, t, q, u)
                 E = _energy_series(nm, t, q, u)

@@ -33,7 +33,11 @@ import numpy as np
 
 from reference import NumericModel, models
 from reference.integrate import METHODS, simulate
+from reference.errors import ModelInputError
 from reference.minimal import reference_final_state
+
+from .engines.base import EngineAdapter
+from .engines.registry import available_engines, engine_label, get_engine
 
 # benchmark horizons [s]: the pendulum over ~6 periods (the exploratory study's 10 s), the
 # slider-crank over ~2.5 crank revolutions, the 3-D models over 1-2 s
@@ -46,12 +50,14 @@ LADDER_FULL = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 LADDER_QUICK = (1e-6, 1e-8, 1e-10, 1e-12)
 ENGINE_LADDER_FULL = (1e-6, 1e-8, 1e-10, 1e-12)
 ENGINE_LADDER_QUICK = (1e-6, 1e-8, 1e-10)
-MUJOCO_STEPS_FULL = {"Euler": (1e-2, 1e-3, 1e-4, 1e-5), "implicitfast": (1e-2, 1e-3, 1e-4, 1e-5),
+# fixed-step engine integrators (MuJoCo's): a time-step ladder per integrator
+FIXED_STEPS_FULL = {"Euler": (1e-2, 1e-3, 1e-4, 1e-5), "implicitfast": (1e-2, 1e-3, 1e-4, 1e-5),
                      "RK4": (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)}
-MUJOCO_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4),
+FIXED_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4),
                       "RK4": (1e-2, 1e-3, 1e-4)}
-# MuJoCo runs longer than this many steps are left out (quick: ~0.3 s per run on this machine)
-MUJOCO_MAX_STEPS = {True: 25_000, False: 1_000_000}
+# fixed-step runs longer than this many steps are left out (quick: ~0.3 s per MuJoCo run on
+# this machine)
+FIXED_MAX_STEPS = {True: 25_000, False: 1_000_000}
 QUICK_MODELS = ("pendulum_xy", "slider_crank")
 REPEATS_FULL, REPEATS_QUICK = 5, 3
 # a single run longer than this is not repeated (its timing noise is small against its length)
@@ -145,42 +151,44 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
 
 def _engine_model(adapter, name, nm, row):
     """(engine model, None), or (None, [row marked skipped with the reason]) when the engine
-    cannot build the model or cannot simulate it."""
+    cannot build the model or has no trajectories."""
+    if not adapter.capabilities.integrators:
+        return None, [{**row, "skipped": True,
+                       "reason": f"the {adapter.name} engine has no trajectories in this suite"}]
     try:
         em = adapter.build(name, nm.params)
     except Exception as exc:  # EngineUnsupported, or a model the engine refuses: recorded
         return None, [{**row, "skipped": True, "reason": f"{type(exc).__name__}: {exc}"}]
-    if not hasattr(em, "simulate"):
-        return None, [{**row, "skipped": True,
-                       "reason": f"the {adapter.name} engine model has no simulate()"}]
     return em, None
 
 
-def pinocchio_records(name, quick, ref, nm, adapter):
+def _simulate_timed(em, q0, u0, t_eval, **setting):
+    """(trajectory, seconds): the engine's own wall_s where it reports one, else the call."""
+    t0 = time.perf_counter()
+    tr = em.simulate(q0, u0, t_eval, **setting)
+    return tr, tr.wall_s if tr.wall_s is not None else time.perf_counter() - t0
+
+
+def adaptive_records(name, quick, ref, nm, em, engine, integrator):
+    """An engine's error-controlled integrator over the rtol = atol ladder (method "index1":
+    the engine's equations integrated as an index-1 ODE, no stabilization)."""
     T = horizon(name)
     m = nm.model
     out = []
-    row = _base(name, "pinocchio", "index1", "DOP853", None, "rtol=atol", T, ref)
-    em, skip = _engine_model(adapter, name, nm, row)
-    if skip:
-        return skip
     t_eval = np.linspace(0.0, T, 21)
     for tol in (ENGINE_LADDER_QUICK if quick else ENGINE_LADDER_FULL):
-        rec = _base(name, "pinocchio", "index1", "DOP853", tol, "rtol=atol", T, ref)
+        rec = _base(name, engine, "index1", integrator, tol, "rtol=atol", T, ref)
         try:
-            def run():
-                t0 = time.perf_counter()
-                tr = em.simulate(m.initial_q, m.initial_u, T, tol, tol, method="DOP853",
-                                 t_eval=t_eval)
-                return tr, time.perf_counter() - t0
-            tr, wall, wmin, n = _timed(run, REPEATS_QUICK if quick else REPEATS_FULL)
-            if not tr.success:
-                raise RuntimeError(tr.message)
+            tr, wall, wmin, n = _timed(lambda: _simulate_timed(
+                em, m.initial_q, m.initial_u, t_eval, integrator=integrator, rtol=tol),
+                REPEATS_QUICK if quick else REPEATS_FULL)
+            if tr.failure:
+                raise RuntimeError(tr.failure)
             err, rp, rv, drift = _state_metrics(nm, tr.t, tr.q, tr.u, ref.state,
                                                 m.energy_conserved)
             rec.update(wall_s=wall, wall_s_min=wmin, repeats=n, error=_finite(err),
                        residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
-                       energy_drift=_finite(drift), nfev=int(tr.nfev),
+                       energy_drift=_finite(drift), nfev=int(tr.steps),
                        note="residual and energy drift over 21 output states")
         except Exception as exc:
             rec.update(wall_s=None, error=None, residual=None,
@@ -192,73 +200,87 @@ def pinocchio_records(name, quick, ref, nm, adapter):
 STAGES = {"Euler": 1, "implicitfast": 1, "implicit": 1, "RK4": 4}
 
 
-def mujoco_records(name, quick, ref, nm, adapter):
+def fixed_step_records(name, quick, ref, nm, em, engine, integ):
+    """An engine's fixed-step integrator over its time-step ladder (FIXED_STEPS_*; integrators
+    without a ladder are not benchmarked)."""
     T = horizon(name)
     m = nm.model
     out = []
-    em, skip = _engine_model(adapter, name, nm,
-                             _base(name, "mujoco", None, None, None, "timestep", T, ref))
-    if skip:
-        return skip
-    steps = MUJOCO_STEPS_QUICK if quick else MUJOCO_STEPS_FULL
-    for integ, hs in steps.items():
-        for h in hs:
-            rec = _base(name, "mujoco", integ, integ, h, "timestep", T, ref)
-            n = int(round(T / h))
-            if n > MUJOCO_MAX_STEPS[quick]:
-                continue
-            try:
-                def run():
-                    tr = em.simulate(m.initial_q, m.initial_u, T, h, integ, record_every=n)
-                    return tr, tr.wall_time
-                tr, wall, wmin, nrep = _timed(run, REPEATS_QUICK if quick else REPEATS_FULL)
-                # an untimed run that records ~100 states for the residual and the energy
-                trr = em.simulate(m.initial_q, m.initial_u, T, h, integ,
-                                  record_every=max(1, n // 100))
-                err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
-                                                    m.energy_conserved)
-                err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
-                rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep, error=_finite(err_timed),
-                           residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
-                           energy_drift=_finite(drift), nfev=n * STAGES.get(integ, 1),
-                           nsteps=n, engine_violation=_finite(np.max(trr.violation)),
-                           note="residual and energy drift over ~100 recorded states; nfev = "
-                                "steps x stages")
-                if err != err_timed:
-                    rec["error_recorded_run"] = _finite(err)
-                warnings = {**tr.raw.get("warnings", {}), **trr.raw.get("warnings", {})}
-                if warnings:  # MuJoCo reset an unstable state and went on: not a trajectory
-                    rec.update(warnings=warnings, flagged="MuJoCo reported an unstable "
-                               f"simulation ({', '.join(warnings)}) and reset its state")
-            except Exception as exc:
-                rec.update(wall_s=None, error=None, residual=None,
-                           failed=f"{type(exc).__name__}: {exc}")
-            out.append(rec)
+    for h in (FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL).get(integ, ()):
+        rec = _base(name, engine, integ, integ, h, "timestep", T, ref)
+        n = int(round(T / h))
+        if n > FIXED_MAX_STEPS[quick]:
+            continue
+        try:
+            tr, wall, wmin, nrep = _timed(lambda: _simulate_timed(
+                em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h),
+                REPEATS_QUICK if quick else REPEATS_FULL)
+            # an untimed run that records ~100 states for the residual and the energy
+            every = max(1, n // 100)
+            marks = sorted(set(range(0, n + 1, every)) | {n})
+            trr = em.simulate(m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ,
+                              timestep=h)
+            err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
+                                                m.energy_conserved)
+            err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
+            rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep, error=_finite(err_timed),
+                       residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
+                       energy_drift=_finite(drift), nfev=n * STAGES.get(integ, 1),
+                       nsteps=n, engine_violation=_finite(np.max(trr.violation)),
+                       note="residual and energy drift over ~100 recorded states; nfev = "
+                            "steps x stages")
+            if err != err_timed:
+                rec["error_recorded_run"] = _finite(err)
+            warnings = {**tr.warnings, **trr.warnings}
+            if warnings:  # the engine reset an unstable state and went on: not a trajectory
+                rec.update(warnings=warnings, flagged=f"{engine_label(engine)} reported an "
+                           f"unstable simulation ({', '.join(warnings)}) and reset its state")
+        except Exception as exc:
+            rec.update(wall_s=None, error=None, residual=None,
+                       failed=f"{type(exc).__name__}: {exc}")
+        out.append(rec)
     return out
 
 
-def _adapter(engine: str):
+def engine_records(name, quick, ref, nm, adapter):
+    """Every integrator of one engine (Capabilities.integrators) on one model."""
+    T = horizon(name)
+    caps = adapter.capabilities
+    first = caps.integrators[0] if caps.integrators else None
+    row = (_base(name, adapter.name, "index1", first, None, "rtol=atol", T, ref)
+           if first in caps.adaptive_integrators
+           else _base(name, adapter.name, None, None, None, "timestep", T, ref))
+    em, skip = _engine_model(adapter, name, nm, row)
+    if skip:
+        return skip
+    adaptive = [i for i in caps.integrators if i in caps.adaptive_integrators]
+    out = []
+    for integ in adaptive:
+        out += adaptive_records(name, quick, ref, nm, em, adapter.name, integ)
+    ladder = FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL
+    for integ in ladder:  # the ladder's order (cheap integrators first)
+        if integ in caps.integrators and integ not in adaptive:
+            out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ)
+    return out
+
+
+def _adapter(engine):
     """The engine adapter object, or the reason it is unavailable."""
-    if hasattr(engine, "build"):
+    if isinstance(engine, EngineAdapter):
         return engine, None
     try:
-        if engine == "pinocchio":
-            from .engines.pinocchio_engine import PinocchioAdapter
-            return PinocchioAdapter(), None
-        if engine == "mujoco":
-            from .engines.mujoco_engine import MujocoAdapter
-            return MujocoAdapter(), None
-    except Exception as exc:  # ImportError while an adapter is being written
-        return None, f"{type(exc).__name__}: {exc}"
-    return None, f"unknown engine {engine!r}"
+        return get_engine(engine), None
+    except ModelInputError as exc:  # unknown, or registered but not importable here
+        return None, str(exc)
 
 
-def work_precision_records(model_names, quick: bool = False, engines=("pinocchio", "mujoco"),
+def work_precision_records(model_names, quick: bool = False, engines=None,
                            log=None) -> list[dict]:
     """Records for every model x method over the ladder (see the module docstring).
 
-    `engines`: names or adapter objects. With `quick`, only QUICK_MODELS among `model_names`
-    (the slider-crank always, for every engine) on the short ladders."""
+    `engines`: names or adapter objects (default: every available engine). With `quick`, only
+    QUICK_MODELS among `model_names` (the slider-crank always, for every engine) on the short
+    ladders."""
     names = list(model_names)
     if quick:
         if set(QUICK_MODELS) <= set(names):  # the default (all models): the quick subset
@@ -266,9 +288,9 @@ def work_precision_records(model_names, quick: bool = False, engines=("pinocchio
         if "slider_crank" not in names:  # quick still covers the slider-crank for every engine
             names.append("slider_crank")
     adapters = []
-    for e in engines:
+    for e in (available_engines() if engines is None else engines):
         a, why = _adapter(e)
-        adapters.append((getattr(a, "name", e) if a is not None else e, a, why))
+        adapters.append((a.name if a is not None else e, a, why))
     out = []
     for name in names:
         T = horizon(name)
@@ -285,10 +307,8 @@ def work_precision_records(model_names, quick: bool = False, engines=("pinocchio
             if a is None:
                 out.append({"model": name, "engine": ename, "t_end": T,
                             "skipped": True, "reason": f"engine adapter unavailable: {why}"})
-            elif ename == "pinocchio":
-                out += pinocchio_records(name, quick, ref, nm, a)
-            elif ename == "mujoco":
-                out += mujoco_records(name, quick, ref, nm, a)
+            else:
+                out += engine_records(name, quick, ref, nm, a)
         if log:
             log(f"work-precision {name}: {time.perf_counter() - t0:.1f} s")
     return out
@@ -330,14 +350,15 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
     ref_best = _best([r for r in recs if r["engine"] == "reference"],
                      e=lambda r: r.get("error") is not None and r["error"] <= TARGET_ERROR,
                      c=lambda r: r.get("residual") is not None and r["residual"] <= TARGET_RESIDUAL)
-    mj = [r for r in recs if r["engine"] == "mujoco" and r.get("wall_s") is not None]
+    soft = _target_engine(exact=False) or "soft_engine"  # target 1's engine (MuJoCo)
+    mj = [r for r in recs if r["engine"] == soft and r.get("wall_s") is not None]
     mj_best = _best(mj, e=lambda r: r.get("error") is not None
                     and r["error"] <= TARGET_MUJOCO_ERROR)
     t1 = {"model": model, "t_end": horizon(model),
           "statement": f"reference reaches error <= {TARGET_ERROR:g} with residual <= "
                        f"{TARGET_RESIDUAL:g} in less wall time than MuJoCo needs for error <= "
                        f"{TARGET_MUJOCO_ERROR:g}",
-          "reference": _brief(ref_best), "mujoco": _brief(mj_best)}
+          "reference": _brief(ref_best), soft: _brief(mj_best)}
     if ref_best is None:
         t1.update(met=False, ratio=None,
                   reason="no reference run on the ladder met both the error and the residual")
@@ -346,7 +367,7 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
     elif mj_best is None:
         closest = min((r for r in mj if r.get("error") is not None), key=lambda r: r["error"],
                       default=None)
-        t1.update(met=True, ratio=None, mujoco_closest=_brief(closest),
+        t1.update(met=True, ratio=None, **{f"{soft}_closest": _brief(closest)},
                   reason=f"MuJoCo did not reach {TARGET_MUJOCO_ERROR:g} anywhere on its "
                          f"time-step ladder (its soft equality constraints bound the error); "
                          f"ratio_vs_closest = MuJoCo's most accurate run's wall / reference's",
@@ -364,27 +385,28 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
                 return r["us_per_state"]
         return None
 
-    constrained = sorted({r["model"] for r in forward if r.get("engine") == "pinocchio"
+    e = _target_engine(exact=True)  # the exact engine of targets 2 and 3 (Pinocchio)
+    constrained = sorted({r["model"] for r in forward if r.get("engine") == e
                           and r.get("us_per_state") is not None
                           and (not quick or r["model"] in QUICK_MODELS)})
     single, batched = {}, {}
     for name in constrained:
         # the forward records time the adapter's forward() (engine call + mapping + the
         # adapter's own residual checks); the fair figure is the engine call alone
-        adapter_us = us(name, "pinocchio", "engine:pinocchio")
-        pair = forward_pair(name)
-        solver = pair.get("pinocchio_solver")
-        pin_us = pair.get("pinocchio_call_us") or adapter_us
+        adapter_us = us(name, e, f"engine:{e}")
+        pair = forward_pair(name, e)
+        solver = pair.get(f"{e}_solver")
+        pin_us = pair.get(f"{e}_call_us") or adapter_us
         ref_us = pair.get("reference_us") or us(name, "reference", "single")
         raw_us = pair.get("reference_raw_us") or us(name, "reference", "single-raw")
         bat_us = us(name, "reference", "batched")
         # the target is about Pinocchio's *constrained* call; where Pinocchio models the system
         # as a minimal tree (solver aba) the row is informative and not counted
-        counted = solver in ("kkt", "constraint")
+        counted = bool(pair.get("constrained_solve"))
         if pin_us and ref_us:
-            single[name] = {"pinocchio_call_us": pin_us, "pinocchio_solver": solver,
-                            "pinocchio_timing": pair.get("pinocchio_timing"),
-                            "pinocchio_adapter_forward_us": adapter_us,
+            single[name] = {f"{e}_call_us": pin_us, f"{e}_solver": solver,
+                            f"{e}_timing": pair.get(f"{e}_timing"),
+                            f"{e}_adapter_forward_us": adapter_us,
                             "reference_us": ref_us, "reference_raw_us": raw_us,
                             "ratio": pin_us / ref_us,
                             "ratio_raw": pin_us / raw_us if raw_us else None,
@@ -393,10 +415,10 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
             if counted and pin_us < ref_us:
                 single[name]["what_bounds_it"] = pair.get("bound")
         if pin_us and bat_us:
-            batched[name] = {"pinocchio_call_us": pin_us, "pinocchio_solver": solver,
+            batched[name] = {f"{e}_call_us": pin_us, f"{e}_solver": solver,
                              "reference_batched_us": bat_us, "ratio": pin_us / bat_us,
                              "counted": counted, "met": pin_us / bat_us >= TARGET_BATCH_SPEEDUP}
-    out["forward_single_vs_pinocchio"] = {
+    out[f"forward_single_vs_{e}"] = {
         "statement": "single-state reference forward dynamics no slower than Pinocchio's "
                      "constrained call on the same model: ratio = pin / ref >= 1 for the checked "
                      "call NumericModel.forward (met), ratio_raw for the unchecked forward_raw "
@@ -405,7 +427,7 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
                      "Pinocchio are timed back to back in interleaved rounds",
         "models": single, "met": _all_met(single),
         "met_raw": _all_met({k: {**v, "met": v["met_raw"]} for k, v in single.items()})}
-    out["forward_batched_vs_pinocchio"] = {
+    out[f"forward_batched_vs_{e}"] = {
         "statement": f"batched reference forward over 10^4 states at least "
                      f"{TARGET_BATCH_SPEEDUP:g}x faster per state than Pinocchio's call",
         "models": batched, "met": _all_met(batched)}
@@ -417,12 +439,21 @@ def _all_met(rows: dict):
     return all(counted) if counted else None
 
 
-def forward_pair(name: str, rounds: int = 3) -> dict:
+def _target_engine(exact: bool) -> Optional[str]:
+    """The first available engine (registry order) whose answers are exact (or soft)."""
+    for e in available_engines():
+        if get_engine(e).capabilities.exact == exact:
+            return e
+    return None
+
+
+def forward_pair(name: str, engine: Optional[str] = None, rounds: int = 3) -> dict:
     """Reference forward (checked and raw) and Pinocchio's engine call timed back to back, in
     interleaved rounds (medians), at the model's initial state: a ratio from the same moment of
     this noisy machine. Also what bounds the reference: the straight-line Python it runs."""
     from .timing import per_call_seconds
-    a, _why = _adapter("pinocchio")
+    engine = engine or _target_engine(exact=True)
+    a, _why = _adapter(engine) if engine else (None, "no exact engine")
     out: dict = {}
     try:
         model = models.get(name)
@@ -435,11 +466,8 @@ def forward_pair(name: str, rounds: int = 3) -> dict:
         # constraintDynamics with tau and, for 'kkt', the rows J, gamma evaluated beforehand),
         # else the adapter's _solve (the call plus building its inputs and copying outputs)
         call, how = None, None
-        if em is not None and hasattr(em, "timed_forward"):
+        if em is not None:
             call, how = em.timed_forward(q, u), "native call (adapter.timed_forward)"
-        elif em is not None and hasattr(em, "_solve"):
-            qe, ve = em.to_engine_state(q, u)
-            call, how = (lambda: em._solve(qe, ve)), "adapter._solve (call + inputs + copies)"
         ref, raw, pin = [], [], []
         for _ in range(rounds):
             ref.append(per_call_seconds(lambda: nm.forward(q, u), repeats=3)["median"])
@@ -448,8 +476,9 @@ def forward_pair(name: str, rounds: int = 3) -> dict:
                 pin.append(per_call_seconds(call, repeats=3)["median"])
         out.update(reference_us=statistics.median(ref) * 1e6,
                    reference_raw_us=statistics.median(raw) * 1e6,
-                   pinocchio_call_us=statistics.median(pin) * 1e6 if pin else None,
-                   pinocchio_timing=how, pinocchio_solver=getattr(em, "solver", None))
+                   constrained_solve=em is not None and em.constrained_solve)
+        out.update({f"{engine}_call_us": statistics.median(pin) * 1e6 if pin else None,
+                    f"{engine}_timing": how, f"{engine}_solver": em.solver if em else None})
         src = nm.source
         body = src[src.index("def forward"):src.index("def matrices")]
         lines = [ln for ln in body.splitlines()[1:] if ln.strip()]

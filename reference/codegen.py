@@ -31,7 +31,29 @@ from sympy.printing.lambdarepr import LambdaPrinter
 from .eom import EquationsOfMotion
 from .formulations.lagrange import kinetic_energy, potential_energy
 
-CODEGEN_VERSION = "9"
+# The derivation cache must miss whenever any source that shapes the derived equations or the
+# generated code changes (a hand-bumped version number was forgotten: issue 14 item 1). These
+# are the modules the derivation runs through; the model modules are covered by
+# Model.content_hash(), which hashes the declared expressions themselves.
+_PACKAGE = Path(__file__).resolve().parent
+DERIVATION_SOURCES = ("system.py", "constraints.py", "eom.py", "codegen.py",
+                      "formulations/*.py")
+
+
+def derivation_sources_hash() -> str:
+    """sha256 over the derivation's source files (relative name and bytes, in sorted order)."""
+    global _SOURCES_HASH
+    if _SOURCES_HASH is None:
+        files = sorted({f for pat in DERIVATION_SOURCES for f in _PACKAGE.glob(pat)})
+        h = hashlib.sha256()
+        for f in files:
+            h.update(f.relative_to(_PACKAGE).as_posix().encode() + b"\0")
+            h.update(f.read_bytes() + b"\0")
+        _SOURCES_HASH = h.hexdigest()
+    return _SOURCES_HASH
+
+
+_SOURCES_HASH: str | None = None
 
 
 def cache_dir() -> Path:
@@ -41,8 +63,10 @@ def cache_dir() -> Path:
 
 
 def cache_key(model, formulation: str) -> str:
-    h = hashlib.sha256(
-        f"{model.content_hash()}|{formulation}|{CODEGEN_VERSION}|{sp.__version__}".encode())
+    """File stem of a cache entry: the model name and formulation are a readable prefix only;
+    the hash covers the model's content, the formulation, the derivation's sources and sympy."""
+    h = hashlib.sha256(f"{model.content_hash()}|{formulation}|{derivation_sources_hash()}|"
+                       f"{sp.__version__}".encode())
     return f"{model.name}-{formulation}-{h.hexdigest()[:16]}"
 
 
@@ -105,11 +129,14 @@ def _dot_terms(pairs) -> list[str]:
 
 
 def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str],
-              reference: list[str] | None = None) -> list[list[str]]:
-    """Lower-triangular L with L L^T = Mc, skipping structural zeros; records pivot ratios
-    (each pivot over `reference[j]`, by default the original diagonal entry)."""
+              reference: list[str] | None = None) -> tuple[list[list[str]], list[str]]:
+    """Lower-triangular L with L L^T = Mc, skipping structural zeros, and the reciprocals of its
+    diagonal; records pivot ratios (each pivot over `reference[j]`, by default the original
+    diagonal entry). One reciprocal per pivot, then multiplications: a division costs 4-10
+    multiplications, and the solves divide by each pivot n + m times (issue 13)."""
     n = len(Mc)
     L = [["0"] * n for _ in range(n)]
+    inv = ["0"] * n
     for j in range(n):
         terms = _dot_terms((L[j][k], L[j][k]) for k in range(j))
         d = Mc[j][j] if not terms else f"{Mc[j][j]} - ({' + '.join(terms)})"
@@ -119,18 +146,20 @@ def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str],
         else:
             pivots.append(f"{dv}/{Mc[j][j]}" if Mc[j][j] != "0" else dv)
         L[j][j] = w.assign(f"sqrt({dv})")
+        inv[j] = w.assign(f"1.0/{L[j][j]}")
         for i in range(j + 1, n):
             terms = _dot_terms((L[i][k], L[j][k]) for k in range(j))
             if Mc[i][j] == "0" and not terms:
                 continue
             num = Mc[i][j] if Mc[i][j] != "0" else "0"
             num = num if not terms else f"{num} - ({' + '.join(terms)})"
-            L[i][j] = w.assign(f"({num})/{L[j][j]}")
-    return L
+            L[i][j] = w.assign(f"({num})*{inv[j]}")
+    return L, inv
 
 
-def _chol_solve(w: _Writer, L: list[list[str]], rhs: list[str]) -> list[str]:
+def _chol_solve(w: _Writer, chol: tuple[list[list[str]], list[str]], rhs: list[str]) -> list[str]:
     """Solve L L^T x = rhs with forward and back substitution, skipping zeros."""
+    L, inv = chol
     n = len(L)
     z = ["0"] * n
     for i in range(n):
@@ -138,14 +167,14 @@ def _chol_solve(w: _Writer, L: list[list[str]], rhs: list[str]) -> list[str]:
         if rhs[i] == "0" and not terms:
             continue
         num = rhs[i] if not terms else f"{rhs[i]} - ({' + '.join(terms)})"
-        z[i] = w.assign(f"({num})/{L[i][i]}")
+        z[i] = w.assign(f"({num})*{inv[i]}")
     x = ["0"] * n
     for i in reversed(range(n)):
         terms = _dot_terms((L[k][i], x[k]) for k in range(i + 1, n))
         if z[i] == "0" and not terms:
             continue
         num = z[i] if not terms else f"{z[i]} - ({' + '.join(terms)})"
-        x[i] = w.assign(f"({num})/{L[i][i]}")
+        x[i] = w.assign(f"({num})*{inv[i]}")
     return x
 
 
@@ -191,7 +220,8 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     rn = _safe_symbols(eom)
     X = lambda e: sp.sympify(e).xreplace(rn)  # noqa: E731
     n, mc = len(m.speeds), eom.A.shape[0]
-    src = [f"# generated by reference.codegen v{CODEGEN_VERSION} for {m.name} / {eom.formulation}",
+    tag = derivation_sources_hash()[:12]
+    src = [f"# generated by reference.codegen ({tag}) for {m.name} / {eom.formulation}",
            f"META = {{'n': {n}, 'm': {mc}, 'augmented': {augment}}}", ""]
 
     # forward: u', lambda, min pivot ratio
@@ -324,4 +354,5 @@ def load_compiled(eom_factory, model, formulation: str, params: dict):
     scalar, batched = _namespace(False), _namespace(True)
     exec(code, scalar)
     exec(code, batched)
+    scalar["__cache_path__"] = path
     return scalar, batched, src

@@ -273,12 +273,14 @@ class _Problem:
         self.mc = f["mc"]
         self.work = energy
         self.fr = nm.forward_raw
-        S = nm._scalar
-        self.kin = S["kinematics"]
-        self.res = S["residuals"]
-        self.pjac = S["position_jacobian"]
-        self.mat = S["matrices"]
-        self.en = S["energy"]
+        # compiled kernels on the numba backend (arrays in and out), the generated Python on
+        # the fallback (lists): every call below works with either
+        self.arrays = nm.backend == "numba"
+        self.kin = nm.raw_function("kinematics")
+        self.res = nm.raw_function("residuals")
+        self.pjac = nm.raw_function("position_jacobian")
+        self.mat = nm.raw_function("matrices")
+        self.en = nm.raw_function("energy")
         self.zeros_u = [0.0] * self.n
         self.stats = {"projections": 0, "projection_iterations": 0, "newton_iterations": 0,
                       "partitions": 0, "min_pivot_ratio": math.inf}
@@ -322,6 +324,26 @@ class _Problem:
         """Post-process an accepted step; True when the solver must be restarted."""
         return False
 
+    # what `simulate` asks of every method (its registry, _PROBLEMS)
+    @classmethod
+    def build(cls, nm, energy, opts: dict):
+        """The problem for `nm` from simulate's keyword options (each method takes its own)."""
+        return cls(nm, energy)
+
+    @staticmethod
+    def check_integrator(integrator: str) -> None:
+        """Refuse an integrator this method cannot drive (ModelInputError)."""
+
+    def initial(self, q, u, t0):
+        return self.y0(q, u)
+
+    def dense_state(self, t, y):
+        """A state interpolated by the solver's dense output, as it is recorded."""
+        return y
+
+    def settings(self) -> dict:
+        return {}
+
 
 class _Index1(_Problem):
     """y' = (N(q, u, t), u') from the compiled KKT solve; `offset(q, u, t)`, when given, shifts
@@ -329,14 +351,18 @@ class _Index1(_Problem):
 
     def __init__(self, nm, energy, offset=None):
         super().__init__(nm, energy)
-        nq, fr = self.nq, self.fr
-        rates, work, singular = self.rates, self.work, self.singular
+        nq, n, fr = self.nq, self.n, self.fr
+        rates, work, singular, arrays = self.rates, self.work, self.singular, self.arrays
         PMIN = PIVOT_RATIO_MIN
         pmin = self.pmin
+        size = nq + n + (1 if work else 0)
 
         def fun(t, y):
-            yl = y.tolist()
-            q, u = yl[:nq], yl[nq:nq + self.n]
+            if arrays:  # views of y straight into the compiled kernel
+                q, u = y[:nq], y[nq:nq + n]
+            else:  # the Python path is fastest on lists of floats
+                yl = y.tolist()
+                q, u = yl[:nq], yl[nq:nq + n]
             try:
                 ud, lam, piv = fr(q, u, t, offset(q, u, t) if offset else None)
             except (ZeroDivisionError, ValueError):
@@ -345,11 +371,12 @@ class _Index1(_Problem):
                 singular(t, q, piv)
             if piv < pmin[0]:
                 pmin[0] = piv
-            out = list(u) if rates else self.qdot(q, u, t)
-            out += ud
+            out = np.empty(size)
+            out[:nq] = u if rates else self.qdot(q, u, t)
+            out[nq:nq + n] = ud
             if work:
-                out.append(self.power(q, u, t, lam))
-            return np.array(out)
+                out[nq + n] = self.power(q, u, t, lam)
+            return out
 
         self.fun = fun
 
@@ -369,6 +396,13 @@ class _Baumgarte(_Index1):
 
         super().__init__(nm, energy, offset)
 
+    @classmethod
+    def build(cls, nm, energy, opts):
+        return cls(nm, energy, opts["alpha"], opts["beta"])
+
+    def settings(self):
+        return {"alpha": self.alpha, "beta": self.beta}
+
 
 class _Projection(_Index1):
     """index1's RHS; after each accepted step y is projected and solver.f refreshed."""
@@ -380,6 +414,24 @@ class _Projection(_Index1):
             raise ModelInputError(
                 f"{nm.model.name}: position projection needs speeds equal to the coordinate "
                 f"rates (this model maps q' = N(q, u))")
+
+    @classmethod
+    def build(cls, nm, energy, opts):
+        return cls(nm, energy, opts["refresh"])
+
+    @staticmethod
+    def check_integrator(integrator):
+        if integrator not in PROJECTABLE:
+            raise ModelInputError(
+                f"projection needs a one-step integrator whose state is (t, y, f): "
+                f"{', '.join(PROJECTABLE)}; {integrator} keeps a multistep history that "
+                f"projecting y would corrupt")
+
+    def dense_state(self, t, y):
+        return self.project(t, y)
+
+    def settings(self):
+        return {"metric": "euclidean", "refresh": self.refresh}
 
     def project_q(self, q, t):
         """Gauss-Newton with minimum-norm steps on f(q, t) = 0 (in place on the list q)."""
@@ -457,6 +509,12 @@ class _Nullspace(_Problem):
         self.qi_last: list[float] = []
         self.J_last = None
         self.stats["rejected_stages"] = 0
+
+    def initial(self, q, u, t0):
+        return self.y0(q, u, t0)
+
+    def settings(self):
+        return {"dependent_coordinates": self.dep_q, "dependent_speeds": self.dep_u}
 
     # -- partition --
     def _A(self, q, u, t):
@@ -549,7 +607,7 @@ class _Nullspace(_Problem):
             J = self.pjac(q, zu, t, p)[0]
             try:
                 if mc == 1:
-                    q[dep[0]] -= pos[0] / J[dep[0]]
+                    q[dep[0]] -= float(pos[0]) / float(J[dep[0]])  # raises on 0
                 else:
                     Jd = np.array(J, float).reshape(mc, nq)[:, dep]
                     dx = np.linalg.solve(Jd, np.asarray(pos, float))
@@ -579,7 +637,7 @@ class _Nullspace(_Problem):
         else:
             A = self.mat(q, u, t, self.p)[2]
         if self.m == 1:
-            u[dep[0]] = -r0[0] / A[dep[0]]
+            u[dep[0]] = -float(r0[0]) / float(A[dep[0]])
         else:
             Ad = np.array(A, float).reshape(self.m, self.n)[:, dep]
             ud = np.linalg.solve(Ad, -np.asarray(r0, float))
@@ -669,123 +727,129 @@ def simulate(nm: NumericModel, q0, u0, t_end: float, method: str = "projection",
     in the benchmark). Raises SingularSystemError (KKT pivots collapse), IntegrationError
     (step-size underflow, projection/Newton failure), IntegrationTimeout (bounds exceeded).
     """
+    _check_arguments(method, integrator, energy, t0, t_end)
+    bookkeeping = energy == "work" or (energy == "auto" and not nm.model.energy_conserved)
+    t_start = time.perf_counter()
+    q, u, corr = consistent_initial_state(nm, q0, u0, t0, max_correction)
+    prob = _PROBLEMS[method].build(nm, bookkeeping,
+                                   {"alpha": alpha, "beta": beta, "refresh": refresh})
+    prob.stats["ic_correction"] = corr
+    opts = {"rtol": rtol, "atol": atol, "max_step": max_step}
+    if first_step is not None:
+        opts["first_step"] = first_step
+    te = None if t_eval is None else np.asarray(t_eval, float)
+    if te is not None and (np.any(np.diff(te) < 0) or te[0] < t0 or te[-1] > t_end):
+        raise ModelInputError("t_eval must be sorted and inside [t0, t_end]")
+    run = _Run(nm, prob, INTEGRATORS[integrator], opts, (rtol, atol), bookkeeping, te,
+               (max_steps, max_wall_s, t_start), (integrator, method))
+    if te is None:
+        run.record(t0, list(q), list(u), 0.0 if bookkeeping else None)
+    run.integrate(prob.initial(q, u, t0), t0, t_end)
+    settings = {"rtol": rtol, "atol": atol, "integrator": integrator, "energy": energy,
+                "bookkeeping": bookkeeping, "t0": t0, "t_end": t_end, **prob.settings()}
+    return run.trajectory(method, settings, time.perf_counter() - t_start)
+
+
+def _check_arguments(method, integrator, energy, t0, t_end):
     if method not in _PROBLEMS:
         raise ModelInputError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
     if integrator not in INTEGRATORS:
         raise ModelInputError(
             f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-    if method == "projection" and integrator not in PROJECTABLE:
-        raise ModelInputError(
-            f"projection needs a one-step integrator whose state is (t, y, f): "
-            f"{', '.join(PROJECTABLE)}; {integrator} keeps a multistep history that projecting "
-            f"y would corrupt")
+    _PROBLEMS[method].check_integrator(integrator)
     if energy not in ("auto", "work", "none"):
         raise ModelInputError(f"energy must be 'auto', 'work' or 'none', got {energy!r}")
     if not (t_end > t0):
         raise ModelInputError(f"t_end = {t_end} must be greater than t0 = {t0}")
-    bookkeeping = energy == "work" or (energy == "auto" and not nm.model.energy_conserved)
 
-    t_start = time.perf_counter()
-    q, u, corr = consistent_initial_state(nm, q0, u0, t0, max_correction)
-    if method == "baumgarte":
-        prob = _Baumgarte(nm, bookkeeping, alpha, beta)
-    elif method == "projection":
-        prob = _Projection(nm, bookkeeping, refresh)
-    else:
-        prob = _PROBLEMS[method](nm, bookkeeping)
-    prob.stats["ic_correction"] = corr
-    cls = INTEGRATORS[integrator]
-    opts = {"rtol": rtol, "atol": atol, "max_step": max_step}
-    if first_step is not None:
-        opts["first_step"] = first_step
-    y = prob.y0(q, u) if method != "nullspace" else prob.y0(q, u, t0)
-    if bookkeeping:
-        # W is carried but not error-controlled (atol 1e300), and the other components'
-        # tolerances are scaled by sqrt(N/(N+1)) so the RMS error norm, hence every step size,
-        # is the same as without bookkeeping: the work integral never changes the trajectory.
-        opts["rtol"], opts["atol"] = _tolerances_with_work(len(y), rtol, atol)
 
-    te = None if t_eval is None else np.asarray(t_eval, float)
-    if te is not None and (np.any(np.diff(te) < 0) or te[0] < t0 or te[-1] > t_end):
-        raise ModelInputError("t_eval must be sorted and inside [t0, t_end]")
-    k_eval = 0
-    T, Q, U, Wl = [], [], [], []
+class _Run:
+    """One integration: the solver loop over partitions (one segment except for nullspace),
+    the recorded outputs, the bounds."""
 
-    def record(t, qq, uu, W):
-        T.append(t)
-        Q.append(qq)
-        U.append(uu)
-        Wl.append(W)
+    def __init__(self, nm, prob, cls, opts, tols, bookkeeping, te, bounds, what):
+        self.nm, self.prob, self.cls, self.opts, self.tols = nm, prob, cls, opts, tols
+        self.bookkeeping, self.te, self.k_eval = bookkeeping, te, 0
+        self.max_steps, self.max_wall_s, self.t_start = bounds
+        self.integrator, self.method = what
+        self.T, self.Q, self.U, self.W = [], [], [], []
+        self.nfev = self.nsteps = 0
 
-    if te is None:
-        record(t0, list(q), list(u), 0.0 if bookkeeping else None)
-    nfev = nsteps = 0
-    t = t0
-    while True:  # one solver per partition (a single segment except for nullspace)
-        solver = cls(prob.fun, t, y, t_end, **opts)
-        restart = False
-        while solver.status == "running":
-            msg = solver.step()
-            if solver.status == "failed":
-                nfev += solver.nfev
-                raise IntegrationError(
-                    f"{nm.model.name}: {integrator} failed at t = {solver.t:.6g} with method "
-                    f"{method}: {msg}")
-            nsteps += 1
-            if te is not None and k_eval < len(te) and te[k_eval] <= solver.t:
-                dense = solver.dense_output()
-                while k_eval < len(te) and te[k_eval] <= solver.t:
-                    yi = dense(te[k_eval])
-                    if method == "projection":
-                        yi = prob.project(te[k_eval], yi)
-                    qq, uu, W = prob.full(te[k_eval], yi)
-                    record(float(te[k_eval]), qq, uu, W)
-                    k_eval += 1
-            restart = prob.after_step(solver)
-            if te is None:
-                qq, uu, W = prob.full(solver.t, solver.y)
-                record(float(solver.t), qq, uu, W)
-            if max_steps is not None and nsteps >= max_steps and solver.status == "running":
-                raise IntegrationTimeout(
-                    f"{nm.model.name}: {method} reached max_steps = {max_steps} at t = "
-                    f"{solver.t:.6g} of {t_end}")
-            if max_wall_s is not None and time.perf_counter() - t_start > max_wall_s \
-                    and solver.status == "running":
-                raise IntegrationTimeout(
-                    f"{nm.model.name}: {method} exceeded max_wall_s = {max_wall_s} s at t = "
-                    f"{solver.t:.6g} of {t_end} after {nsteps} steps")
-            if restart and solver.status == "running":
-                break
-        nfev += solver.nfev
-        if not restart or solver.status != "running":
-            break
-        t = solver.t
-        qq, uu, W = prob.full(t, solver.y)
-        y = prob.y0(qq, uu, t, W if W is not None else 0.0)
-        if bookkeeping:
-            opts["rtol"], opts["atol"] = _tolerances_with_work(len(y), rtol, atol)
-    wall = time.perf_counter() - t_start
-    stats = dict(prob.stats)
-    stats["min_pivot_ratio"] = min(stats["min_pivot_ratio"], prob.pmin[0])
-    if stats["min_pivot_ratio"] == math.inf:
-        stats.pop("min_pivot_ratio")
-    warnings = []
-    if stats.get("min_pivot_ratio", math.inf) < PIVOT_WARN:
-        warnings.append(
-            f"the KKT pivot ratio fell to {stats['min_pivot_ratio']:.1e} (< {PIVOT_WARN:g}): the "
-            f"run passed close to a singular pose (a kinematic singularity or dependent rows), "
-            f"where the motion may not be unique and digits are lost")
-    settings = {"rtol": rtol, "atol": atol, "integrator": integrator, "energy": energy,
-                "bookkeeping": bookkeeping, "t0": t0, "t_end": t_end}
-    if method == "baumgarte":
-        settings.update(alpha=prob.alpha, beta=prob.beta)
-    if method == "projection":
-        settings.update(metric="euclidean", refresh=refresh)
-    if method == "nullspace":
-        settings.update(dependent_coordinates=prob.dep_q, dependent_speeds=prob.dep_u)
-    return Trajectory(
-        t=np.array(T), q=np.array(Q, float).reshape(len(T), nm.nq),
-        u=np.array(U, float).reshape(len(T), nm.n), nfev=nfev, nsteps=nsteps, wall_s=wall,
-        method=method, settings=settings,
-        work=np.array(Wl, float) if bookkeeping else None, stats=stats, nm=nm,
-        warnings=warnings)
+    def record(self, t, qq, uu, W):
+        self.T.append(t)
+        self.Q.append(qq)
+        self.U.append(uu)
+        self.W.append(W)
+
+    def _tolerances(self, size):
+        if self.bookkeeping:
+            # W is carried but not error-controlled (atol 1e300), and the other components'
+            # tolerances are scaled by sqrt(N/(N+1)) so the RMS error norm, hence every step
+            # size, is the same as without bookkeeping: the work never changes the trajectory.
+            self.opts["rtol"], self.opts["atol"] = _tolerances_with_work(size, *self.tols)
+
+    def integrate(self, y, t, t_end):
+        prob = self.prob
+        while True:  # one solver per partition
+            self._tolerances(len(y))
+            solver = self.cls(prob.fun, t, y, t_end, **self.opts)
+            restart = False
+            while solver.status == "running":
+                restart = self._step(solver, t_end)
+                if restart and solver.status == "running":
+                    break
+            self.nfev += solver.nfev
+            if not restart or solver.status != "running":
+                return
+            t = solver.t
+            qq, uu, W = prob.full(t, solver.y)
+            y = prob.y0(qq, uu, t, W if W is not None else 0.0)
+
+    def _step(self, solver, t_end) -> bool:
+        """One accepted step, its outputs and the bounds; True when a restart is due."""
+        prob, te, name = self.prob, self.te, self.nm.model.name
+        msg = solver.step()
+        if solver.status == "failed":
+            self.nfev += solver.nfev
+            raise IntegrationError(f"{name}: {self.integrator} failed at t = {solver.t:.6g} "
+                                   f"with method {self.method}: {msg}")
+        self.nsteps += 1
+        if te is not None and self.k_eval < len(te) and te[self.k_eval] <= solver.t:
+            dense = solver.dense_output()
+            while self.k_eval < len(te) and te[self.k_eval] <= solver.t:
+                tk = te[self.k_eval]
+                self.record(float(tk), *prob.full(tk, prob.dense_state(tk, dense(tk))))
+                self.k_eval += 1
+        restart = prob.after_step(solver)
+        if te is None:
+            self.record(float(solver.t), *prob.full(solver.t, solver.y))
+        running = solver.status == "running"
+        if self.max_steps is not None and self.nsteps >= self.max_steps and running:
+            raise IntegrationTimeout(
+                f"{name}: {self.method} reached max_steps = {self.max_steps} at t = "
+                f"{solver.t:.6g} of {t_end}")
+        if self.max_wall_s is not None and running \
+                and time.perf_counter() - self.t_start > self.max_wall_s:
+            raise IntegrationTimeout(
+                f"{name}: {self.method} exceeded max_wall_s = {self.max_wall_s} s at t = "
+                f"{solver.t:.6g} of {t_end} after {self.nsteps} steps")
+        return restart
+
+    def trajectory(self, method, settings, wall) -> Trajectory:
+        prob, nm, T = self.prob, self.nm, self.T
+        stats = dict(prob.stats)
+        stats["min_pivot_ratio"] = min(stats["min_pivot_ratio"], prob.pmin[0])
+        if stats["min_pivot_ratio"] == math.inf:
+            stats.pop("min_pivot_ratio")
+        warnings = []
+        if stats.get("min_pivot_ratio", math.inf) < PIVOT_WARN:
+            warnings.append(
+                f"the KKT pivot ratio fell to {stats['min_pivot_ratio']:.1e} (< {PIVOT_WARN:g}): "
+                f"the run passed close to a singular pose (a kinematic singularity or dependent "
+                f"rows), where the motion may not be unique and digits are lost")
+        return Trajectory(
+            t=np.array(T), q=np.array(self.Q, float).reshape(len(T), nm.nq),
+            u=np.array(self.U, float).reshape(len(T), nm.n), nfev=self.nfev,
+            nsteps=self.nsteps, wall_s=wall, method=method, settings=settings,
+            work=np.array(self.W, float) if self.bookkeeping else None, stats=stats, nm=nm,
+            warnings=warnings)

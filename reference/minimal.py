@@ -109,7 +109,7 @@ def _ode_run(nm: NumericModel, y0, t_end, rtol, atol):
     def fun(t, y):
         yl = y.tolist()
         ud = fr(yl[:nq], yl[nq:], t)[0]
-        return yl[nq:] + ud
+        return yl[nq:] + list(ud)  # list concatenation (ud is an array on the compiled path)
 
     sol = solve_ivp(fun, (0.0, t_end), np.asarray(y0, float), method="DOP853", rtol=rtol,
                     atol=atol)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import codegen, redundant
+from . import codegen, compiled, redundant
 from .constraints import check_independent
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
 from .formulations import derive
@@ -95,8 +95,33 @@ class NumericModel:
         self.rank = self.m  # rank of A at the initial state (below m only if redundant)
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
+        self._k = self._kernels()
+        # the forward kernel (every use of a model calls it): compiled or loaded here, the
+        # other functions on first use
+        # (models with dependent rows solve numerically, reference.redundant: no forward kernel)
+        self._kf = self._k.get("forward") if self._k is not None and not self.redundant else None
+        self._nlam = self.n + self.m
+        self._pack()
 
-    def with_params(self, params: dict | None) -> NumericModel:
+    def _kernels(self):
+        """The numba kernels of this model's code (None on the pure-Python backend)."""
+        if compiled.backend() != "numba":
+            return None
+        path = self._scalar["__cache_path__"]
+        return compiled.load_kernels(self.source, path.stem, path.parent, self.nq, self.n,
+                                     len(self.p), self.m, PIVOT_RATIO_MIN)
+
+    def _pack(self):
+        """Parameters and Schur references as one array (the kernels' _pa), zero b offsets."""
+        self._pa = np.array(self.p + self.sref, float)
+        self._db0 = np.zeros(max(self.m, 1))
+        self._nf = self.n + self.m + 1
+
+    @property
+    def backend(self) -> str:
+        return "numba" if self._k is not None else "python"
+
+    def with_params(self, params: dict | None) -> "NumericModel":
         """The same compiled model with other parameter values, without reading and compiling
         the code again (2-30 ms): the code depends on the model only, the values are
         arguments. The Schur reference is recomputed, so a singular parameter set raises here
@@ -105,6 +130,7 @@ class NumericModel:
         nm.params = resolve_parameters(self.model, params)
         nm.p = tuple(nm.params[p.name] for p in self.model.parameters)
         nm.sref = nm._schur_reference()
+        nm._pack()
         return nm
 
     def _schur_reference(self) -> tuple[float, ...]:
@@ -151,16 +177,62 @@ class NumericModel:
             raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
         return ql, ul, t
 
+    def _arrays(self, q, u, t):
+        """(q, u, t) as the kernels take them: writable contiguous float64 vectors and a float
+        (the slow path: the kernels accept only that signature, anything else is converted
+        here). Sizes and finiteness are checked inside the kernel (compiled.STATUS)."""
+        try:
+            return (np.array(q, dtype=float).reshape(-1), np.array(u, dtype=float).reshape(-1),
+                    float(t))
+        except (TypeError, ValueError) as exc:
+            raise ModelInputError(
+                f"{self.model.name}: state values must be numbers ({exc})") from None
+
+    def _fail(self, status: int, q, u, out=None):
+        """The error of a kernel's nonzero status, worded as on the pure-Python path."""
+        if status in (compiled.BAD_Q_SIZE, compiled.BAD_U_SIZE, compiled.NOT_FINITE):
+            self._state(q, u, 0.0)  # raises the size or finiteness error
+            raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
+        if status == compiled.SINGULAR:
+            raise SingularSystemError(self._singular_message(q, float(out[-1])))
+        raise RuntimeError(f"{self.model.name}: compiled kernel returned status {status}")
+
+    def _call(self, name: str, q, u, t):
+        """Run the checked kernel `name` at one state: its flat output array."""
+        out = np.empty(self._k.total[name])
+        f = self._k.get(name)
+        try:
+            st = f(q, u, t, self._pa, out)
+        except TypeError:  # not float64 vectors and a float: convert, then call
+            q, u, t = self._arrays(q, u, t)
+            st = f(q, u, t, self._pa, out)
+        if st:
+            self._fail(st, q, u)
+        return out
+
     # ---- single state ------------------------------------------------------------------
     def forward(self, q, u, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
-        q, u, t = self._state(q, u, t)
         if self.redundant:
-            ud, lam, piv = self.forward_raw(q, u, t)
+            q, u, t = self._state(q, u, t)
+            ud, lam, piv = self._forward_redundant(q, u, t)
             if not piv > PIVOT_RATIO_MIN:
                 raise SingularSystemError(self._singular_message(q, piv))
             return Forward(np.asarray(ud, float), np.asarray(lam, float), float(piv),
                            self._last_rank)
+        kf = self._kf
+        if kf is not None:
+            out = np.empty(self._nf)
+            try:
+                st = kf(q, u, t, self._pa, self._db0, out)
+            except TypeError:  # not float64 vectors and a float: convert, then call
+                q, u, t = self._arrays(q, u, t)
+                st = kf(q, u, t, self._pa, self._db0, out)
+            if st:
+                self._fail(st, q, u, out)
+            n, nm = self.n, self._nlam
+            return Forward(out[:n], out[n:nm], float(out[nm]))
+        q, u, t = self._state(q, u, t)
         try:
             ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
@@ -169,24 +241,66 @@ class NumericModel:
             raise SingularSystemError(self._singular_message(q, piv))
         return Forward(np.array(ud, dtype=float), np.array(lam, dtype=float), float(piv))
 
-    def forward_raw(self, q: list, u: list, t: float, db=None):
-        """Unchecked fast path for integrators: lists in, (u', lambda, pivot ratio) out.
-        `db` offsets the constraint rows' right side: A u' = b + db (Baumgarte)."""
+    def forward_raw(self, q, u, t: float, db=None):
+        """Fast path for integrators: (u', lambda, pivot ratio) without raising on a singular
+        KKT matrix (the caller tests the ratio). Sizes are still checked (an unchecked compiled
+        read past an array's end would return garbage). `db` offsets the constraint rows'
+        right side: A u' = b + db (Baumgarte). Lists or float64 vectors in; vectors out on
+        the compiled backend, lists on the Python one."""
         if self.redundant:
             return self._forward_redundant(q, u, t, db)
-        return self._scalar["forward"](q, u, t, self.p, self.sref,
-                                       self._no_db if db is None else db)
+        if self._k is None:
+            return self._scalar["forward"](q, u, t, self.p, self.sref,
+                                           self._no_db if db is None else db)
+        out = np.empty(self._nf)
+        db = self._db0 if db is None else np.asarray(db, float)
+        try:
+            st = self._kf(q, u, t, self._pa, db, out)
+        except TypeError:  # lists (the Python path's inputs): convert, then call
+            q, u, t = self._arrays(q, u, t)
+            st = self._kf(q, u, t, self._pa, db, out)
+        if st and st != compiled.SINGULAR:
+            if st != compiled.NOT_FINITE:
+                self._fail(st, q, u)
+            out[:] = np.nan  # as the Python path: NaN in, NaN out (the caller's ratio test)
+        n, nm = self.n, self._nlam
+        return out[:n], out[n:nm], float(out[nm])
 
     def _forward_redundant(self, q, u, t, db=None):
         """forward_raw for models with dependent rows (reference.redundant): lists out."""
-        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
+        q, u = [float(x) for x in q], [float(x) for x in u]
+        M, f, A, b = self._scalar["matrices"](q, u, float(t), self.p)
         n, m = self.n, self.m
-        b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
+        b = np.array(b, float) + (np.asarray(db, float)[:m] if db is not None else 0.0)
         ud, lam, piv, self._last_rank = redundant.solve(
             np.array(M, float).reshape(n, n), np.array(f, float),
             np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
             augment=self._scalar["META"]["augmented"], where=self.model.name)
         return ud.tolist(), lam.tolist(), piv
+
+    def raw_function(self, name: str):
+        """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
+        kinematics, energy, matrices, position_jacobian): the integrators' unchecked calls.
+        On the compiled backend the groups are views of one output array and `p` must be
+        this model's own parameter tuple (the kernel reads the packed copy, self._pa)."""
+        if self._k is None:
+            return self._scalar[name]
+        f, total, offs, pa = self._k.get(name), self._k.total[name], self._k.offsets[name], \
+            self._pa
+        arrays = self._arrays
+
+        def call(q, u, t, p=None):
+            out = np.empty(total)
+            try:
+                st = f(q, u, t, pa, out)
+            except TypeError:  # lists: convert, then call
+                q, u, t = arrays(q, u, t)
+                st = f(q, u, t, pa, out)
+            if st and st != compiled.NOT_FINITE:  # NaN in, NaN out, as the Python path
+                self._fail(st, q, u)
+            return tuple(out[a:b] for a, b in offs)
+
+        return call
 
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
@@ -197,24 +311,37 @@ class NumericModel:
 
     def matrices(self, q, u, t: float = 0.0):
         """M (n x n), f (n), A (m x n), b (m) at a state: the EquationsOfMotion contract."""
+        n, m = self.n, self.m
+        if self._k is not None:
+            out = self._call("matrices", q, u, t)
+            nn, nf, na = n * n, n * n + n, n * n + n + m * n
+            return (out[:nn].reshape(n, n), out[nn:nf], out[nf:na].reshape(m, n), out[na:])
         q, u, t = self._state(q, u, t)
         M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
-        n, m = self.n, self.m
         return (np.array(M, float).reshape(n, n), np.array(f, float),
                 np.array(A, float).reshape(m, n), np.array(b, float))
 
     def kinematics(self, q, u, t: float = 0.0) -> np.ndarray:
+        if self._k is not None:
+            return self._call("kinematics", q, u, t)
         q, u, t = self._state(q, u, t)
         return np.array(self._scalar["kinematics"](q, u, t, self.p)[0], float)
 
     def residuals(self, q, u, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Position residuals f(q, t) and velocity residuals A u + a0."""
+        if self._k is not None:
+            out = self._call("residuals", q, u, t)
+            k = self._k.sizes["residuals"][0]
+            return out[:k], out[k:]
         q, u, t = self._state(q, u, t)
         pos, vel = self._scalar["residuals"](q, u, t, self.p)
         return np.array(pos, float), np.array(vel, float)
 
     def energy(self, q, u, t: float = 0.0) -> tuple[float, float]:
         """Kinetic and potential energy (gravity from the bodies plus the model's springs)."""
+        if self._k is not None:
+            out = self._call("energy", q, u, t)
+            return float(out[0]), float(out[1])
         q, u, t = self._state(q, u, t)
         (K, V, _P), *_ = self._scalar["energy"](q, u, t, self.p)
         return float(K), float(V)
@@ -292,21 +419,14 @@ class NumericModel:
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
         if self.redundant:  # one numeric solve per state (reference.redundant)
-            rows = [self.forward_raw(Q[i].tolist(), U[i].tolist(), t) for i in range(N)]
-            ud = list(np.array([r[0] for r in rows]).reshape(N, self.n).T)
-            lam = list(np.array([r[1] for r in rows]).reshape(N, self.m).T)
-            piv = np.array([r[2] for r in rows])
+            rows = [self._forward_redundant(Q[i], U[i], t) for i in range(N)]
+            UD = np.array([r[0] for r in rows], float).reshape(N, self.n)
+            LAM = np.array([r[1] for r in rows], float).reshape(N, self.m)
+            piv = np.array([r[2] for r in rows], float)
+        elif self._k is not None:
+            UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
         else:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref,
-                                                        self._no_db)
-        UD = np.empty((N, self.n))
-        for i, c in enumerate(ud):
-            UD[:, i] = c
-        LAM = np.empty((N, self.m))
-        for i, c in enumerate(lam):
-            LAM[:, i] = c
-        piv = np.broadcast_to(np.asarray(piv, float), (N,))
+            UD, LAM, piv = self._forward_batch_python(Q, U, t)
         bad = ~(piv > PIVOT_RATIO_MIN)
         if bad.any():
             i = int(np.argmax(bad))
@@ -314,3 +434,42 @@ class NumericModel:
                 f"{bad.sum()} of {N} states are singular; first: index {i}. "
                 + self._singular_message(Q[i], float(piv[i])))
         return UD, LAM, piv
+
+    def _forward_batch_python(self, Q, U, t):
+        N = Q.shape[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref, self._no_db)
+        UD = np.empty((N, self.n))
+        for i, c in enumerate(ud):
+            UD[:, i] = c
+        LAM = np.empty((N, self.m))
+        for i, c in enumerate(lam):
+            LAM[:, i] = c
+        return UD, LAM, np.broadcast_to(np.asarray(piv, float), (N,))
+
+    def _forward_batch_compiled(self, Q, U, t):
+        """The serial (or, with CROSSCHECK_THREADS > 1, prange) batch kernel. The parameters,
+        Schur references and t may be per-state arrays (crosscheck.sweep.reference_batch)."""
+        N = Q.shape[0]
+        T = np.ascontiguousarray(np.atleast_1d(np.asarray(t, float)))
+        cols = list(self.p) + list(self.sref)
+        if any(np.ndim(c) for c in cols):
+            P = np.empty((N, len(cols)))
+            for j, c in enumerate(cols):
+                P[:, j] = c
+        else:
+            P = self._pa[None]
+        out = np.empty((N, self._nf))
+        st = np.empty(N, np.int64)
+        name = "forward_batch" if compiled.threads() == 1 else "forward_batch_parallel"
+        if name != "forward_batch":
+            import numba
+            numba.set_num_threads(min(compiled.threads(), numba.config.NUMBA_NUM_THREADS))
+        self._k.get(name)(np.ascontiguousarray(Q), np.ascontiguousarray(U), T, P,
+                          self._db0[None], out, st)
+        bad = (st != compiled.OK) & (st != compiled.SINGULAR)
+        if bad.any():
+            i = int(np.argmax(bad))
+            self._fail(int(st[i]), Q[i], U[i])
+        n, nm = self.n, self.n + self.m
+        return out[:, :n], out[:, n:nm], out[:, nm]

@@ -166,8 +166,9 @@ class Model:
         return P
 
     def content_hash(self) -> str:
-        """A hash of everything that defines the equations (for the derivation cache)."""
-        parts = [self.name, repr(self.formulations)]
+        """A hash of everything that defines the equations (for the derivation cache). The name
+        is left out: it is the cache entry's readable prefix, not part of the physics."""
+        parts = [repr(self.formulations)]
         parts += [sp.srepr(x) for x in self.coordinates + self.speeds + self.kinematics]
         for b in self.bodies:
             parts += [b.name, b.v_frame] + [

@@ -44,3 +44,52 @@ def test_cache_key_follows_model_content():
     assert codegen.cache_key(model, "lagrange") != codegen.cache_key(model, "kane")
     assert codegen.cache_key(model, "lagrange") == codegen.cache_key(models.get("slider_crank"),
                                                                       "lagrange")
+
+
+KEY_SCRIPT = """
+from reference import codegen, models
+print(codegen.__file__)
+print(codegen.cache_key(models.get("slider_crank"), "kane"))
+"""
+
+
+def _key_and_entries(pkg_root, cache):
+    """The cache key seen by a process that imports `reference` from `pkg_root`, and the cache
+    entries that process leaves after building the model once."""
+    env = dict(os.environ, PYTHONPATH=str(pkg_root), CROSSCHECK_CACHE_DIR=str(cache))
+    key = subprocess.run([sys.executable, "-c", KEY_SCRIPT], env=env, capture_output=True,
+                         text=True, timeout=300, cwd=pkg_root)
+    assert key.returncode == 0, key.stderr
+    where, key = key.stdout.split()
+    assert where.startswith(str(pkg_root)), f"the copy was not imported: {where}"
+    run = subprocess.run([sys.executable, "-c", SCRIPT, "derive"], env=env, capture_output=True,
+                         text=True, timeout=300, cwd=pkg_root)
+    assert run.returncode == 0, run.stderr
+    return key, sorted(p.name for p in cache.glob("slider_crank-kane-*.py"))
+
+
+def test_editing_a_formulation_misses_the_cache(tmp_path):
+    """Issue 14 item 1: a warm cache must not hide an edit of the derivation's source. A copy of
+    the package with one formulation edited (a comment is enough: the key hashes the files, so
+    any edit counts) gets another key, and building the model there derives a new entry."""
+    import shutil
+    import reference
+    src = os.path.dirname(reference.__file__)
+    original, edited = tmp_path / "original", tmp_path / "edited"
+    for root in (original, edited):
+        shutil.copytree(src, root / "reference", ignore=shutil.ignore_patterns("__pycache__"))
+    proj = edited / "reference" / "formulations" / "projection.py"
+    proj.write_text(proj.read_text().replace(
+        "T_star = b.inertia * alpha + b.omega.cross(H)",
+        "T_star = b.inertia * alpha + b.omega.cross(H)  # edited"))
+    assert "# edited" in proj.read_text(), "the edit did not apply: the test proves nothing"
+    cache = tmp_path / "cache"
+    key0, entries0 = _key_and_entries(original, cache)
+    key1, entries1 = _key_and_entries(edited, cache)
+    assert key0 != key1
+    assert f"{key0}.py" in entries0 and f"{key1}.py" in entries1
+    # each derivation leaves its source and, with the compiled backend, its kernel module
+    # (key-prefixed): the edited copy adds its own files and reuses none of the original's
+    assert set(entries0) < set(entries1), "the original's entry was lost"
+    assert all(e.startswith(key1) for e in set(entries1) - set(entries0)), entries1
+    assert not [e for e in entries0 if e.startswith(key1)], "the copies share an entry"

@@ -146,3 +146,12 @@ def test_a_negative_value_does_not_swallow_a_flag(capsys):
         main(["eval", "slider_crank", "--q", "--json"])
     assert exc.value.code == 2
     assert "expected one argument" in capsys.readouterr().err
+
+
+def test_default_paths_resolve_in_the_tests_own_directory(tmp_path, capsys):
+    """conftest runs every test in its tmp_path: `crosscheck report` without --results looks
+    for out/results.json there, not in the checkout (issue 15 item 9)."""
+    from pathlib import Path
+    assert Path.cwd() == tmp_path
+    code, _, err = _run(capsys, "report")
+    assert code == 2 and "out/results.json does not exist" in err

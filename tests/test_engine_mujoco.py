@@ -30,7 +30,7 @@ import sympy as sp
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from crosscheck.engines.base import EngineUnsupported
-from crosscheck.engines.mujoco_engine import (MJCF_DIR, SOLIMP, MujocoAdapter, mjcf,
+from crosscheck.engines.mujoco.adapter import (MJCF_DIR, SOLIMP, MujocoAdapter, mjcf,
                                               write_mjcf)
 from reference.models import get
 from reference.numeric import NumericModel
@@ -631,7 +631,7 @@ def test_perturbed_parameter_fails_the_rigid_comparison(name, param):
 
 
 # ======================================================================================
-# why pendulum_xy is a light rod and not a tendon equality (ENGINES.md, re-verified)
+# why pendulum_xy is a light rod and not a tendon equality (docs/engines/mujoco.md)
 # ======================================================================================
 def test_tendon_equality_misses_jdot_v():
     """A spatial tendon origin -> bob held at its length: its one row has aref = 0 (no J-dot v),
@@ -667,20 +667,20 @@ def test_simulate_rk4_matches_reference_and_energy_is_read_after_forward():
     """pendulum_angle, RK4, dt = 1e-3 for 1 s against the reference integrated by scipy at
     1e-12: RK4's global error ~ dt^4 leaves < 1e-9 rad; energy conserved to 1e-10; and with
     Euler the d.energy read right after mj_step is the one of the state at the START of the
-    step (ENGINES.md 3.4, re-verified), which is why simulate() calls mj_forward first."""
+    step (docs/engines/mujoco.md), which is why simulate() calls mj_forward first."""
     from scipy.integrate import solve_ivp
 
     em = engine("pendulum_angle", None)
     nm = reference("pendulum_angle")
     q0, u0 = [1.2], [0.5]
-    tr = em.simulate(q0, u0, 1.0, 1e-3, "RK4", record_every=100)
-    assert tr.n_steps == 1000 and tr.t[-1] == pytest.approx(1.0) and len(tr.t) == 11
+    tr = em.simulate(q0, u0, np.linspace(0.0, 1.0, 11), integrator="RK4", timestep=1e-3)
+    assert tr.steps == 1000 and tr.t[-1] == pytest.approx(1.0) and len(tr.t) == 11
     sol = solve_ivp(lambda t, y: [y[1], nm.forward([y[0]], [y[1]]).accelerations[0]],
                     (0, tr.t[-1]), [q0[0], u0[0]], t_eval=tr.t, rtol=1e-12, atol=1e-12,
                     method="DOP853")
     assert maxabs(tr.q[:, 0] - sol.y[0]) <= 1e-9
     assert maxabs(tr.u[:, 0] - sol.y[1]) <= 1e-8
-    E = tr.energy.sum(axis=1)
+    E = tr.energy
     assert E[0] == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-14)
     assert maxabs(E - E[0]) <= 1e-10
     # lagged energy straight after mj_step
@@ -701,13 +701,13 @@ def test_simulate_constrained_drift(integrator):
     em = engine("slider_crank_split", None)
     nm = reference("slider_crank_split")
     q0, u0 = nm.model.initial_q, nm.model.initial_u
-    tr = em.simulate(q0, u0, 0.5, 1e-3, integrator, record_every=10)
-    assert tr.q.shape == (51, 3) and tr.u.shape == (51, 3) and tr.n_steps == 500
+    tr = em.simulate(q0, u0, np.linspace(0.0, 0.5, 51), integrator=integrator, timestep=1e-3)
+    assert tr.q.shape == (51, 3) and tr.u.shape == (51, 3) and tr.steps == 500
     pos, _ = nm.residuals(tr.q[-1], tr.u[-1])
     assert maxabs(pos) == pytest.approx(tr.violation[-1], rel=1e-6, abs=1e-12)
     limit = {"Euler": 5e-3, "implicitfast": 5e-3, "RK4": 1e-4}[integrator]
     assert maxabs(tr.violation) <= limit
-    E = tr.energy.sum(axis=1)
+    E = tr.energy
     assert E[0] == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-12)
     assert maxabs(E - E[0]) <= (0.5 if integrator != "RK4" else 5e-3)
 
@@ -723,21 +723,21 @@ def test_simulate_exercises_against_reference(name, limit):
 
     nm = reference(name)
     q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
-    tr = engine(name, None).simulate(q0, u0, 1.0, 1e-3, "RK4", record_every=1000)
+    tr = engine(name, None).simulate(q0, u0, [0.0, 1.0], integrator="RK4", timestep=1e-3)
     ref = simulate(nm, q0, u0, 1.0, "projection", rtol=1e-12, atol=1e-12)
     assert tr.t[-1] == pytest.approx(ref.t[-1])
     assert maxabs(tr.q[-1] - ref.q[-1]) <= limit
     assert maxabs(tr.violation) <= limit
     E0 = sum(nm.energy(q0, u0))
-    assert tr.energy[0].sum() == pytest.approx(E0, abs=1e-12 * (1 + abs(E0)))
+    assert tr.energy[0] == pytest.approx(E0, abs=1e-12 * (1 + abs(E0)))
 
 
 # ======================================================================================
 # MJCF files and the adapter contract
 # ======================================================================================
 def test_mjcf_files_are_current_and_load(tmp_path):
-    """crosscheck/engines/mjcf/ holds exactly what the generator writes (regenerate with
-    `python -m crosscheck.engines.mujoco_engine`); each file loads, contacts are off, energy
+    """crosscheck/engines/mujoco/mjcf/ holds exactly what the generator writes (regenerate with
+    `python -m crosscheck.engines.mujoco.adapter`); each file loads, contacts are off, energy
     is on, every equality has solimp 0.9999, and trees sit under one top-level body."""
     fresh = {p.name: p.read_text() for p in write_mjcf(tmp_path)}
     stored = {p.name: p.read_text() for p in MJCF_DIR.glob("*.xml")}

@@ -29,7 +29,7 @@ from hypothesis import given, settings, strategies as st
 from scipy.integrate import solve_ivp
 
 from crosscheck.engines.base import EngineForward, EngineUnsupported
-from crosscheck.engines.pinocchio_engine import PROX_EXACT, PROX_REDUNDANT, PinocchioAdapter
+from crosscheck.engines.pinocchio.adapter import PROX_EXACT, PROX_REDUNDANT, PinocchioAdapter
 from reference.errors import ModelInputError
 from reference.formulations.lagrange import kinetic_energy, potential_energy
 from reference.models import get
@@ -264,7 +264,7 @@ def test_engine_solve_quality(case):
 
 
 def test_redundant_planar_rows_need_the_proximal_settings():
-    """ENGINES.md 2.3, re-verified: the slider-crank's 3-row closure has an identically zero
+    """docs/engines/pinocchio.md: the slider-crank's 3-row closure has an identically zero
     out-of-plane row, so the plain Cholesky KKT (mu = 0, one iteration) gives NaN, and
     PROX_REDUNDANT converges in a few iterations to the reference's answer."""
     model_name = "slider_crank"
@@ -611,7 +611,7 @@ def test_perturbed_parameter_breaks_agreement(case):
 # ---- adapter contract -------------------------------------------------------------------
 def test_build_errors():
     from reference.models import names
-    assert set(ADAPTER.supported()) == set(names())  # every system of the unit is mapped
+    assert set(ADAPTER.models()) == set(names())  # every system of the unit is mapped
     with pytest.raises(EngineUnsupported, match="no_such_model"):
         ADAPTER.build("no_such_model", {})
     with pytest.raises(EngineUnsupported, match="variant"):
@@ -671,18 +671,18 @@ def test_simulate_matches_reference_trajectory(model_name):
     mod = get(model_name)
     q0, u0 = np.array(mod.initial_q), np.array(mod.initial_u)
     t_eval = np.linspace(0.0, 1.0, 21)
-    tr = em.simulate(q0, u0, 1.0, SIM_RTOL, SIM_RTOL, t_eval=t_eval)
-    assert tr.success and tr.nfev > 0 and np.array_equal(tr.t, t_eval)
+    tr = em.simulate(q0, u0, t_eval, integrator="DOP853", rtol=SIM_RTOL)
+    assert tr.failure is None and tr.steps > 0 and np.array_equal(tr.t, t_eval)
     ref = _reference_trajectory(model_name, q0, u0, t_eval)
     n = len(q0)
     assert np.max(np.abs(tr.q - ref[:, :n])) <= SIM_TOL
     assert np.max(np.abs(tr.u - ref[:, n:])) <= SIM_TOL
-    assert np.max(tr.raw["violation"]) <= SIM_TOL
-    assert np.max(tr.raw["velocity_violation"]) <= SIM_TOL
+    assert np.max(tr.violation) <= SIM_TOL
+    assert np.max(tr.velocity_violation) <= SIM_TOL
     if model_name in PLANAR:
         # work-energy balance: the constant crank torque T does work T (theta1 - theta1(0))
         T = params_of(model_name).get("T", 0.0)
-        E = tr.raw["energy"] - T * (tr.q[:, 0] - q0[0])
+        E = tr.energy - T * (tr.q[:, 0] - q0[0])
         assert np.max(np.abs(E - E[0])) <= SIM_TOL * max(1.0, abs(E[0]))
 
 
@@ -692,17 +692,18 @@ def test_simulate_3d_variants_agree():
     mod = get("double_pendulum_3d")
     q0, u0 = np.array(mod.initial_q), np.array(mod.initial_u)
     t_eval = np.linspace(0.0, 1.0, 11)
-    a = engine("double_pendulum_3d", "tree").simulate(q0, u0, 1.0, SIM_RTOL, SIM_RTOL,
-                                                        t_eval=t_eval)
-    b = engine("double_pendulum_3d", "free").simulate(q0, u0, 1.0, SIM_RTOL, SIM_RTOL,
-                                                        t_eval=t_eval)
+    a = engine("double_pendulum_3d", "tree").simulate(q0, u0, t_eval, integrator="DOP853",
+                                                        rtol=SIM_RTOL)
+    b = engine("double_pendulum_3d", "free").simulate(q0, u0, t_eval, integrator="DOP853",
+                                                        rtol=SIM_RTOL)
     assert np.max(np.abs(a.q - b.q)) <= SIM_TOL and np.max(np.abs(a.u - b.u)) <= SIM_TOL
-    assert np.max(b.raw["violation"]) <= SIM_TOL
+    assert np.max(b.violation) <= SIM_TOL
     for tr in (a, b):
-        assert np.max(np.abs(tr.raw["energy"] - tr.raw["energy"][0])) <= SIM_TOL
+        assert np.max(np.abs(tr.energy - tr.energy[0])) <= SIM_TOL
     top = get("top_cartesian")
     tr = engine("top_cartesian", "free").simulate(
-        np.array(top.initial_q), np.array(top.initial_u), 0.2, SIM_RTOL, SIM_RTOL)
+        np.array(top.initial_q), np.array(top.initial_u), np.linspace(0.0, 0.2, 101),
+        integrator="DOP853", rtol=SIM_RTOL)
     nm = reference("top_cartesian", "dalembert")
     for q, u in zip(tr.q, tr.u):
         pos, vel = nm.residuals(q, u)

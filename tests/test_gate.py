@@ -140,10 +140,41 @@ def test_passed_to_skipped_and_new_failing_records_are_regressions(baseline, cle
     code, out, _ = gate(capsys, "--baseline", baseline, "--results",
                         write(tmp_path, "r.json", data))
     found = regressions(out)
-    assert code == 1 and len(found) == 2, out
+    assert code == 1 and len(found) == 3, out
     assert any(ln.startswith(key(r)) and "passed -> skipped (test: not run)" in ln for ln in found)
     assert any(ln.startswith(key(new_bad)) and "new record, failing" in ln for ln in found)
-    assert f"{key(new_ok)}: new record (passed)" in out  # listed, not a regression
+    assert any(ln.startswith(f"{key(new_ok)}: new record (passed)") and "--accept-new" in ln
+               for ln in found)  # ungated: a regression unless accepted (issue 15 item 7)
+    code, out, _ = gate(capsys, "--baseline", baseline, "--results",
+                        write(tmp_path, "r.json", data), "--accept-new")
+    found = regressions(out)
+    assert code == 1 and len(found) == 2, out  # a new failing record is never accepted
+    assert "accepted by --accept-new (run --update to gate them) (1):" in out and f"{key(new_ok)}: new record (passed)" in out
+
+
+def test_a_baseline_of_one_model_does_not_pass_the_whole_suite(clean, tmp_path, capsys):
+    """The gate compared nothing new and passed (issue 15 item 7): now the records the baseline
+    lacks fail it, unless --accept-new lists them as accepted; a missing record still fails."""
+    # the fixture's run has one model: a baseline of its reference records stands for a
+    # baseline that covers a part of what the results hold
+    part = [r for r in clean["records"] if r["engine"] == "reference"]
+    assert 0 < len(part) < len(clean["records"])
+    one = {"meta": {}, "records": part}
+    base, results = write(tmp_path, "one.json", one), write(tmp_path, "all.json", clean)
+    lacking = len(clean["records"]) - len(one["records"])
+    code, out, _ = gate(capsys, "--baseline", base, "--results", results)
+    assert code == 1 and len(regressions(out)) == lacking, out
+    code, out, _ = gate(capsys, "--baseline", base, "--results", results, "--accept-new")
+    assert code == 0 and f"accepted by --accept-new (run --update to gate them) ({lacking}):" \
+        in out, out
+    fewer = copy.deepcopy(clean)
+    gone = next(r for r in fewer["records"] if r["engine"] == "reference")
+    fewer["records"].remove(gone)
+    code, out, _ = gate(capsys, "--baseline", base, "--results",
+                        write(tmp_path, "fewer.json", fewer), "--accept-new")
+    found = regressions(out)
+    assert code == 1 and len(found) == 1 and found[0].startswith(key(gone)), out
+    assert "missing from the results" in found[0]
 
 
 def test_update_rewrites_the_baseline_and_says_what_changed(baseline, clean, tmp_path, capsys):

@@ -265,7 +265,12 @@ def test_projection_with_other_one_step_integrators(sc, sc_ref, integrator):
     tr = simulate(sc, *_start(sc), 1.0, "projection", rtol=1e-9, atol=1e-9,
                   integrator=integrator, energy="none")
     assert max(tr.max_residual().values()) <= PROJECTED
-    assert np.max(np.abs(tr.final_state - sc_ref.state)) < 1e-6
+    # A one-step method that keeps each step's local error under rtol |y| ends a short
+    # non-stiff run within C rtol |y| of the exact solution (tolerance proportionality);
+    # measured C = 0.3..4.7 here over rtol 1e-7..1e-11 for RK45, Radau and DOP853 (against
+    # rtol 1e-13), so C = 10 is the bound: a dropped term or a wrong order fails it.
+    scale = max(1.0, float(np.max(np.abs(sc_ref.state))))
+    assert np.max(np.abs(tr.final_state - sc_ref.state)) <= 10 * 1e-9 * scale
 
 
 def test_nullspace_repartitions_when_the_dependent_block_degrades():
@@ -276,4 +281,8 @@ def test_nullspace_repartitions_when_the_dependent_block_degrades():
     assert tr.stats["partitions"] > 1
     assert max(tr.max_residual().values()) <= PROJECTED
     ref = simulate(nm, *_start(nm), 0.5, "projection", rtol=1e-12, atol=1e-12, energy="none")
-    assert np.max(np.abs(tr.final_state - ref.final_state)) < 1e-4
+    # Tolerance proportionality as above, with the top's spin amplifying the phase error: at
+    # ~60 rad/s for 0.5 s (30 rad of spin) the measured C is 35..74 over rtol 1e-6..1e-10
+    # (the restarts at each repartition add local errors), so C = 200.
+    scale = max(1.0, float(np.max(np.abs(ref.final_state))))
+    assert np.max(np.abs(tr.final_state - ref.final_state)) <= 200 * 1e-8 * scale

@@ -1,6 +1,6 @@
 """The three-dimensional systems of the unit: Example 3, Example 4, Exercises 6.5-6.7.
 
-(a) the derived equations equal the printed ones (EQUATIONS.md; for 6.5/6.7 the seed's answers,
+(a) the derived equations equal the printed ones (docs/textbook.md; for 6.5/6.7 the seed's answers,
     whose right sides decode term by term and whose left sides are 2 E^T (I omega' + omega x
     I omega)), symbolically;
 (b) Exercise 6.6: lambda = 0 with d'Alembert (and Kane); lambda = 2V - 4K with Lagrange;
@@ -528,7 +528,7 @@ def test_example_3_multiplier_meaning():
 
 
 def test_example_3_multiplier_depends_on_partial_velocities():
-    """EQUATIONS.md: lambda depends on how v_G is written in the dependent speeds. Adding
+    """docs/textbook.md: lambda depends on how v_G is written in the dependent speeds. Adding
     d (omega1 C + omega3 S) n2 to v_G (zero on the manifold) leaves the motion and shifts lambda
     by m d a_G . n2 = -m d^2 phi'^2."""
     import dataclasses

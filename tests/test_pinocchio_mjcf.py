@@ -1,4 +1,4 @@
-"""Pinocchio 4.1.0's MJCF parser on the MuJoCo adapter's files (crosscheck/engines/mjcf/).
+"""Pinocchio 4.1.0's MJCF parser on the MuJoCo adapter's files (crosscheck/engines/mujoco/mjcf/).
 Real Pinocchio and MuJoCo, no mocks. (The Pinocchio adapter's timing hook is tested in
 tests/test_engine_pinocchio.py.)
 
@@ -19,7 +19,7 @@ their spatial acceleration a gives MuJoCo's classical qacc[0:3] = R (a_lin + ome
 Tolerances (relative to max(1, max|reference value|)):
 - TOL_SAME_FILE = 1e-11: parsed Pinocchio vs MuJoCo's unconstrained mj_forward on the same
   file: the same numbers in, two algorithms (ABA vs CRB + LDL), round-off only; the 3-D double
-  pendulum's small axial inertia amplifies it to ~4e-13 (ENGINES.md section 1).
+  pendulum's small axial inertia amplifies it to ~4e-13 (docs/engines/pinocchio.md).
 - TOL_RIGID = 1e-9: loops, parsed Pinocchio (exact KKT) vs the rigid answer recovered from
   MuJoCo's soft solve, whose floor is 1e-11 to 2e-10 (tests/test_engine_mujoco.py).
 - TOL_INCODE = 1e-11: parsed vs the in-code Pinocchio model, and vs the reference: the MJCF
@@ -38,8 +38,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from crosscheck.engines.mujoco_engine import MJCF_DIR, MujocoAdapter, mjcf
-from crosscheck.engines.pinocchio_engine import PROX_REDUNDANT, PinocchioAdapter
+from crosscheck.engines.mujoco.adapter import MJCF_DIR, MujocoAdapter, mjcf
+from crosscheck.engines.pinocchio.adapter import PROX_REDUNDANT, PinocchioAdapter
 from reference.models import get
 from reference.numeric import NumericModel
 

@@ -25,7 +25,7 @@ def test_finds_the_smallest_caught_decade(true_k):
 def test_nothing_caught_is_reported_with_the_reason():
     t = search("m", "e", "p", lambda rel: "")
     assert t.caught_at is None and t.not_caught_below == pytest.approx(0.1)
-    assert "10 %" in t.reason and t.evaluations == 1
+    assert "up to 1e-01" in t.reason and t.evaluations == 1
 
 
 def test_an_unused_parameter_is_not_searched():

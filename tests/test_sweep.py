@@ -104,24 +104,26 @@ def test_batched_reference_isolates_a_singular_sample():
     ("slider_crank", "mujoco"), ("slider_crank", "pinocchio"), ("exercise_6_1", "mujoco"),
     ("top_cartesian", "pinocchio")])
 def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
-    """engine_errors at one state = crosscheck.run._engine_records on that single state (these
-    models are scleronomic, so run's t = 0 and the sample's t give the same numbers)."""
-    from crosscheck.run import _engine_records, engine_adapter
+    """A sweep sample's values (compare_at_state) = run's records (engine_records) on that
+    single state (these models are scleronomic, so run's t = 0 and the sample's t give the
+    same numbers), each against the same tolerance."""
+    from crosscheck.comparison import (build, compare_at_state, engine_records,
+                                       reference_answer, tolerance)
+    from crosscheck.engines.registry import get_engine
     base = S.base_model(name)
     _, nm, t, q, u = draw_sample(base, 4, 1)
-    ad = engine_adapter(engine)
+    ad = get_engine(engine)
     for variant in ad.variants(name):
-        recs = _engine_records(name, nm, [(q, u)], ad, {}, variant)
-        em = ad.build(name, nm.params, variant=variant) if variant else ad.build(name, nm.params)
-        fw = nm.forward(q, u, t)
-        vals, skips, soft = S.engine_errors(em, q, u, t, fw.accelerations, fw.multipliers,
-                                            nm.matrices(q, u, t)[0], nm.energy(q, u, t), nm.m)
+        recs = engine_records(name, nm, [(q, u)], ad, nm.params, variant)
+        em = build(ad, name, nm.params, variant)
+        sc = compare_at_state(em, q, u, t, reference_answer(nm, q, u, t), nm.m)
+        assert recs
         for r in recs:
             if r["skipped"]:
-                assert r["quantity"] in skips and r["quantity"] not in vals
+                assert r["quantity"] in sc.skips and r["quantity"] not in sc.values
                 continue
-            assert vals[r["quantity"]] == r["error"], r["quantity"]
-            tol, _ = S._tolerance(r["quantity"], soft, r["engine"])
+            assert sc.values[r["quantity"]] == r["error"], r["quantity"]
+            tol, _ = tolerance(r["quantity"], sc.soft, ad, name)
             assert tol.value == r["tolerance"]
 
 
@@ -224,10 +226,13 @@ class _FlakyAdapter:
     L drew below its default fails in forward."""
 
     def __init__(self, inner):
-        self.inner, self.name = inner, inner.name
+        self.inner, self.name, self.capabilities = inner, inner.name, inner.capabilities
 
     def variants(self, name):
         return self.inner.variants(name)
+
+    def exact_tolerance(self, name):
+        return self.inner.exact_tolerance(name)
 
     def build(self, name, params, variant=None):
         em = self.inner.build(name, params)
@@ -325,6 +330,7 @@ def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
                      on_chunk=interrupt)
     st = res["status"]
     assert st["stopped"] == "interrupted" and not st["complete"]
+    assert not st["passed"] and st["verdict"] == "incomplete"  # issue 15 item 6
     ranges = st["completed_ranges"]["pendulum_xy"]
     done = sum(b - a for a, b in ranges)
     assert done == st["completed"]["pendulum_xy"] >= 4  # the two merged chunks, maybe more
@@ -351,8 +357,12 @@ def test_time_budget_stops_and_says_so(tmp_path, capsys):
     st = res["status"]
     assert not st["complete"] and "time budget" in st["stopped"] and "stopped" in out
     done = st["completed"]["pendulum_xy"]
-    assert 0 < done < 100000 and st["completed_ranges"]["pendulum_xy"] == [[0, done]]
-    assert code == (0 if st["passed"] else 1)
+    # on a loaded machine the budget can end before the first chunk: what completed (possibly
+    # nothing) is reported exactly
+    assert done < 100000
+    assert st["completed_ranges"]["pendulum_xy"] == ([[0, done]] if done else [])
+    assert not st["passed"]  # incomplete: what it did not run, it did not check
+    assert (st["verdict"], code) in (("incomplete", 4), ("failed", 1))
 
 
 # ---- command line ---------------------------------------------------------------------------
@@ -376,13 +386,13 @@ def test_cli_clean_campaign_exits_0_and_writes_the_contract(tmp_path, capsys):
 @pytest.mark.parametrize("argv,needle", [
     (["nope"], "unknown model"),
     (["pendulum_xy", "--engines", "bullet"], "unknown engine"),
-    (["pendulum_xy", "--samples", "0"], "--samples must be >= 1"),
-    (["pendulum_xy", "--samples", "ten"], "not an integer"),
-    (["pendulum_xy", "--seed", "-1"], "--seed must be >= 0"),
-    (["pendulum_xy", "--workers", "0"], "--workers must be >= 1"),
+    (["pendulum_xy", "--samples", "0"], "--samples: 0 must be at least 1"),
+    (["pendulum_xy", "--samples", "ten"], "not a whole number"),
+    (["pendulum_xy", "--seed", "-1"], "--seed: -1 must be at least 0"),
+    (["pendulum_xy", "--workers", "0"], "--workers: 0 must be at least 1"),
     (["pendulum_xy", "--workers", "2", "--dask", "tcp://127.0.0.1:1"], "not both"),
-    (["pendulum_xy", "--max-seconds", "0"], "positive number"),
-    (["pendulum_xy", "--chunk", "0"], "--chunk must be >= 1"),
+    (["pendulum_xy", "--max-seconds", "0"], "seconds > 0"),
+    (["pendulum_xy", "--chunk", "0"], "--chunk: 0 must be at least 1"),
     (["pendulum_xy", "--perturb", "mujoco:nope=1"], "has no parameter 'nope'"),
     (["pendulum_xy", "--perturb", "mujoco-m=1"], "expected ENGINE:PARAM=REL"),
     (["pendulum_xy", "--engines", "pinocchio", "--perturb", "mujoco:m=1"], "not in --engines"),
@@ -390,7 +400,10 @@ def test_cli_clean_campaign_exits_0_and_writes_the_contract(tmp_path, capsys):
     (["pendulum_xy", "--dask", "local:x"], "expected local or local:K"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, argv, needle):
-    code = main(["sweep", *argv, "--out", str(tmp_path)])
+    try:  # argument rules refuse at parse time (SystemExit), the registries in the command
+        code = main(["sweep", *argv, "--out", str(tmp_path)])
+    except SystemExit as exc:
+        code = exc.code
     err = capsys.readouterr().err
     assert code == 2, err
     assert needle in err and err.startswith("crosscheck: error:")

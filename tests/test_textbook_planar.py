@@ -1,4 +1,4 @@
-"""The derived equations equal the unit's printed ones (EQUATIONS.md), symbolically.
+"""The derived equations equal the unit's printed ones (docs/textbook.md), symbolically.
 
 Examples 1 and 2 and Note 2 / Exercise 6.3, for every formulation each model declares.
 """
@@ -48,7 +48,7 @@ def test_example_1b(formulation):
 
 
 def test_example_1b_eliminated_form_has_plus_gx():
-    """EQUATIONS.md: eliminating lambda gives y x'' - x y'' + g x = 0 (the extracted text's
+    """docs/textbook.md: eliminating lambda gives y x'' - x y'' + g x = 0 (the extracted text's
     '- g x' contradicts its own recipe)."""
     m, g, x, y, xdd, ydd, lam = map(
         _sym, ["m", "g", "x", "y", "x_dot_dot", "y_dot_dot", "lambda1"])

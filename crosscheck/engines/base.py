@@ -1,19 +1,72 @@
-"""The one small interface every engine adapter implements.
+"""The engine contract: what an adapter and a built engine model provide, and what they declare.
 
-An adapter builds the engine's model of a reference model, maps a consistent reference state to
-the engine's state, and returns the engine's answers mapped back to the reference's speeds and
-multipliers (same order, same sign and scale as the textbook rows).
+An adapter (one per engine, registered under the entry-point group ``crosscheck.engines``)
+builds the engine's model of a reference model with one parameter set. A built model maps a
+consistent reference state to the engine's state and returns the engine's answers mapped back to
+the reference's speeds and multipliers (same order, same sign and scale as the textbook rows).
+
+Callers never probe for methods: they read the adapter's ``capabilities`` (what the engine can
+do at all) and, per built model, the optional answers (``mass_matrix`` returns None with
+``mass_matrix_note`` saying why). Everything a capability promises is checked for every
+registered engine on every model it claims by tests/test_engine_contract.py.
 """
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Optional, Protocol
+from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
+
+from ..compare import EXACT_KKT, Tolerance
+
+__all__ = ["Capabilities", "EngineAdapter", "EngineForward", "EngineModel", "EngineTrajectory",
+           "EngineUnsupported"]
 
 
 class EngineUnsupported(Exception):
     """The engine cannot represent this model; the message is the reason shown in results."""
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What an engine can answer, declared once by its adapter.
+
+    multipliers: forward() maps constraint forces onto the reference's multipliers (a model
+        may still return None with ``multipliers_note``, e.g. a minimal-coordinate tree).
+    exact: the answers solve the rigid KKT system (False: regularized, soft constraints).
+    rigid_recovery: a soft engine's forward() also returns the rigid answer recovered from
+        its own soft output (``EngineForward.rigid_accelerations`` / ``rigid_multipliers``).
+    mass_matrix: built models give the mass matrix (and forcing) in reference speeds where
+        the coordinates map linearly (else None with ``mass_matrix_note``).
+    nonholonomic: velocity-level (non-integrable) constraint rows can be expressed.
+    integrators: the engine's own integrators accepted by ``simulate``; () means the engine
+        has no trajectories in this suite. The first is the one `crosscheck run` uses.
+    adaptive_integrators: the subset of ``integrators`` that control their error (they take
+        ``rtol``); the others take a fixed ``timestep``.
+    variants: some models have several engine models (``EngineAdapter.variants``).
+    """
+
+    multipliers: bool
+    exact: bool
+    rigid_recovery: bool = False
+    mass_matrix: bool = False
+    nonholonomic: bool = False
+    integrators: tuple[str, ...] = ()
+    variants: bool = False
+    adaptive_integrators: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        extra = set(self.adaptive_integrators) - set(self.integrators)
+        if extra:
+            raise ValueError(f"adaptive_integrators {sorted(extra)} are not in integrators")
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"multipliers": self.multipliers, "exact": self.exact,
+                "rigid_recovery": self.rigid_recovery, "mass_matrix": self.mass_matrix,
+                "nonholonomic": self.nonholonomic, "integrators": list(self.integrators),
+                "variants": self.variants,
+                "adaptive_integrators": list(self.adaptive_integrators)}
 
 
 @dataclass
@@ -22,37 +75,150 @@ class EngineForward:
 
     accelerations: u' in the reference model's speed order.
     multipliers: lambda in the reference model's constraint order, or None when the engine
-        model has no constraint rows that map to them (a minimal-coordinate tree).
-    raw: engine-native quantities worth reporting (iterations, soft-constraint impedance, the
-        de-regularized answer, ...), all floats or arrays.
+        model has no constraint forces that map to them (``multipliers_note`` says why).
+    rigid_accelerations / rigid_multipliers: soft engines only (Capabilities.rigid_recovery):
+        the rigid answer recovered from the engine's own soft output.
+    predicted_acceleration_error / predicted_multiplier_error: soft engines, at a state where
+        the answer is regularized: (raw - rigid) as the regularization predicts it; None where
+        the engine model has no soft rows (its answer is then exact).
+    iterations: solver iterations (0: no solve, 1: a direct solve), None if not reported.
+    raw: engine-native quantities worth reporting (residuals, impedance, ...), floats or arrays.
     """
 
     accelerations: np.ndarray
     multipliers: Optional[np.ndarray]
     raw: dict = field(default_factory=dict)
+    multipliers_note: Optional[str] = None
+    rigid_accelerations: Optional[np.ndarray] = None
+    rigid_multipliers: Optional[np.ndarray] = None
+    iterations: Optional[int] = None
+    predicted_acceleration_error: Optional[np.ndarray] = None
+    predicted_multiplier_error: Optional[np.ndarray] = None
+
+    @property
+    def soft(self) -> bool:
+        """The answer is regularized here: compare its rigid recovery, predict the raw one."""
+        return self.rigid_accelerations is not None and self.predicted_acceleration_error is not None
 
 
-class EngineModel(Protocol):
+@dataclass
+class EngineTrajectory:
+    """A trajectory computed by the engine, mapped to reference (q, u) at the requested times.
+
+    violation / velocity_violation: the engine-side constraint residuals per output time (zeros
+    for a model without constraints); energy: the engine's K + V per output time; wall_s: time
+    spent in the engine's stepping (mapping excluded where the engine allows); steps: number of
+    engine steps or right-hand-side evaluations; setting: the integrator setting used;
+    failure: None when the integration reached the last time, else why it stopped; warnings:
+    engine warnings that fired (name -> count; a run with any is not a trajectory of the model).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    u: np.ndarray
+    violation: np.ndarray
+    velocity_violation: np.ndarray
+    energy: np.ndarray
+    integrator: str
+    setting: dict = field(default_factory=dict)
+    wall_s: Optional[float] = None
+    steps: Optional[int] = None
+    raw: dict = field(default_factory=dict)
+    failure: Optional[str] = None
+    warnings: dict = field(default_factory=dict)
+
+
+class EngineModel(ABC):
     """An engine's model of one reference model with one parameter set."""
 
     engine: str
     model_name: str
+    variant: Optional[str] = None
+    mass_matrix_note: Optional[str] = None
+    # the engine's own constraint rows are regularized (soft): trajectories follow slightly
+    # different dynamics, so they are characterized, not held to the rigid bounds
+    soft_constraints: bool = False
+    # the engine's native solver for this model (reported with timings), and whether it solves
+    # constraint rows (False: a minimal-coordinate tree or an unconstrained model)
+    solver: Optional[str] = None
+    constrained_solve: bool = False
 
+    @abstractmethod
     def to_engine_state(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Reference (q, u) -> engine (qpos/q, qvel/v)."""
+        """Reference (q, u) -> engine state (qpos/q, qvel/v)."""
 
+    @abstractmethod
     def from_engine_state(self, qe: np.ndarray, ve: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Engine state -> reference (q, u) (the inverse map, tested both ways)."""
 
+    @abstractmethod
     def forward(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> EngineForward:
         """Accelerations and constraint forces at a consistent reference state."""
 
+    @abstractmethod
     def energy(self, q: np.ndarray, u: np.ndarray) -> tuple[float, float]:
         """(kinetic, potential) in the engine, same datum as the reference."""
 
+    def mass_matrix(self, q: np.ndarray) -> Optional[np.ndarray]:
+        """Engine mass matrix in reference speeds, or None (``mass_matrix_note`` says why)."""
+        return None
 
-class EngineAdapter(Protocol):
+    def forcing(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> Optional[np.ndarray]:
+        """The reference's f (applied forces minus velocity products) from the engine, or None."""
+        return None
+
+    def simulate(self, q0: np.ndarray, u0: np.ndarray, t_eval: Sequence[float], *,
+                 integrator: str, rtol: Optional[float] = None,
+                 timestep: Optional[float] = None) -> EngineTrajectory:
+        """Integrate from a consistent reference state with one of the adapter's integrators:
+        adaptive ones take ``rtol``, fixed-step ones ``timestep``."""
+        raise EngineUnsupported(f"{self.engine} has no trajectories in this suite")
+
+    def timed_forward(self, q: np.ndarray, u: np.ndarray) -> Callable[[], Any]:
+        """A callable making only the engine's native forward call at a state already mapped
+        (what `crosscheck bench` times); the default times the whole forward()."""
+        return lambda: self.forward(q, u)
+
+    def fingerprint(self) -> str:
+        """A digest of the built engine model's physics (masses, inertias, geometry, gravity,
+        loads): two builds differ in it exactly when their dynamics can differ, so a parameter
+        perturbation that leaves it unchanged is refused as doing nothing."""
+        raise NotImplementedError(f"{type(self).__name__} has no fingerprint")
+
+
+class EngineAdapter(ABC):
+    """One engine: its name, the package it comes from, what it can do, and its models."""
+
     name: str
+    distribution: str  # the installed package whose version results record (e.g. "pin")
+    capabilities: Capabilities
+    label: str = ""  # the engine's name in prose (tables, plot legends); default: name
+    # position in every default order (engine lists, tables, plot colours, the timing anchor):
+    # lower first, ties alphabetical; engines that do not set it come after the built-ins
+    rank: int = 100
 
-    def build(self, model_name: str, params: dict[str, float]) -> EngineModel:
+    @property
+    def display_name(self) -> str:
+        return self.label or self.name
+
+    @abstractmethod
+    def models(self) -> tuple[str, ...]:
+        """The reference models this engine expresses (built-in names)."""
+
+    def unsupported(self) -> dict[str, str]:
+        """Reference models the engine cannot express, each with the reason (shown as a skip)."""
+        return {}
+
+    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
+        """The engine models of one reference model; the first is build's default."""
+        return (None,)
+
+    @abstractmethod
+    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
+              variant: Optional[str] = None) -> EngineModel:
         """Engine model for a reference model; raises EngineUnsupported with the reason."""
+
+    def exact_tolerance(self, model_name: str) -> Tolerance:
+        """The tolerance of this engine's exact (rigid or recovered rigid) answer on a model,
+        with the reason it is that size; the default is the round-off bound of a KKT solve."""
+        return EXACT_KKT

@@ -1,7 +1,7 @@
 """Example 4: the three-dimensional double pendulum, Kane with twelve dependent speeds.
 
 Two bars joined to the ground at O and to each other at A by ball-and-socket joints. The ground
-frame N = (N1, N2, N3) has N2 vertical UP, gravity -g N2 (ENGINES.md's model 3 uses Z up: map
+frame N = (N1, N2, N3) has N2 vertical UP, gravity -g N2 (an engine may use Z up: map
 N2 -> Z there). Link i (length l_i, mass m_i, central principal inertias I_i11, I_i22, I_i33
 along n_i1, n_i2, n_i3) hangs along -n_i2: G1 = O - l1/2 n12, A = O - l1 n12,
 G2 = A - l2/2 n22.
@@ -34,7 +34,7 @@ on link 1 (F_O, the ground's force on link 1 at O, plus the reaction -lambda[3:6
 
 Inertia: the textbook's links are slender bars (I_11 = I_33, I_22 "small"); a truly slender
 bar (I_22 = 0) makes M singular (omega_i2 has no inertia), so the defaults give each bar a
-radius r = 0.02 m: I_22 = m r^2/2, I_11 = I_33 = m l^2/12 (ENGINES.md model 3).
+radius r = 0.02 m: I_22 = m r^2/2, I_11 = I_33 = m l^2/12 (docs/textbook.md, Example 4).
 """
 from __future__ import annotations
 

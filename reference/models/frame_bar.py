@@ -15,7 +15,7 @@ components: (omega1 e1 + omega3 e3) x d n2. No gravity. Motor torques: M_phi on 
 transferred to the bar because F is light, and M_theta on B about n2 (both dotted with the bar's
 partial angular velocities e_k, as the textbook's generalized forces F_k).
 
-Printed equations (EQUATIONS.md, Example 3), reproduced exactly by Kane's equations here:
+Printed equations (docs/textbook.md, Example 3), reproduced exactly by Kane's equations here:
   (I1 + m d^2) omega1' + (I3 + m d^2 - I2) omega2 omega3 = -S M_phi + lambda C
   I2 omega2' + (I1 - I3) omega1 omega3 = M_theta
   (I3 + m d^2) omega3' + (I2 - I1 - m d^2) omega1 omega2 = C M_phi + lambda S

@@ -73,16 +73,20 @@ Pinocchio call, shared with forward through ``_engine_call``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import time
 from typing import Optional
 
 import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from .base import EngineForward, EngineUnsupported
+from ..base import (Capabilities, EngineAdapter, EngineForward, EngineModel, EngineTrajectory,
+                    EngineUnsupported)
 
-__all__ = ["PinocchioAdapter", "PinocchioTrajectory", "PROX_REDUNDANT", "PROX_EXACT"]
+__all__ = ["PinocchioAdapter", "PROX_REDUNDANT", "PROX_EXACT", "INTEGRATORS"]
+
+# scipy's error-controlled integrators the trajectories use (solve_ivp methods)
+INTEGRATORS = ("DOP853",)
 
 # Proximal settings (absolute_accuracy, mu, max_iter).
 # Planar loops: the out-of-plane row of a CONTACT_3D closure is zero, the Delassus matrix is
@@ -149,24 +153,7 @@ def _prox(settings) -> pin.ProximalSettings:
     return pin.ProximalSettings(float(acc), float(mu), int(it))
 
 
-@dataclass
-class PinocchioTrajectory:
-    """Output of EngineModel.simulate, in reference coordinates at the output times.
-
-    q: (N, nq) and u: (N, n) reference coordinates and speeds; nfev: right-hand-side calls;
-    raw: engine states, constraint violation (engine measure, see each model) and energy.
-    """
-
-    t: np.ndarray
-    q: np.ndarray
-    u: np.ndarray
-    nfev: int
-    success: bool
-    message: str
-    raw: dict = field(default_factory=dict)
-
-
-class _PinModel:
+class _PinModel(EngineModel):
     """Shared machinery; subclasses build the engine model and write the maps."""
 
     engine = "pinocchio"
@@ -458,10 +445,16 @@ class _PinModel:
                 qe, ve, ae, lam_e, t)
         if self.variant is not None:
             raw["variant"] = self.variant
-        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw)
+        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw,
+                             multipliers_note=raw.get("multipliers_note"),
+                             iterations=int(raw["iterations"]))
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw) -> None:
         pass
+
+    @property
+    def constrained_solve(self) -> bool:  # type: ignore[override]
+        return self.solver != "aba"
 
     def energy(self, q, u) -> tuple[float, float]:
         q, u = self._check(q, u)
@@ -489,22 +482,29 @@ class _PinModel:
         nle = pin.nonLinearEffects(self.model, self.data, qe, ve)
         return self._P.T @ (self._applied(qe, ve, t) - nle)
 
-    def simulate(self, q0, u0, t_end: float, rtol: float, atol: float, method: str = "DOP853",
-                 t_eval=None) -> PinocchioTrajectory:
-        """Integrate Pinocchio's forward dynamics with scipy's solve_ivp in engine coordinates.
+    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
+                 timestep: Optional[float] = None) -> EngineTrajectory:
+        """Integrate Pinocchio's forward dynamics with scipy's solve_ivp (method `integrator`,
+        rtol = atol = `rtol`) in engine coordinates from t = 0 to t_eval[-1].
 
         The engine state is [q_e, v_e] (quaternions renormalized before every evaluation and
         in the output; their rates from the local angular velocity, see _qdot); the output is
-        mapped to reference (q, u) at t_eval (default: 101 points on [0, t_end]).
+        mapped to reference (q, u) at t_eval.
 
         No constraint stabilization (no projection, no Baumgarte, the RigidConstraintModel
         correctors stay 0): run for 5 s from each model's initial state, the constraint drift
         of every constrained model stayed within ~10x the integrator tolerance (tolerances 1e-8
         and 1e-10, DOP853), the index-1 drift expected from the tolerance alone, so a
-        stabilization would only hide what the comparison should show. raw["violation"]
-        (position level) and raw["velocity_violation"] record it per output time, raw["energy"]
-        the engine's K + V.
+        stabilization would only hide what the comparison should show. The trajectory's
+        violation (position level) and velocity_violation record it per output time, energy
+        the engine's K + V; wall_s is the whole call (integration and mapping).
         """
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+        if rtol is None or not rtol > 0:
+            raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+        t_start = time.perf_counter()
+        t_eval = np.asarray(t_eval, dtype=float)
         q0, u0 = self._check(q0, u0)
         qe0, ve0 = self.to_engine_state(q0, u0)
         nq = self.model.nq
@@ -516,10 +516,8 @@ class _PinModel:
             a, _ = self._solve(qe, ve, t)
             return np.concatenate([self._qdot(qe, ve), a])
 
-        if t_eval is None:
-            t_eval = np.linspace(0.0, t_end, 101)
-        sol = solve_ivp(rhs, (0.0, float(t_end)), y0, method=method, rtol=rtol, atol=atol,
-                        t_eval=np.asarray(t_eval, dtype=float))
+        sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), y0, method=integrator, rtol=rtol,
+                        atol=rtol, t_eval=t_eval)
         Q, U, viol, vviol, E = [], [], [], [], []
         for t, y in zip(sol.t, sol.y.T):
             qe = self._normalize(y[:nq])
@@ -530,13 +528,12 @@ class _PinModel:
             viol.append(self.constraint_violation(qe, t))
             vviol.append(self.velocity_violation(qe, ve, t))
             E.append(sum(self._energy_engine(qe, ve)))
-        return PinocchioTrajectory(
-            t=sol.t, q=np.array(Q), u=np.array(U), nfev=int(sol.nfev), success=bool(sol.success),
-            message=str(sol.message),
-            raw={"engine_states": sol.y.T.copy(), "violation": np.array(viol),
-                 "velocity_violation": np.array(vviol),
-                 "energy": np.array(E), "method": method, "rtol": rtol, "atol": atol,
-                 "stabilization": "none"})
+        return EngineTrajectory(
+            t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
+            velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
+            setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
+            steps=int(sol.nfev), failure=None if sol.success else str(sol.message),
+            raw={"engine_states": sol.y.T.copy(), "stabilization": "none"})
 
 
 # ======================================================================================
@@ -1492,13 +1489,22 @@ def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
     return resolve_parameters(get(model_name), params)
 
 
-class PinocchioAdapter:
+class PinocchioAdapter(EngineAdapter):
     """EngineAdapter for Pinocchio 4.1 (models built in code; see the module docstring)."""
 
     name = "pinocchio"
+    distribution = "pin"
+    label = "Pinocchio"
+    rank = 10
+    capabilities = Capabilities(multipliers=True, exact=True, mass_matrix=True,
+                                nonholonomic=True, integrators=INTEGRATORS, variants=True,
+                                adaptive_integrators=INTEGRATORS)
 
-    def supported(self) -> list[str]:
-        return list(_MODELS)
+    def models(self) -> tuple[str, ...]:
+        return tuple(_MODELS)
+
+    def unsupported(self) -> dict[str, str]:
+        return dict(_UNSUPPORTED)
 
     def variants(self, model_name: str) -> tuple[Optional[str], ...]:
         """Engine variants of a model (the first is build's default); (None,) for one."""

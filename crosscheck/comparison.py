@@ -1,0 +1,193 @@
+"""One comparison path: the reference's answer against an engine's, state by state.
+
+``compare_at_state`` compares one engine model with the reference at one consistent state and
+returns the errors per quantity (the metrics and named tolerances of crosscheck.compare);
+``engine_records`` folds it over a run's states into results.json records (`crosscheck run`),
+and `crosscheck sweep` aggregates the same per-state values over its samples. Each quantity's
+tolerance is chosen once, by ``tolerance``.
+
+Quantities: state_map (reference -> engine -> reference), mass_matrix (where the coordinates
+map one to one), energy (``energy_error``), accelerations and multipliers. An engine whose
+answer is regularized at the state (``EngineForward.soft``) is held to its rigid recovery, and
+its raw answer to the error its regularization predicts (``*_soft_vs_predicted``; the raw error
+itself is ``*_soft_error``, reported, not judged).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from . import compare as C
+from .engines.base import EngineAdapter, EngineModel, EngineUnsupported
+from .engines.registry import engine_label
+
+NO_MASS_MATRIX = ("engine coordinates do not map one to one onto the reference's, so their "
+                  "mass matrices are not comparable")
+NO_CONSTRAINTS = ("no constraints: the engine runs plain forward dynamics (ABA / unconstrained "
+                  "step), no multipliers to compare")
+NO_FORCES = "the engine model has no constraint forces that map onto the reference's rows"
+SOFT_ANSWER = ("raw soft answer: |(raw - reference) - predicted error| over |predicted error|")
+
+
+def rigid_answer(engine: str) -> str:
+    """What a soft engine's judged answer is (the records' ``answer`` field)."""
+    return f"rigid, recovered from {engine_label(engine)}'s soft solution"
+
+
+@dataclass(frozen=True)
+class ReferenceAnswer:
+    """The reference at one state: u', lambda, M and (K, V)."""
+
+    accelerations: np.ndarray
+    multipliers: np.ndarray
+    mass_matrix: np.ndarray
+    energy: tuple[float, float]
+
+
+def reference_answer(nm, q, u, t: float = 0.0) -> ReferenceAnswer:
+    ref = nm.forward(q, u, t)
+    return ReferenceAnswer(ref.accelerations, ref.multipliers, nm.matrices(q, u, t)[0],
+                           tuple(nm.energy(q, u, t)))
+
+
+def energy_error(engine_kv, reference_kv) -> float:
+    """|(K + V)_engine - (K + V)_reference| / max(|K| + |V|, 1) (compare.METRICS)."""
+    Ke, Ve = engine_kv
+    Kr, Vr = reference_kv
+    return abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0)
+
+
+def _finite(x: float) -> float:
+    x = float(x)
+    return x if math.isfinite(x) else math.inf
+
+
+@dataclass
+class StateComparison:
+    """Errors of one engine model at one state: values {quantity: error} (non-finite -> inf),
+    skips {quantity: reason}, soft (judged on the rigid recovery), the solver's iterations,
+    and the predicted relative soft errors (accelerations, multipliers) where soft."""
+
+    values: dict[str, float]
+    skips: dict[str, str]
+    soft: bool
+    iterations: Optional[int] = None
+    predicted: list = field(default_factory=list)
+
+
+def compare_at_state(em: EngineModel, q, u, t: float, ref: ReferenceAnswer,
+                     n_rows: int) -> StateComparison:
+    """The engine model against the reference's answer at one consistent state (q, u, t)."""
+    vals: dict[str, float] = {}
+    skips: dict[str, str] = {}
+    predicted: list = []
+    qe, ve = em.to_engine_state(q, u)
+    q2, u2 = em.from_engine_state(qe, ve)
+    vals["state_map"] = max(C.scaled_error(q2, q), C.scaled_error(u2, u))
+    M_e = em.mass_matrix(q)
+    if M_e is None:
+        skips["mass_matrix"] = em.mass_matrix_note or NO_MASS_MATRIX
+    else:
+        vals["mass_matrix"] = C.scaled_error(M_e, ref.mass_matrix)
+    ef = em.forward(q, u, t)
+    vals["energy"] = energy_error(em.energy(q, u), ref.energy)
+    if n_rows == 0:
+        skips["multipliers"] = NO_CONSTRAINTS
+    elif ef.multipliers is None:
+        skips["multipliers"] = ef.multipliers_note or NO_FORCES
+    pairs = [("accelerations", ef.accelerations, ef.rigid_accelerations,
+              ef.predicted_acceleration_error, ref.accelerations)]
+    if "multipliers" not in skips:
+        pairs.append(("multipliers", ef.multipliers, ef.rigid_multipliers,
+                      ef.predicted_multiplier_error, ref.multipliers))
+    for qty, raw_value, rigid, pred, reference in pairs:
+        if ef.soft:
+            vals[qty] = C.scaled_error(rigid, reference)
+            miss, raw_err, pred_err = C.soft_prediction(raw_value, reference, pred)
+            vals[f"{qty}_soft_vs_predicted"], vals[f"{qty}_soft_error"] = miss, raw_err
+            predicted.append(pred_err)
+        else:
+            vals[qty] = C.scaled_error(raw_value, reference)
+    return StateComparison({k: _finite(v) for k, v in vals.items()}, skips, ef.soft,
+                           ef.iterations, predicted)
+
+
+def tolerance(quantity: str, soft: bool, adapter: EngineAdapter,
+              model_name: str = "") -> tuple[Optional[C.Tolerance], str]:
+    """(named tolerance, metric) of a quantity; None: reported, not judged."""
+    if quantity == "state_map":
+        return C.STATE_MAP, "scaled_error"
+    if quantity == "mass_matrix":
+        return C.MASS_MATRIX, "scaled_error"
+    if quantity == "energy":
+        return C.ENERGY, "relative_energy_error"
+    if quantity.endswith("_soft_vs_predicted"):
+        return C.SOFT_PREDICTION, "relative_miss"
+    if quantity.endswith("_soft_error"):
+        return None, "scaled_error"
+    return (C.RIGID_RECOVERY if soft else adapter.exact_tolerance(model_name)), "scaled_error"
+
+
+def build(adapter: EngineAdapter, name: str, params, variant: Optional[str]) -> EngineModel:
+    """The engine model of a variant (build's default when variant is None)."""
+    return adapter.build(name, params, variant=variant) if variant else adapter.build(name, params)
+
+
+def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
+                   variant: Optional[str] = None) -> list[dict]:
+    """results.json records of one engine model over a run's states (t = 0): the worst error
+    of each quantity, at which state, against its tolerance."""
+    def rec(*a, **k):
+        r = C.record(name, nm.formulation, adapter.name, *a, **k)
+        if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
+            r["variant"] = variant
+        return r
+    try:
+        em = build(adapter, name, params, variant)
+    except EngineUnsupported as exc:
+        return [rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
+                for q in ("accelerations", "multipliers")]
+    worst: dict[str, C.WorstCase] = {}
+    skipped: dict[str, str] = {}
+    iterations, predicted, soft = [], [], False
+    for i, (q, u) in enumerate(states):
+        sc = compare_at_state(em, q, u, 0.0, reference_answer(nm, q, u), nm.m)
+        for qty, err in sc.values.items():
+            worst.setdefault(qty, C.WorstCase()).add(err, i)
+        skipped.update(sc.skips)
+        soft = soft or sc.soft
+        predicted += sc.predicted
+        if sc.iterations is not None:
+            iterations.append(sc.iterations)
+    return _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name)
+
+
+def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> list[dict]:
+    """The records of one engine model from its worst cases (run's record order)."""
+    def judged(qty, **extra):
+        tol, metric = tolerance(qty, soft, adapter, name)
+        w = worst[qty]
+        kw = {} if metric == "scaled_error" else {"metric": metric}
+        return rec("instantaneous", qty, w.error, tol, worst_state=w.state, **kw, **extra)
+
+    out = [judged("state_map")]
+    out.append(rec("instantaneous", "mass_matrix", None, None, skipped["mass_matrix"])
+               if "mass_matrix" in skipped else judged("mass_matrix"))
+    out.append(judged("energy"))
+    it = {"iterations_max": max(iterations)} if iterations else {}
+    for qty in ("accelerations", "multipliers"):
+        if qty in skipped:
+            out.append(rec("instantaneous", qty, None, None, skipped[qty]))
+        elif not soft:
+            out.append(judged(qty, **it))
+        else:
+            raw_errors = [worst[f"{k}_soft_error"].error for k in ("accelerations", "multipliers")
+                          if f"{k}_soft_error" in worst]
+            extra = {"predicted_rel_error_max": float(max(predicted)),
+                     "soft_rel_error_max": float(max(raw_errors))}
+            out.append(judged(qty, answer=rigid_answer(adapter.name), **extra, **it))
+            out.append(judged(f"{qty}_soft_vs_predicted", answer=SOFT_ANSWER, **extra))
+    return out

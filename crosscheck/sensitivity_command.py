@@ -1,0 +1,141 @@
+"""`crosscheck sensitivity [MODELS] [--engines ...]`: the smallest error in each engine's model
+that the suite catches, per parameter (see crosscheck/sensitivity.py for the search).
+
+Each evaluation builds the engine's model with one parameter changed by a relative amount and
+repeats the instantaneous comparison at the consistent states `crosscheck run` uses, at the
+model's generic parameter set (reference/generic.py). A parameter whose 10 % change moves no
+compared figure at all is reported as not used by the engine's model, with that reason.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from reference import NumericModel, models
+from reference.generic import generic_parameters
+
+from .sensitivity import DECADES, Threshold, search
+
+DEFAULT_MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d")
+# "caught" means the suite's own verdict: some instantaneous record fails its tolerance
+STATES = 3
+
+
+def generic_model(name: str) -> NumericModel:
+    """The model at its generic parameter set, whose initial state still projects."""
+    model = models.get(name)
+
+    def geometry_ok(values) -> bool:
+        import numpy as np
+        try:
+            nm = NumericModel(model, params=values)
+            q, u = nm.project(model.initial_q, model.initial_u)
+            return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
+        except Exception:  # noqa: BLE001 - any refusal means the geometry is not valid
+            return False
+
+    return NumericModel(model, params=generic_parameters(model, geometry_ok))
+
+
+def _engine_figures(name, nm, states, adapter, perturb) -> tuple[str, dict[str, float]]:
+    """(first failing record, every record's error) of one engine at the states."""
+    from .comparison import engine_records  # the one comparison of `crosscheck run`
+    from .perturb import perturbed
+
+    params = perturbed(name, nm.params, perturb)
+    recs = [r for variant in adapter.variants(name)
+            for r in engine_records(name, nm, states, adapter, params, variant)]
+    failing = next((f"{r['model']}/{r['engine']}/{r['check']}/{r['quantity']}" for r in recs
+                    if r["passed"] is False), "")
+    figures = {f"{r['check']}/{r['quantity']}": r["error"] for r in recs
+               if r["error"] is not None}
+    return failing, figures
+
+
+def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Threshold]:
+    """One threshold per parameter of the model, for one engine."""
+    from .engines.base import EngineUnsupported
+    from .engines.registry import get_engine
+    from .run import consistent_states
+
+    adapter = get_engine(engine)
+    nm = generic_model(name)
+    states = consistent_states(nm, n_states)
+    params = [p.name for p in nm.model.parameters]
+    try:
+        failing, base = _engine_figures(name, nm, states, adapter, {})
+    except EngineUnsupported as exc:
+        return [search(name, engine, p, lambda rel: "", f"engine cannot represent the model: "
+                                                        f"{exc}") for p in params]
+    if failing:
+        return [search(name, engine, p, lambda rel: "",
+                       f"the unperturbed comparison already fails ({failing})") for p in params]
+    out = []
+    for p in params:
+        sign, k, moved, refused = _largest_change(name, nm, states, adapter, p)
+        if moved is None:
+            out.append(search(name, engine, p, lambda rel: "",
+                              f"the engine refuses every change of it: {refused}"))
+            continue
+
+        def evaluate(rel, p=p, sign=sign):
+            return _engine_figures(name, nm, states, adapter, {p: sign * rel})[0]
+
+        unused = "" if moved != base else (
+            f"not used by the engine's model: a {10.0 ** k:.0e} change moves no compared "
+            "figure (the engine's coordinates or loads do not contain it)")
+        out.append(search(name, engine, p, evaluate, unused, largest=k))
+    return out
+
+
+def _largest_change(name, nm, states, adapter, p):
+    """(sign, decade, figures there, refusal) of the largest change the engine accepts: an
+    increase of 10 % first, else a decrease, else smaller decades (a principal inertia at the
+    edge of the triangle inequality admits only small changes)."""
+    refused = ""
+    for k in reversed(DECADES):
+        for sign in (1.0, -1.0):
+            try:
+                _, moved = _engine_figures(name, nm, states, adapter, {p: sign * 10.0 ** k})
+                return sign, k, moved, ""
+            except ValueError as exc:  # the engine's own refusal of the changed model
+                refused = str(exc).splitlines()[0]
+    return 1.0, DECADES[0], None, refused
+
+
+def cmd_sensitivity(args) -> int:
+    from .arguments import name_list, resolve_models
+    from .engines.registry import available_engines
+
+    names = resolve_models(args.models) if args.models else list(DEFAULT_MODELS)
+    engines = name_list(args.engines) if args.engines else list(available_engines())
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    rows: list[Threshold] = []
+    for name in names:
+        for engine in engines:
+            rows += engine_thresholds(name, engine, args.states)
+    doc = {"command": "crosscheck " + " ".join(sys.argv[1:]),
+           "decades": [10.0 ** k for k in DECADES], "states_per_model": args.states,
+           "wall_s": time.perf_counter() - t0, "thresholds": [r.to_json() for r in rows]}
+    (out / "sensitivity.json").write_text(json.dumps(doc, indent=2))
+    for r in rows:
+        at = f"{r.caught_at:.0e}" if r.caught_at is not None else "NOT CAUGHT"
+        print(f"{r.model:20s} {r.engine:10s} {r.parameter:8s} {at:>10s}  "
+              f"{r.failing_check or r.reason}")
+    print(f"crosscheck sensitivity: {len(rows)} parameters in {doc['wall_s']:.1f} s -> "
+          f"{out / 'sensitivity.json'}")
+    return 0
+
+
+def register(sub) -> None:
+    s = sub.add_parser("sensitivity",
+                       help="smallest relative parameter error in each engine the suite catches")
+    s.add_argument("models", nargs="*", help=f"models (default: {', '.join(DEFAULT_MODELS)})")
+    s.add_argument("--engines", default=None, help="comma-separated (default: every engine)")
+    s.add_argument("--states", type=int, default=STATES, help="consistent states per model")
+    s.add_argument("--out", default="out", help="directory for sensitivity.json")
+    s.set_defaults(func=cmd_sensitivity)

@@ -1,0 +1,311 @@
+"""Numba backend for the generated code of reference.codegen (issue 13).
+
+The generated Python module (straight-line functions of lists, returning lists) is rewritten,
+with the `ast` module, into a numba module: every function becomes a kernel that reads its inputs
+from float64 arrays by index and writes its outputs, group after group, into one preallocated
+array, and returns a status code (STATUS). The size and finiteness checks and the KKT pivot test
+run inside the kernel, so the checked public call costs one compiled call; Python only turns a
+nonzero status into the same error as the pure-Python path (reference/errors.py).
+
+Why a file: numba's cache=True keys its on-disk cache on the source file's path and
+modification time (and the CPU), so the module is written once into the derivation cache
+directory next to the generated Python, and rewritten only when its content changes (which
+would otherwise recompile every kernel in every process).
+
+Pitfalls handled here: math.sqrt of a negative pivot gives NaN silently with
+error_model="numpy" (no ValueError as in CPython), and Python's min() drops a NaN that is not
+its first argument, so the pivot ratio is reduced with _nmin, which propagates NaN, and the test
+is `not (piv > PIVOT_RATIO_MIN)`, which is true for NaN.
+
+Backend choice: CROSSCHECK_BACKEND=python forces the pure-Python path (the fallback and the
+cross-check of this one); without numba installed it is chosen automatically.
+"""
+from __future__ import annotations
+
+import ast
+import hashlib
+import importlib.util
+import os
+import sys
+import time
+from pathlib import Path
+
+# status codes returned by every kernel (0: ok)
+OK, BAD_Q_SIZE, BAD_U_SIZE, NOT_FINITE, SINGULAR = 0, 1, 2, 3, 4
+
+FUNCTIONS = ("forward", "matrices", "kinematics", "residuals", "position_jacobian", "energy")
+
+# compile/load times of the kernels in this process, per cache entry (bench.json reports them)
+TIMINGS: dict[str, dict] = {}
+
+
+def numba_available() -> bool:
+    return importlib.util.find_spec("numba") is not None
+
+
+def backend() -> str:
+    """'numba' (the default where numba is installed) or 'python' (CROSSCHECK_BACKEND=python)."""
+    want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower()
+    if want not in ("", "numba", "python"):
+        from .errors import ModelInputError
+        raise ModelInputError(f"CROSSCHECK_BACKEND={want!r}: valid values are numba, python")
+    if want == "python" or not numba_available():
+        return "python"
+    return "numba"
+
+
+def threads() -> int:
+    """Threads of the batched kernels (CROSSCHECK_THREADS, default 1: a serial loop measured
+    faster than prange with 2 threads on the 2-core machine under load, docs/compiled.md)."""
+    try:
+        return max(1, int(os.environ.get("CROSSCHECK_THREADS", "1")))
+    except ValueError:
+        from .errors import ModelInputError
+        raise ModelInputError("CROSSCHECK_THREADS must be a whole number >= 1") from None
+
+
+# ---- source transformation -----------------------------------------------------------------
+def _groups(ret: ast.Return) -> tuple[list[list[ast.expr]], ast.expr | None]:
+    """The returned list groups of a generated function, and forward's pivot expression."""
+    elts = ret.value.elts if isinstance(ret.value, ast.Tuple) else [ret.value]
+    groups = [e.elts for e in elts if isinstance(e, ast.List)]
+    rest = [e for e in elts if not isinstance(e, ast.List)]
+    return groups, (rest[0] if rest else None)
+
+
+def _pivot_code(e: ast.expr) -> str:
+    """_min(a, b, ...) as a NaN-propagating chain of _nmin."""
+    if isinstance(e, ast.Call) and isinstance(e.func, ast.Name) and e.func.id == "_min":
+        code = ast.unparse(e.args[0])
+        for a in e.args[1:]:
+            code = f"_nmin({code}, {ast.unparse(a)})"
+        return code
+    return ast.unparse(e)
+
+
+class _Sref(ast.NodeTransformer):
+    """_sref[k] -> _pa[npar + k]: the Schur references travel after the parameters."""
+
+    def __init__(self, npar: int):
+        self.npar = npar
+
+    def visit_Subscript(self, node):
+        if isinstance(node.value, ast.Name) and node.value.id == "_sref":
+            k = node.slice.value
+            return ast.Subscript(ast.Name("_pa", ast.Load()), ast.Constant(self.npar + k),
+                                 ast.Load())
+        return self.generic_visit(node)
+
+
+def _kernel(fn: ast.FunctionDef, nq: int, n: int, npar: int,
+            pmin: float) -> tuple[list[str], list[int]]:
+    """Lines of `<name>_body` (reads arrays, writes _out, returns a status) and group sizes."""
+    fn = _Sref(npar).visit(fn)
+    forward = fn.name == "forward"
+    args = "_qa, _ua, _t, _pa, _db, _out" if forward else "_qa, _ua, _t, _pa, _out"
+    lines = ["@njit(cache=True, error_model='numpy', nogil=True)",
+             f"def {fn.name}_body({args}):"]
+    lines += [f"    _q{i} = _qa[{i}]" for i in range(nq)]
+    lines += [f"    _u{i} = _ua[{i}]" for i in range(n)]
+    lines += [f"    _p{i} = _pa[{i}]" for i in range(npar)]
+    ret = None
+    for st in fn.body:
+        if isinstance(st, ast.Return):
+            ret = st
+        elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Tuple):
+            continue  # the unpacking of _q, _u, _p, done above by index
+        else:
+            lines.append("    " + ast.unparse(st))
+    groups, piv = _groups(ret)
+    k = 0
+    for g in groups:
+        for e in g:
+            lines.append(f"    _out[{k}] = {ast.unparse(e)}")
+            k += 1
+    if forward:
+        lines.append(f"    _piv = {_pivot_code(piv)}" if piv is not None else "    _piv = 1.0")
+        lines.append(f"    _out[{k}] = _piv")
+        lines.append(f"    return {OK} if _piv > {pmin!r} else {SINGULAR}")
+    else:
+        lines.append(f"    return {OK}")
+    return lines, [len(g) for g in groups]
+
+
+_PRELUDE = '''from math import sin, cos, tan, sqrt, exp, log, atan2, pi, isfinite
+import numpy as np
+from numba import njit, prange
+
+NQ, NU, NP, M = {nq}, {n}, {npar}, {m}
+
+
+@njit(cache=True, error_model='numpy', inline='always')
+def _nmin(a, b):
+    if a != a or b != b:
+        return a + b  # NaN
+    return a if a < b else b
+
+
+@njit(cache=True, error_model='numpy', nogil=True)
+def _check(_qa, _ua, _t):
+    if _qa.shape[0] != NQ:
+        return {BAD_Q_SIZE}
+    if _ua.shape[0] != NU:
+        return {BAD_U_SIZE}
+    s = _t
+    for i in range(NQ):
+        s += _qa[i]
+    for i in range(NU):
+        s += _ua[i]
+    # one sum is finite exactly when every term is, unless finite terms overflow: then look
+    if not isfinite(s):
+        if not isfinite(_t):
+            return {NOT_FINITE}
+        for i in range(NQ):
+            if not isfinite(_qa[i]):
+                return {NOT_FINITE}
+        for i in range(NU):
+            if not isfinite(_ua[i]):
+                return {NOT_FINITE}
+    return {OK}
+'''
+
+_WRAPPERS = '''
+
+@njit(cache=True, error_model='numpy', nogil=True)
+def {name}({args}):
+    st = _check(_qa, _ua, _t)
+    if st != {OK}:
+        return st
+    return {name}_body({args})
+
+
+@njit(cache=True, error_model='numpy', nogil=True)
+def {name}_batch(_Q, _U, _T, _P, _DB, _OUT, _ST):
+    nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1
+    for i in range(_Q.shape[0]):
+        _ST[i] = {name}({bargs})
+
+
+@njit(cache=True, error_model='numpy', parallel=True)
+def {name}_batch_parallel(_Q, _U, _T, _P, _DB, _OUT, _ST):
+    nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1
+    for i in prange(_Q.shape[0]):
+        _ST[i] = {name}({bargs})
+'''
+
+
+def numba_source(src: str, nq: int, n: int, npar: int, m: int, pmin: float) -> tuple[str, dict]:
+    """The numba module for a generated Python module, and each function's group sizes."""
+    tree = ast.parse(src)
+    out = [_PRELUDE.format(nq=nq, n=n, npar=npar, m=m, OK=OK, BAD_Q_SIZE=BAD_Q_SIZE,
+                           BAD_U_SIZE=BAD_U_SIZE, NOT_FINITE=NOT_FINITE)]
+    sizes = {}
+    for fn in tree.body:
+        if not isinstance(fn, ast.FunctionDef):
+            continue
+        lines, sizes[fn.name] = _kernel(fn, nq, n, npar, pmin)
+        out += ["", ""] + lines
+        fwd = fn.name == "forward"
+        args = "_qa, _ua, _t, _pa, _db, _out" if fwd else "_qa, _ua, _t, _pa, _out"
+        bargs = ("_Q[i], _U[i], _T[i if nt else 0], _P[i if np_ else 0], "
+                 + ("_DB[i if nd else 0], " if fwd else "") + "_OUT[i]")
+        out.append(_WRAPPERS.format(name=fn.name, args=args, bargs=bargs, OK=OK))
+    return "\n".join(out) + "\n", sizes
+
+
+# ---- loading ---------------------------------------------------------------------------------
+def _write_if_changed(path: Path, text: str) -> bool:
+    """Write `text` atomically unless the file already holds it (numba keys on the file)."""
+    if path.exists() and path.read_text() == text:
+        return False
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+    return True
+
+
+class Kernels:
+    """The kernels of one cache entry, compiled (or loaded from numba's cache) on first use,
+    and the output layout of each function. `get(name)` returns the checked single-state
+    kernel, `get(name + "_batch")` the serial batch, `get(name + "_batch_parallel")` prange."""
+
+    def __init__(self, module, sizes: dict, stem: str, nq: int, n: int, npar: int, m: int):
+        self.module = module
+        self.sizes = sizes
+        self.stem = stem
+        self.dims = (nq, n, npar, m)
+        self.offsets = {}
+        for name, gs in sizes.items():
+            offs, k = [], 0
+            for g in gs:
+                offs.append((k, k + g))
+                k += g
+            self.offsets[name] = offs
+        self.total = {name: sum(gs) + (1 if name == "forward" else 0)
+                      for name, gs in sizes.items()}
+        self.ready: dict = {}
+
+    def get(self, kname: str):
+        f = self.ready.get(kname)
+        if f is None:
+            f = self.ready[kname] = self._compile(kname)
+        return f
+
+    def _compile(self, kname: str):
+        """Compile or load `kname` with a first call on dummy inputs; record how long it took."""
+        import numpy as np
+        nq, n, npar, m = self.dims
+        name = kname.split("_batch")[0]
+        f = getattr(self.module, kname)
+        q, u, p = np.zeros(nq), np.zeros(n), np.ones(npar + m)
+        db, out = np.zeros(max(m, 1)), np.empty(self.total[name])
+        t0 = time.perf_counter()
+        if kname == name:
+            f(q, u, 0.0, p, db, out) if name == "forward" else f(q, u, 0.0, p, out)
+        else:
+            f(q[None], u[None], np.zeros(1), p[None], db[None], out[None],
+              np.empty(1, np.int64))
+        # one signature only: other argument types raise TypeError and are converted by the
+        # caller, instead of compiling a new specialization for seconds mid-run
+        f.disable_compile()
+        st = f.stats
+        TIMINGS.setdefault(self.stem, {})[kname] = {
+            "seconds": time.perf_counter() - t0,
+            "from_cache": sum(st.cache_hits.values()) > 0 and not sum(st.cache_misses.values())}
+        return f
+
+
+_LOADED: dict[tuple, Kernels] = {}
+
+
+def load_kernels(src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int,
+                 pmin: float) -> Kernels:
+    """The kernels of `src`, once per process (see _load)."""
+    key = (stem, str(directory), hashlib.sha256(src.encode()).hexdigest(), pmin)
+    hit = _LOADED.get(key)
+    if hit is None:
+        hit = _LOADED[key] = _load(src, stem, directory, nq, n, npar, m, pmin)
+    return hit
+
+
+def _load(src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int,
+          pmin: float) -> Kernels:
+    """Write (if changed) and import the numba module of `src`. Its kernels compile (or load
+    from numba's cache) on first use, Kernels.get: a run pays only for what it calls."""
+    t0 = time.perf_counter()
+    text, sizes = numba_source(src, nq, n, npar, m, pmin)
+    digest = hashlib.sha256(text.encode()).hexdigest()[:12]
+    path = directory / f"{stem}_numba.py"
+    written = _write_if_changed(path, text)
+    t1 = time.perf_counter()
+    modname = f"_crosscheck_numba_{stem.replace('-', '_')}_{digest}"
+    mod = sys.modules.get(modname)
+    if mod is None:
+        spec = importlib.util.spec_from_file_location(modname, path)
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[modname] = mod
+        spec.loader.exec_module(mod)
+    t2 = time.perf_counter()
+    TIMINGS.setdefault(stem, {}).update(
+        {"generate_s": t1 - t0, "written": written, "import_s": t2 - t1})
+    return Kernels(mod, sizes, stem, nq, n, npar, m)

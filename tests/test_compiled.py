@@ -1,0 +1,126 @@
+"""The numba backend against the pure-Python path it replaces (issue 13).
+
+Both run the same generated straight-line code (reference.compiled rewrites the module that
+reference.codegen writes), so they must agree to the last bit. Measured: bit-identical on every
+output of forward, matrices, residuals, energy and kinematics at 16 consistent states of
+pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and knife_edge (docs/compiled.md).
+EQUAL_REL leaves room for one reason they could part: an integer power x**k, which CPython
+computes with libm's pow and numba by repeated multiplication (k - 1 roundings instead of one).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from crosscheck.run import consistent_states
+from reference import NumericModel, compiled, models
+from reference.errors import ModelInputError, SingularSystemError
+
+pytestmark = pytest.mark.skipif(not compiled.numba_available(), reason="numba not installed")
+
+# a few ulps of the largest entry: what repeated multiplication can add to libm's pow
+EQUAL_REL = 1e-14
+
+MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
+
+
+def _pair(monkeypatch, name, params=None):
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
+    fast = NumericModel(models.get(name), params=params)
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
+    slow = NumericModel(models.get(name), params=params)
+    assert (fast.backend, slow.backend) == ("numba", "python")
+    return fast, slow
+
+
+def _same(x, y, what):
+    x, y = np.atleast_1d(np.asarray(x, float)), np.atleast_1d(np.asarray(y, float))
+    assert x.shape == y.shape, what
+    if np.array_equal(x, y):
+        return
+    scale = max(float(np.max(np.abs(y))), 1e-300)
+    assert float(np.max(np.abs(x - y))) <= EQUAL_REL * scale, what
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_compiled_equals_fallback(monkeypatch, name):
+    fast, slow = _pair(monkeypatch, name)
+    for q, u in consistent_states(slow, 8):
+        a, b = fast.forward(q, u), slow.forward(q, u)
+        _same(a.accelerations, b.accelerations, "u'")
+        _same(a.multipliers, b.multipliers, "lambda")
+        _same(a.pivot_ratio, b.pivot_ratio, "pivot ratio")
+        for what, x, y in zip("MfAb", fast.matrices(q, u), slow.matrices(q, u)):
+            _same(x, y, what)
+        for what, x, y in zip(("f(q)", "A u + a0"), fast.residuals(q, u), slow.residuals(q, u)):
+            _same(x, y, what)
+        _same(fast.energy(q, u), slow.energy(q, u), "energy")
+        _same(fast.kinematics(q, u), slow.kinematics(q, u), "q'")
+        raw = fast.forward_raw(q, u, 0.3, db=np.full(max(fast.m, 1), 0.1))
+        ref = slow.forward_raw(list(q), list(u), 0.3, db=[0.1] * max(slow.m, 1))
+        _same(raw[0], ref[0], "raw u' with a b offset")
+        _same(raw[1], ref[1], "raw lambda with a b offset")
+
+
+@pytest.mark.parametrize("name", ("slider_crank", "top_cartesian"))
+def test_compiled_batch_equals_single_and_fallback_batch(monkeypatch, name):
+    fast, slow = _pair(monkeypatch, name)
+    states = consistent_states(slow, 8)
+    Q = np.array([q for q, _ in states])
+    U = np.array([u for _, u in states])
+    UD, LAM, piv = fast.forward_batch(Q, U, 0.2)
+    UDs, LAMs, pivs = slow.forward_batch(Q, U, 0.2)
+    _same(UD, UDs, "batched u'")
+    _same(LAM, LAMs, "batched lambda")
+    for i in range(len(Q)):
+        one = fast.forward(Q[i], U[i], 0.2)
+        _same(UD[i], one.accelerations, "batch row vs single")
+        _same(LAM[i], one.multipliers, "batch row vs single")
+
+
+def test_singular_and_bad_states_raise_the_same_errors(monkeypatch):
+    """Slider-crank with l1 = l2 at theta1 = pi/2 on the branch theta2 = -theta1: A vanishes."""
+    equal = {"l1": 0.3, "l2": 0.3, "r2": 0.15, "I_G2": 2.0 * 0.09 / 12}
+    fast, slow = _pair(monkeypatch, "slider_crank", equal)
+    q, u = [math.pi / 2, -math.pi / 2], [8.0, -8.0]
+    for nm in (fast, slow):
+        with pytest.raises(SingularSystemError, match="singular at q"):
+            nm.forward(q, u)
+        with pytest.raises(SingularSystemError, match="1 of 2 states are singular"):
+            nm.forward_batch(np.array([[0.5, -0.5], q]), np.array([[1.0, -1.0], u]))
+        assert not nm.forward_raw(q, u, 0.0)[2] > 1e-12  # raw: the caller tests the ratio
+    for bad, match in (([[0.1], [0.0, 0.0]], "expected 2 coordinates"),
+                       ([[0.1, 0.2], [0.0]], "expected 2 speeds"),
+                       ([[0.1, math.nan], [0.0, 0.0]], "NaN or infinite"),
+                       ([[0.1, 0.2], [math.inf, 0.0]], "NaN or infinite"),
+                       ([["a", 0.2], [0.0, 0.0]], "must be numbers")):
+        msgs = []
+        for nm in (fast, slow):
+            with pytest.raises(ModelInputError, match=match) as exc:
+                nm.forward(*bad)
+            msgs.append(str(exc.value))
+        assert msgs[0] == msgs[1]
+
+
+def test_kernel_module_is_written_once(monkeypatch):
+    """numba's cache keys on the module file: loading the same code again must not rewrite it."""
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
+    nm = NumericModel(models.get("pendulum_xy"))
+    path = nm._scalar["__cache_path__"]
+    kfile = path.parent / f"{path.stem}_numba.py"
+    before = kfile.stat().st_mtime_ns
+    compiled._LOADED.clear()
+    again = NumericModel(models.get("pendulum_xy"))
+    assert kfile.stat().st_mtime_ns == before
+    assert compiled.TIMINGS[path.stem]["written"] is False
+    assert again.backend == "numba"
+
+
+def test_backend_setting(monkeypatch):
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
+    assert NumericModel(models.get("pendulum_angle")).backend == "python"
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "fortran")
+    with pytest.raises(ModelInputError, match="CROSSCHECK_BACKEND"):
+        NumericModel(models.get("pendulum_angle"))

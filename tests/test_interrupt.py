@@ -1,0 +1,126 @@
+"""Interrupted commands (issue 15 item 5): one line, exit 130, and the output directory holds
+the previous run's files, complete and consistent, or this run's, never a mix."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import crosscheck.report as report
+from crosscheck.cli import main
+from crosscheck.output import TMP_PREFIX
+
+ROOT = Path(__file__).resolve().parents[1]
+RUN_FILES = ["index.html", "junit.xml", "report.md", "results.json"]
+
+
+def _snapshot(d: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(d.iterdir())}
+
+
+def _models_in(d: Path) -> set[str]:
+    return {r["model"] for r in json.loads((d / "results.json").read_text())["records"]}
+
+
+@pytest.fixture
+def previous_run(tmp_path, capsys):
+    """A completed run in tmp_path/out (instantaneous checks of one model: quick)."""
+    out = tmp_path / "out"
+    assert main(["run", "pendulum_angle", "--instantaneous", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in out.iterdir()) == RUN_FILES
+    return out
+
+
+def test_interrupt_during_report_keeps_the_previous_run(previous_run, monkeypatch, capsys):
+    """Ctrl-C while the report is rendered: the new results.json must not land beside the old
+    report (the bug: it did, and the stale report looked complete)."""
+    before = _snapshot(previous_run)
+
+    def ctrl_c(*_):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(report, "render_junit", ctrl_c)  # the last file rendered
+    code = main(["run", "slider_crank", "--instantaneous", "--out", str(previous_run)])
+    err = capsys.readouterr().err
+    assert code == 130
+    assert err.count("\n") == 1 and "interrupted" in err and "Traceback" not in err
+    assert _snapshot(previous_run) == before  # untouched, no temporary file left
+    assert _models_in(previous_run) == {"pendulum_angle"}
+
+
+def test_no_report_removes_the_stale_report(previous_run, capsys):
+    assert main(["run", "slider_crank", "--instantaneous", "--no-report",
+                 "--out", str(previous_run)]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in previous_run.iterdir()) == ["results.json"]
+    assert _models_in(previous_run) == {"slider_crank"}
+
+
+def tmp_cwd() -> str:
+    return os.getcwd()  # the test's own tmp_path (conftest), never the checkout
+
+
+def _start(args: list[str]) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.Popen([sys.executable, "-m", "crosscheck", *args], cwd=tmp_cwd(), env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.mark.parametrize("delay", [1.0, 4.0])
+def test_sigint_on_a_real_run(previous_run, delay):
+    """SIGINT to a real `crosscheck run` process, early (loading the models) and later
+    (computing): one line, exit 130, the previous files intact."""
+    before = _snapshot(previous_run)
+    proc = _start(["run", "pendulum_angle", "slider_crank", "--out", str(previous_run)])
+    time.sleep(delay)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("crosscheck: interrupted"), err
+    assert _snapshot(previous_run) == before
+    assert not [p for p in previous_run.iterdir() if p.name.startswith(TMP_PREFIX)]
+
+
+def test_sigint_on_a_real_sweep(tmp_path):
+    """An interrupted campaign writes what it completed and never reads as passed (item 6)."""
+    out = tmp_path / "sweep"
+    proc = _start(["sweep", "pendulum_xy", "--samples", "1000000", "--workers", "1",
+                   "--engines", "pinocchio", "--out", str(out)])
+    deadline = time.time() + 120
+    while time.time() < deadline:  # interrupt once samples are being evaluated
+        time.sleep(1.0)
+        if proc.poll() is not None or _sampling(proc.pid):
+            break
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGINT)
+    stdout, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    st = json.loads((out / "sweep.json").read_text())["status"]
+    assert st["stopped"] == "interrupted" and not st["complete"]
+    assert st["passed"] is False and st["verdict"] == "incomplete"
+    assert 0 < st["completed"]["pendulum_xy"] < 1000000
+    assert "stopped: interrupted" in stdout
+    # the finished chunks stay for `--resume` (tests/test_sweep_faults.py), nothing else
+    assert sorted(p.name for p in out.iterdir()) == ["sweep.chunks", "sweep.json"]
+    assert f"crosscheck sweep --resume {out}" in stdout
+
+
+def _sampling(pid: int) -> bool:
+    """The process has been running its own code for a while (past imports and compiling):
+    judged by its CPU time, read from /proc (Linux)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return True
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK") > 3.0

@@ -1,0 +1,118 @@
+"""Campaigns under faults (issue 15 item 12): an interrupted sweep resumes from its finished
+chunks and ends identical to an uninterrupted one, recomputing nothing it finished; a Dask
+worker process killed mid-campaign changes nothing in the results."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+
+import pytest
+
+from crosscheck import sweep as S
+from crosscheck.cli import main
+from crosscheck.sweep_store import STORE, ChunkStore
+
+from .test_sweep import _same
+
+MODELS = ["pendulum_xy", "slider_crank_split"]
+SAMPLES, SEED, CHUNK = 8, 11, 2
+
+
+@pytest.fixture(scope="module")
+def undisturbed():
+    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED)
+    return S.campaign(cfg, workers=1, chunk=CHUNK)
+
+
+def _interrupted(out, after: int) -> tuple[dict, list]:
+    """The campaign stopped by Ctrl-C (as campaign() sees it) after `after` chunks, storing its
+    finished chunks in out/sweep.chunks the way `crosscheck sweep --out out` does."""
+    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(out))
+    merged = []
+
+    def ctrl_c(res):
+        merged.append((res["model"], res["start"], res["completed"]))
+        if len(merged) == after:
+            raise KeyboardInterrupt
+
+    res = S.campaign(cfg, workers=1, chunk=CHUNK, on_chunk=ctrl_c, store=ChunkStore(out, cfg))
+    return res, merged
+
+
+def test_resume_computes_only_what_is_missing(tmp_path, undisturbed):
+    part, merged = _interrupted(tmp_path, after=3)
+    assert part["status"]["stopped"] == "interrupted" and not part["status"]["passed"]
+    assert len(list((tmp_path / STORE).glob("*-*.json"))) == 3
+    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
+    computed = []
+    res = S.campaign(cfg, workers=1, chunk=CHUNK, store=ChunkStore(tmp_path, cfg), resume=True,
+                     on_chunk=lambda r: computed.append((r["model"], r["start"])))
+    assert res["meta"]["resumed"]["chunks"] == 3
+    assert res["meta"]["resumed"]["samples"] == sum(c for *_, c in merged)
+    assert not {(m, s) for m, s, _ in merged} & set(computed)  # nothing finished recomputed
+    assert len(computed) == len(MODELS) * SAMPLES // CHUNK - 3
+    _same(undisturbed, res)
+
+
+def test_cli_resume_ends_identical_to_an_uninterrupted_run(tmp_path, capsys, undisturbed):
+    _interrupted(tmp_path, after=2)
+    code = main(["sweep", "--resume", str(tmp_path), "--workers", "1"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    res = json.loads((tmp_path / "sweep.json").read_text())
+    assert res["status"]["complete"] and res["status"]["passed"]
+    assert res["meta"]["resumed"]["chunks"] == 2
+    _same(undisturbed, res)
+    assert not (tmp_path / STORE).exists()  # complete: nothing left to resume
+    code = main(["sweep", "--resume", str(tmp_path)])
+    assert code == 2 and "no interrupted campaign there" in capsys.readouterr().err
+
+
+def test_an_interrupted_cli_sweep_says_how_to_resume(tmp_path, capsys):
+    code = main(["sweep", "pendulum_xy", "--samples", "100000", "--max-seconds", "1",
+                 "--workers", "1", "--engines", "pinocchio", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code in (1, 4) and f"crosscheck sweep --resume {tmp_path}" in out
+    assert list((tmp_path / STORE).glob("*-*.json"))
+
+
+@pytest.mark.parametrize("argv,fragment", [
+    (["--samples", "9"], "continues the campaign stored there (samples 8)"),
+    (["pendulum_xy"], "(models ['pendulum_xy', 'slider_crank_split'])"),
+    (["--bench"], "give one of them"),
+])
+def test_resume_refuses_a_different_campaign(tmp_path, capsys, argv, fragment):
+    _interrupted(tmp_path, after=1)
+    before = sorted(p.name for p in (tmp_path / STORE).iterdir())
+    code = main(["sweep", "--resume", str(tmp_path), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and fragment in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in (tmp_path / STORE).iterdir()) == before
+
+
+def test_a_killed_dask_worker_changes_nothing(undisturbed):
+    """A real LocalCluster of two worker processes; one is killed (SIGKILL) while it runs a
+    chunk. Its nanny restarts it, the scheduler reruns the lost task, the aggregate is the
+    undisturbed one."""
+    distributed = pytest.importorskip("distributed")
+    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED)
+    killed = []
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        pids = client.run(os.getpid)
+
+        def kill_a_busy_worker(_res):
+            if killed:
+                return
+            busy = [w for w, keys in client.processing().items() if keys and w in pids]
+            if busy:
+                os.kill(pids[busy[0]], signal.SIGKILL)
+                killed.append(pids[busy[0]])
+
+        res = S.campaign(cfg, dask=client, chunk=CHUNK, on_chunk=kill_a_busy_worker)
+    assert killed, "no worker was busy when a chunk finished: nothing was disturbed"
+    assert res["meta"]["executor"]["kind"] == "dask"
+    assert not res["faults"]["chunks"]
+    _same(undisturbed, res)
