@@ -98,8 +98,7 @@ class NumericModel:
         self._k = self._kernels()
         # the forward kernel (every use of a model calls it): compiled or loaded here, the
         # other functions on first use
-        # (models with dependent rows solve numerically, reference.redundant: no forward kernel)
-        self._kf = self._k.get("forward") if self._k is not None and not self.redundant else None
+        self._kf = self._k.get("forward") if self._k is not None else None
         self._nlam = self.n + self.m
         self._pack()
 
@@ -108,8 +107,13 @@ class NumericModel:
         if compiled.backend() != "numba":
             return None
         path = self._scalar["__cache_path__"]
-        return compiled.load_kernels(self.source, path.stem, path.parent, self.nq, self.n,
-                                     len(self.p), self.m, PIVOT_RATIO_MIN)
+        try:
+            return compiled.load_kernels(self.source, path.stem, path.parent, self.nq, self.n,
+                                         len(self.p), self.m, PIVOT_RATIO_MIN)
+        except RecursionError:
+            # expressions nested deeper than Python's ast printer goes (a large user model):
+            # this model stays on the pure-Python path, the same numbers, only slower
+            return None
 
     def _pack(self):
         """Parameters and Schur references as one array (the kernels' _pa), zero b offsets."""
@@ -121,7 +125,7 @@ class NumericModel:
     def backend(self) -> str:
         return "numba" if self._k is not None else "python"
 
-    def with_params(self, params: dict | None) -> "NumericModel":
+    def with_params(self, params: dict | None) -> NumericModel:
         """The same compiled model with other parameter values, without reading and compiling
         the code again (2-30 ms): the code depends on the model only, the values are
         arguments. The Schur reference is recomputed, so a singular parameter set raises here
@@ -213,14 +217,7 @@ class NumericModel:
     # ---- single state ------------------------------------------------------------------
     def forward(self, q, u, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
-        if self.redundant:
-            q, u, t = self._state(q, u, t)
-            ud, lam, piv = self._forward_redundant(q, u, t)
-            if not piv > PIVOT_RATIO_MIN:
-                raise SingularSystemError(self._singular_message(q, piv))
-            return Forward(np.asarray(ud, float), np.asarray(lam, float), float(piv),
-                           self._last_rank)
-        kf = self._kf
+        kf = None if self.redundant else self._kf  # dependent rows: the rank-revealing solve
         if kf is not None:
             out = np.empty(self._nf)
             try:
@@ -233,6 +230,12 @@ class NumericModel:
             n, nm = self.n, self._nlam
             return Forward(out[:n], out[n:nm], float(out[nm]))
         q, u, t = self._state(q, u, t)
+        if self.redundant:
+            ud, lam, piv = self.forward_raw(q, u, t)
+            if not piv > PIVOT_RATIO_MIN:
+                raise SingularSystemError(self._singular_message(q, piv))
+            return Forward(np.asarray(ud, float), np.asarray(lam, float), float(piv),
+                           self._last_rank)
         try:
             ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
         except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
@@ -266,18 +269,6 @@ class NumericModel:
         n, nm = self.n, self._nlam
         return out[:n], out[n:nm], float(out[nm])
 
-    def _forward_redundant(self, q, u, t, db=None):
-        """forward_raw for models with dependent rows (reference.redundant): lists out."""
-        q, u = [float(x) for x in q], [float(x) for x in u]
-        M, f, A, b = self._scalar["matrices"](q, u, float(t), self.p)
-        n, m = self.n, self.m
-        b = np.array(b, float) + (np.asarray(db, float)[:m] if db is not None else 0.0)
-        ud, lam, piv, self._last_rank = redundant.solve(
-            np.array(M, float).reshape(n, n), np.array(f, float),
-            np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
-            augment=self._scalar["META"]["augmented"], where=self.model.name)
-        return ud.tolist(), lam.tolist(), piv
-
     def raw_function(self, name: str):
         """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
         kinematics, energy, matrices, position_jacobian): the integrators' unchecked calls.
@@ -301,6 +292,17 @@ class NumericModel:
             return tuple(out[a:b] for a, b in offs)
 
         return call
+
+    def _forward_redundant(self, q, u, t, db=None):
+        """forward_raw for models with dependent rows (reference.redundant): lists out."""
+        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
+        n, m = self.n, self.m
+        b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
+        ud, lam, piv, self._last_rank = redundant.solve(
+            np.array(M, float).reshape(n, n), np.array(f, float),
+            np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
+            augment=self._scalar["META"]["augmented"], where=self.model.name)
+        return ud.tolist(), lam.tolist(), piv
 
     def _singular_message(self, q, piv) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
@@ -418,11 +420,8 @@ class NumericModel:
         if not (np.isfinite(Q).all() and np.isfinite(U).all()):
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
-        if self.redundant:  # one numeric solve per state (reference.redundant)
-            rows = [self._forward_redundant(Q[i], U[i], t) for i in range(N)]
-            UD = np.array([r[0] for r in rows], float).reshape(N, self.n)
-            LAM = np.array([r[1] for r in rows], float).reshape(N, self.m)
-            piv = np.array([r[2] for r in rows], float)
+        if self.redundant:  # one rank-revealing numeric solve per state (reference.redundant)
+            UD, LAM, piv = self._forward_batch_redundant(Q, U, t)
         elif self._k is not None:
             UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
         else:
@@ -434,6 +433,12 @@ class NumericModel:
                 f"{bad.sum()} of {N} states are singular; first: index {i}. "
                 + self._singular_message(Q[i], float(piv[i])))
         return UD, LAM, piv
+
+    def _forward_batch_redundant(self, Q, U, t):
+        rows = [self._forward_redundant(Q[i].tolist(), U[i].tolist(), t) for i in range(len(Q))]
+        UD = np.array([r[0] for r in rows], float).reshape(len(Q), self.n)
+        LAM = np.array([r[1] for r in rows], float).reshape(len(Q), self.m)
+        return UD, LAM, np.array([r[2] for r in rows], float)
 
     def _forward_batch_python(self, Q, U, t):
         N = Q.shape[0]

@@ -1,0 +1,4 @@
+"""Exudyn engine (registered as ``exudyn`` in pyproject.toml's ``crosscheck.engines``)."""
+from .adapter import ExudynAdapter
+
+__all__ = ["ExudynAdapter"]
