@@ -155,3 +155,15 @@ def describe(um: UserModel) -> dict:
             "parameters": [p.name for p in mdl.parameters],
             "constraints": list(mdl.constraint_names), "formulations": list(mdl.formulations),
             "notes": mdl.geometry_note}
+
+
+def register_all(found: Iterable[UserModel]) -> list[str]:
+    """Register loaded models with reference.models (get, origin, user_source) and return
+    their names: what a command does with --model-file before resolving model names."""
+    from reference import models
+
+    names = []
+    for um in found:
+        models.register(um.model, um.origin, um.mjcf)
+        names.append(um.name)
+    return names

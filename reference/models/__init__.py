@@ -26,7 +26,7 @@ _FACTORIES = {
 
 
 # models added at run time (users' files, entry points: crosscheck.user_models), name ->
-# (Model, origin); `get` finds them beside the built-in ones
+# (Model, origin, source); `get` finds them beside the built-in ones
 _USER: dict = {}
 
 
@@ -34,13 +34,15 @@ def names() -> list[str]:
     return list(_FACTORIES)
 
 
-def register(model, origin: str) -> None:
-    """Make a user's Model available to `get` under its name (a built-in name is refused)."""
+def register(model, origin: str, source=None) -> None:
+    """Make a user's Model available to `get` under its name (a built-in name is refused).
+    `source`: what the engines may need beside the Model (an MJCF import: the compiled MuJoCo
+    model and the state maps, reference.mjcf.MjcfImport)."""
     if model.name in _FACTORIES:
         raise ModelInputError(f"model name {model.name!r} ({origin}) is a built-in model's "
                               f"name; rename it")
     model.validate()
-    _USER[model.name] = (model, origin)
+    _USER[model.name] = (model, origin, source)
 
 
 def user_names() -> list[str]:
@@ -50,6 +52,11 @@ def user_names() -> list[str]:
 def origin(name: str) -> str:
     """Where a model comes from: 'built-in' or the user's file / entry point."""
     return _USER[name][1] if name in _USER else "built-in"
+
+
+def user_source(name: str):
+    """The registered source object of a user model (None for built-in models)."""
+    return _USER[name][2] if name in _USER else None
 
 
 def get(name: str):
