@@ -294,6 +294,9 @@ class OsimModel(EngineModel):
             manager.setIntegratorAccuracy(acc)
             manager.setIntegratorConstraintTolerance(acc)
             setting["rtol"] = acc
+        # realized before the Manager takes it: an exactly consistent pendulum_xy state handed
+        # over unrealized failed at t = 0 ("unable to advance time past 0"), realized it runs
+        self.model.realizeAcceleration(state)
         manager.initialize(state)
         Q, U, viol, vviol, E, T = [], [], [], [], [], []
         wall = 0.0
@@ -312,7 +315,9 @@ class OsimModel(EngineModel):
             viol.append(float(np.max(np.abs(state.getQErr().to_numpy()), initial=0.0)))
             vviol.append(float(np.max(np.abs(state.getUErr().to_numpy()), initial=0.0)))
             E.append(sum(self._energy_of(state)))
-        steps = int(manager.getIntegrator().getNumStepsTaken())
+        # the Manager records one row per integrator step (plus the initial state and the end
+        # of each integrate call); its SimTK::Integrator is not wrapped for Python
+        steps = int(manager.getStatesTable().getNumRows()) - 1
         return EngineTrajectory(t=np.array(T), q=np.array(Q), u=np.array(U),
                                 violation=np.array(viol), velocity_violation=np.array(vviol),
                                 energy=np.array(E), integrator=integrator, setting=setting,
