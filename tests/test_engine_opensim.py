@@ -1,0 +1,266 @@
+"""The OpenSim adapter against the reference, with the real OpenSim 4.6 (no mocks).
+
+Checked model by model: the state map both ways, accelerations and multipliers against the
+reference's KKT solve (every formulation) at random consistent states, each multiplier map
+against the forces the constraint applies (Constraint.calcConstraintForces, an independent
+OpenSim route), energies, Simbody's own residuals, that a 1e-6 parameter fault is caught, the
+unsupported models' reasons, the timing hook, and short Manager trajectories.
+
+States: crosscheck.sampling.random_consistent_state (initial state + noise, projected by
+NumericModel.project) from a seeded numpy Generator, so every run draws the same states.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from crosscheck.engines.base import EngineUnsupported
+from crosscheck.engines.opensim import OpenSimAdapter
+from crosscheck.engines.opensim.common import INTEGRATORS
+from crosscheck.sampling import random_consistent_state
+from reference.errors import ModelInputError
+from reference.models import get, names
+from reference.numeric import NumericModel
+
+ADAPTER = OpenSimAdapter()
+# Accelerations and multipliers: both sides solve the same KKT system with backward-stable
+# factorizations; measured worst over 50 states per model 2.7e-12 relative (slider_crank_split's
+# multipliers, T = 0.7), most models ~1e-15..1e-13 (docs/engines/opensim.md). The adapter's
+# tolerance is the suite's exact-KKT bound (1e-11, the issue's target).
+EXACT = ADAPTER.exact_tolerance("slider_crank").value
+# Below 1 SI unit an acceleration or force is compared absolutely (round-off follows the size of
+# the terms that cancel, g ~ 10, v^2/L ~ 10, not the answer).
+REF_FLOOR = 1.0
+# State map: identities, P = diag(1, -1) or [[1, 0], [-1, 1]], and (6.2, 6.4) the mass center
+# recomputed from the engine's frames (a few rotations of O(1) vectors): a few ulp, and the
+# reference state is consistent only to its projection's 1e-13.
+STATE_MAP_ATOL = 1e-12
+# Energies: the same closed-form sums in another order (plus the springs' k q^2 / 2).
+ENERGY_RTOL = 1e-13
+# Exercises 6.2 and 6.4: the reference's V reads the relaxed coordinate z_G / y_G, the engine's
+# the bar angle; they agree only to the projection's |f| <= 1e-13 (1 + |q|), times the bar's
+# weight m g ~ 20 N: up to ~6e-12 (measured 6.6e-13 on Exercise 6.2).
+ENERGY_MANIFOLD_ATOL = 1e-11
+RELAXED = {"exercise_6_2", "exercise_6_4"}
+# Simbody's own acceleration-level residual |G u' - b| after its solve: round-off of terms
+# up to ~1e3 (the slider-crank's omega^2 l at 10-20 rad/s).
+UDOTERR_ATOL = 1e-9
+N_STATES = 12
+
+PARAMS = {"slider_crank": {"T": 0.7}, "slider_crank_split": {"T": 0.7},
+          "slider_crank_free": {"T": 0.7}, "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2}}
+MODELS = ADAPTER.models()
+
+
+@lru_cache(maxsize=None)
+def reference(model_name: str, formulation: str) -> NumericModel:
+    return NumericModel(get(model_name), formulation, PARAMS.get(model_name, {}))
+
+
+@lru_cache(maxsize=None)
+def engine(model_name: str, perturb=()):
+    params = dict(PARAMS.get(model_name, {}))
+    params.update(dict(perturb))
+    return ADAPTER.build(model_name, params)
+
+
+def states(model_name: str, n: int = N_STATES, seed: int = 0):
+    nm = reference(model_name, get(model_name).formulations[0])
+    rng = np.random.default_rng(seed)
+    return [random_consistent_state(nm, rng) for _ in range(n)]
+
+
+def rel_err(got, ref) -> float:
+    got, ref = np.asarray(got, float), np.asarray(ref, float)
+    if ref.size == 0:
+        return 0.0 if got.size == 0 else math.inf
+    return float(np.max(np.abs(got - ref)) / max(float(np.max(np.abs(ref))), REF_FLOOR))
+
+
+# ---- the adapter -------------------------------------------------------------------------
+def test_adapter_declares_itself():
+    assert ADAPTER.name == "opensim" and ADAPTER.distribution == "opensim"
+    caps = ADAPTER.capabilities
+    assert caps.multipliers and caps.exact and not caps.nonholonomic
+    assert set(caps.integrators) == set(INTEGRATORS)
+    # every built-in model is either mapped or skipped with a reason
+    assert set(MODELS) | set(ADAPTER.unsupported()) == set(names())
+    assert not set(MODELS) & set(ADAPTER.unsupported())
+    assert "nonholonomic" in ADAPTER.unsupported()["knife_edge"]
+
+
+def test_registered_in_pyproject():
+    meta = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    eps = meta["project"]["entry-points"]["crosscheck.engines"]
+    assert eps["opensim"] == "crosscheck.engines.opensim:OpenSimAdapter"
+
+
+@pytest.mark.parametrize("model_name", sorted(OpenSimAdapter().unsupported()))
+def test_unsupported_models_raise_their_reason(model_name):
+    with pytest.raises(EngineUnsupported) as exc:
+        ADAPTER.build(model_name)
+    assert str(exc.value) == ADAPTER.unsupported()[model_name]
+
+
+def test_build_errors():
+    with pytest.raises(EngineUnsupported, match="no model"):
+        ADAPTER.build("no_such_model")
+    with pytest.raises(EngineUnsupported, match="single variant"):
+        ADAPTER.build("pendulum_xy", variant="tree")
+    em = engine("pendulum_xy")
+    with pytest.raises(ModelInputError, match="expected 2 coordinates"):
+        em.forward(np.zeros(3), np.zeros(2))
+    with pytest.raises(ModelInputError, match="NaN"):
+        em.forward(np.array([np.nan, 0.8]), np.zeros(2))
+
+
+# ---- state map, forward, energy ----------------------------------------------------------
+@pytest.mark.parametrize("model_name", MODELS)
+def test_state_map_round_trip(model_name):
+    em = engine(model_name)
+    for q, u in states(model_name, 5):
+        q2, u2 = em.from_engine_state(*em.to_engine_state(q, u))
+        assert np.max(np.abs(q2 - q)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(q)))
+        assert np.max(np.abs(u2 - u)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(u)))
+
+
+@pytest.mark.parametrize("model_name", MODELS)
+def test_forward_agrees_with_reference(model_name):
+    em = engine(model_name)
+    for formulation in get(model_name).formulations:
+        nm = reference(model_name, formulation)
+        for q, u in states(model_name):
+            ref, got = nm.forward(q, u), em.forward(q, u)
+            assert rel_err(got.accelerations, ref.accelerations) <= EXACT, (formulation, q, u)
+            assert rel_err(got.multipliers, ref.multipliers) <= EXACT, (formulation, q, u)
+            assert got.iterations == 1
+            if em.n_multipliers:
+                assert got.raw["udoterr"] <= UDOTERR_ATOL
+
+
+@pytest.mark.parametrize("model_name", MODELS)
+def test_energy_same_datum(model_name):
+    em, nm = engine(model_name), reference(model_name, get(model_name).formulations[0])
+    for q, u in states(model_name, 5):
+        for got, ref in zip(em.energy(q, u), nm.energy(q, u)):
+            bound = ENERGY_RTOL * max(1.0, abs(ref))
+            if model_name in RELAXED:
+                bound = max(bound, ENERGY_MANIFOLD_ATOL)
+            assert abs(got - ref) <= bound
+
+
+def test_perturbed_parameter_breaks_agreement():
+    """A 1e-6 relative fault in the engine's rod mass is seen far above the tolerance."""
+    nm = reference("slider_crank", "lagrange")
+    m2 = nm.params["m2"]
+    bad = engine("slider_crank", (("m2", m2 * (1 + 1e-6)),))
+    worst = max(rel_err(bad.forward(q, u).multipliers, nm.forward(q, u).multipliers)
+                for q, u in states("slider_crank", 4))
+    assert worst > 100 * EXACT
+    assert bad.fingerprint() != engine("slider_crank").fingerprint()
+
+
+# ---- the multiplier maps against the forces the constraints apply ------------------------
+def _forward(model_name, k=0):
+    em = engine(model_name)
+    q, u = states(model_name, k + 1)[k]
+    return em, q, u, em.forward(q, u)
+
+
+def test_pendulum_xy_multiplier_is_the_rod_force():
+    """The rod's force on the bob (OpenSim's calcConstraintForces, body 2) is A^T lambda =
+    lambda p in the reference's axes (p_ref = (x, y down); the engine's y is flipped)."""
+    em, q, u, f = _forward("pendulum_xy")
+    (_, on_ground), (_, on_bob) = em.constraint_forces()[0]
+    assert np.allclose(on_bob[:2], f.multipliers[0] * np.array([q[0], -q[1]]), rtol=1e-13)
+    assert np.allclose(on_ground, -on_bob, rtol=1e-13)
+    assert math.isclose(f.raw["rod_tension"], -f.multipliers[0] * em.params["L"], rel_tol=1e-12)
+
+
+def test_slider_crank_multiplier_is_the_guide_force_on_C():
+    em, q, u, f = _forward("slider_crank")
+    (_, on_ground), (_, on_slider) = em.constraint_forces()[0]
+    assert math.isclose(on_slider[1], f.multipliers[0], rel_tol=1e-13)
+    assert abs(on_slider[0]) < 1e-13 and abs(f.raw["engine_multipliers"][0]) < 1e-13
+
+
+def test_slider_crank_split_multipliers_are_the_force_on_the_crank():
+    em, q, u, f = _forward("slider_crank_split")
+    (_, on_crank), (_, on_rod) = em.constraint_forces()[0]
+    assert np.allclose(on_crank[:2], f.multipliers, rtol=1e-13)
+    assert np.allclose(on_rod, -on_crank, rtol=1e-13)
+
+
+def test_exercise_6_1_end_forces():
+    """F_B from the closure's applied force on the bar; F_A from the bar joint's reaction equals
+    the massless slider's spring-damper force along X."""
+    em, q, u, f = _forward("exercise_6_1")
+    (_, on_bar), _ = em.constraint_forces()[0]
+    assert np.allclose(f.raw["force_on_bar_at_B"], on_bar, rtol=1e-13)
+    assert math.isclose(f.raw["force_on_bar_at_A"][0], f.raw["spring_damper_force"],
+                        rel_tol=1e-12, abs_tol=1e-12)
+
+
+def test_hanging_bar_reaction_static():
+    """Exercise 6.2 at rest, bar hanging, no loads on the block: the pin holds the bar's weight,
+    lambda = (0, -m2 g) in the reference's y-DOWN axes."""
+    em = ADAPTER.build("exercise_6_2", {"F": 0.0})
+    f = em.forward(np.array([0.0, 0.0, 0.0, em.params["l"] / 2]), np.zeros(4))
+    assert np.allclose(f.multipliers, [0.0, -em.params["m2"] * em.params["g"]], atol=1e-12)
+
+
+# ---- timing hook and trajectories ---------------------------------------------------------
+@pytest.mark.parametrize("model_name", ["pendulum_xy", "slider_crank_split"])
+def test_timed_forward_is_forwards_engine_call(model_name):
+    em = engine(model_name)
+    q, u = states(model_name, 1)[0]
+    call = em.timed_forward(q, u)
+    a1 = np.asarray(call().to_numpy(), float)[em._q_index].copy()
+    a2 = np.asarray(call().to_numpy(), float)[em._q_index]
+    assert np.array_equal(a1, a2)
+    assert np.array_equal(a1, em.forward(q, u).raw["engine_accelerations"])
+
+
+# Manager's RungeKuttaMerson at accuracy 1e-10 over 0.5 s against the reference's DOP853 at
+# 1e-12: measured differences 1e-10..1e-9 in q and u (docs/engines/opensim.md); 1e-7 bounds
+# them while an error in the engine's dynamics (1e-6 of a parameter: ~1e-7 relative in the
+# accelerations) is the forward test's job, not this one's.
+SIM_TOL = 1e-7
+
+
+@pytest.mark.parametrize("model_name", ["pendulum_xy", "slider_crank", "exercise_6_1"])
+def test_simulate_matches_reference_trajectory(model_name):
+    em, nm = engine(model_name), reference(model_name, "lagrange")
+    mod = get(model_name)
+    q0, u0 = nm.project(np.array(mod.initial_q, float), np.array(mod.initial_u, float))
+    t = np.linspace(0.0, 0.5, 6)
+    tr = em.simulate(q0, u0, t, integrator="RungeKuttaMerson", rtol=1e-10)
+    n = len(q0)
+
+    def rhs(_, y):
+        return np.concatenate([y[n:], nm.forward(y[:n], y[n:]).accelerations])
+
+    sol = solve_ivp(rhs, (0.0, 0.5), np.concatenate([q0, u0]), method="DOP853", rtol=1e-12,
+                    atol=1e-12, t_eval=t)
+    assert np.allclose(tr.t, t, rtol=0, atol=1e-12)
+    assert np.max(np.abs(tr.q - sol.y[:n].T)) < SIM_TOL
+    assert np.max(np.abs(tr.u - sol.y[n:].T)) < SIM_TOL
+    assert tr.steps and tr.steps > 0 and tr.wall_s > 0
+    assert np.max(tr.violation) < 1e-8  # Simbody projects onto the manifold every step
+
+
+def test_simulate_arguments():
+    em = engine("pendulum_angle")
+    with pytest.raises(ValueError, match="unknown opensim integrator"):
+        em.simulate([0.3], [1.0], [0.0, 0.1], integrator="RK45")
+    with pytest.raises(ValueError, match="fixed-step"):
+        em.simulate([0.3], [1.0], [0.0, 0.1], integrator="ExplicitEuler")
+    tr = em.simulate([0.3], [1.0], [0.0, 0.01], integrator="ExplicitEuler", timestep=1e-3)
+    assert tr.setting == {"integrator": "ExplicitEuler", "timestep": 1e-3}
+    assert tr.q.shape == (2, 1) and tr.q[0, 0] == 0.3
