@@ -120,13 +120,18 @@ class OsimModel(EngineModel):
         self.state = self.model.initSystem()
         cs = self.model.getCoordinateSet()
         self.coords = [cs.get(i) for i in range(cs.getSize())]
-        self.nq_e = self.state.getNQ()
-        if self.nq_e != len(self.coords) or self.state.getNU() != self.nq_e:
-            raise EngineUnsupported(f"{model_name}: opensim model has quaternion or "
-                                    "coupled coordinates this adapter does not map")
-        # Simbody's Q slot of each OpenSim coordinate (and U slot: nq == nu, one each)
+        self.nq_e, self.nu_e = self.state.getNQ(), self.state.getNU()
+        if self.nu_e != len(self.coords) or self.nq_e < self.nu_e:
+            raise EngineUnsupported(f"{model_name}: opensim model has coupled coordinates "
+                                    "this adapter does not map")
+        # Simbody's Q and U slots of each OpenSim coordinate. A BallJoint's three coordinates
+        # are body-fixed X-Y-Z Euler angles (OpenSim runs Simbody's balls in Euler-angle mode:
+        # R_FM = Rx Ry Rz, measured) in a 4-slot Q block whose last slot is unused; its three
+        # speeds are the angular velocity of the child in the parent, parent axes.
         self.state.setQ(osim.Vector([float(i) for i in range(self.nq_e)]))
-        self._q_index = np.array([int(round(c.getValue(self.state))) for c in self.coords])
+        self.state.setU(osim.Vector([float(i) for i in range(self.nu_e)]))
+        self._q_index = np.array([round(c.getValue(self.state)) for c in self.coords])
+        self._u_index = np.array([round(c.getSpeedValue(self.state)) for c in self.coords])
         self.n_multipliers = self.state.getNMultipliers()
 
     # ---- hooks -----------------------------------------------------------------------------
@@ -145,17 +150,18 @@ class OsimModel(EngineModel):
         self._set_state_on(self.state, qe, ve, t)
 
     def _set_state_on(self, state, qe, ve, t) -> None:
-        Q = np.empty(self.nq_e)
-        U = np.empty(self.nq_e)
+        Q = np.zeros(self.nq_e)  # unused slots (a ball's fourth) stay 0
+        U = np.empty(self.nu_e)
         Q[self._q_index] = qe
-        U[self._q_index] = ve
+        U[self._u_index] = ve
         state.setTime(float(t))
         state.setQ(osim.Vector(Q.tolist()))
         state.setU(osim.Vector(U.tolist()))
 
     def _read(self, vector) -> np.ndarray:
-        """A Simbody Q/U-sized vector in OpenSim coordinate order."""
-        return np.asarray(vector.to_numpy(), float)[self._q_index]
+        """A Simbody Q- or U-sized vector in OpenSim coordinate order."""
+        out = np.asarray(vector.to_numpy(), float)
+        return out[self._q_index] if out.size == self.nq_e else out[self._u_index]
 
     def _check(self, q, u=None, t: float = 0.0):
         from reference.errors import ModelInputError
