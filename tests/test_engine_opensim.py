@@ -56,6 +56,10 @@ N_STATES = 12
 PARAMS = {"slider_crank": {"T": 0.7}, "slider_crank_split": {"T": 0.7},
           "slider_crank_free": {"T": 0.7}, "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2}}
 MODELS = ADAPTER.models()
+# The top's normalization row has no engine force (its multiplier is formulation-dependent).
+NO_ENGINE_MULTIPLIERS = {"top_euler"}
+# Models whose q ends with Euler parameters: eps and -eps are one engine rotation.
+EULER_PARAMETERS = {"top_euler", "top_cartesian"}
 
 
 @lru_cache(maxsize=None)
@@ -132,6 +136,10 @@ def test_state_map_round_trip(model_name):
     em = engine(model_name)
     for q, u in states(model_name, 5):
         q2, u2 = em.from_engine_state(*em.to_engine_state(q, u))
+        if model_name in EULER_PARAMETERS and q[-1] < 0:  # the map returns eps4 >= 0
+            q, u = q.copy(), u.copy()
+            q[-4:] *= -1
+            u[-4:] *= -1
         assert np.max(np.abs(q2 - q)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(q)))
         assert np.max(np.abs(u2 - u)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(u)))
 
@@ -145,6 +153,9 @@ def test_forward_agrees_with_reference(model_name):
         for q, u in states(model_name):
             ref, got = nm.forward(q, u), em.forward(q, u)
             assert rel_err(got.accelerations, ref.accelerations) <= tol, (formulation, q, u)
+            if model_name in NO_ENGINE_MULTIPLIERS:
+                assert got.multipliers is None and em.multipliers_note
+                continue
             assert rel_err(got.multipliers, ref.multipliers) <= tol, (formulation, q, u)
             assert got.iterations == 1
             if em.n_multipliers:
@@ -242,6 +253,23 @@ def test_exercise_6_1_end_forces():
     assert np.allclose(f.raw["force_on_bar_at_B"], on_bar, rtol=1e-13)
     assert math.isclose(f.raw["force_on_bar_at_A"][0], f.raw["spring_damper_force"],
                         rel_tol=1e-12, abs_tol=1e-12)
+
+
+def test_top_normalization_values_in_raw():
+    em, q, u, f = _forward("top_euler")
+    K, V = em.energy(q, u)
+    lam_lagrange = reference("top_euler", "lagrange").forward(q, u).multipliers[0]
+    assert math.isclose(f.raw["normalization_lambda_lagrange"], 2 * V - 4 * K, rel_tol=1e-13)
+    assert math.isclose(f.raw["normalization_lambda_lagrange"], lam_lagrange, rel_tol=1e-11)
+
+
+def test_top_upright_socket_force():
+    """The top at rest, upright: the socket carries its weight, lambda = (0, 0, m g, 2 L m g)."""
+    em = ADAPTER.build("top_cartesian")
+    p = em.params
+    f = em.forward(np.array([0, 0, p["L"], 0, 0, 0, 1.0]), np.zeros(7))
+    mg = p["m"] * p["g"]
+    assert np.allclose(f.multipliers, [0, 0, mg, 2 * p["L"] * mg], rtol=0, atol=1e-14)
 
 
 def test_hanging_bar_reaction_static():

@@ -20,7 +20,7 @@ from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from ...compare import EXACT_KKT, Tolerance
 from .common import INTEGRATORS
 from .exercises import Exercise61, Exercise62, Exercise64
-from .spatial import DoublePendulum3D
+from .spatial import DoublePendulum3D, TopCartesian, TopEuler
 from .planar import PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree, SliderCrankSplit
 
 __all__ = ["OpenSimAdapter"]
@@ -35,6 +35,8 @@ _MODELS = {
     "exercise_6_2": Exercise62,
     "exercise_6_4": Exercise64,
     "double_pendulum_3d": DoublePendulum3D,
+    "top_euler": TopEuler,
+    "top_cartesian": TopCartesian,
 }
 
 _UNSUPPORTED = {
@@ -44,11 +46,6 @@ _UNSUPPORTED = {
     # expressible in OpenSim but not mapped yet (issue 12): say so instead of a silent gap
     "frame_bar": "not mapped yet in the opensim adapter (expressible: two hinges and one "
                  "closure); see docs/engines/opensim.md",
-    "top_euler": "not mapped yet in the opensim adapter: the reference's multiplier is the "
-                 "Euler-parameter normalization, which OpenSim's quaternion joints keep "
-                 "implicitly (no force to map it to)",
-    "top_cartesian": "not mapped yet in the opensim adapter (expressible: a free body with a "
-                     "PointConstraint at the tip); see docs/engines/opensim.md",
     "pendulum_moving_support": "not mapped yet in the opensim adapter: the rheonomic support "
                                "needs a prescribed-motion coordinate, whose own multiplier "
                                "Simbody adds to the constraint's",

@@ -1,4 +1,5 @@
-"""OpenSim model of the 3-D double pendulum (Example 4): two links on BallJoints.
+"""OpenSim models of the 3-D double pendulum (Example 4, two links on BallJoints) and the top
+(Exercises 6.5-6.7, one BallJoint).
 
 Engine frame = the reference's N (N2 vertical UP, gravity (0, -g, 0)); each link's body frame is
 the reference's link frame n_i (origin at its upper joint), so inertias and points carry over
@@ -15,7 +16,7 @@ import opensim as osim
 
 from .common import OsimModel, vec3
 
-__all__ = ["DoublePendulum3D"]
+__all__ = ["DoublePendulum3D", "TopCartesian", "TopEuler"]
 
 
 def _np(v) -> np.ndarray:
@@ -129,3 +130,152 @@ class DoublePendulum3D(OsimModel):
         F_O, F_A = (_np(j.calcReactionOnChildExpressedInGround(self.state).get(1))
                     for j in self.joints)
         return np.concatenate([F_O - F_A, F_A])
+
+
+# ======================================================================================
+# Exercises 6.5-6.7: the top on a BallJoint at O (Z up)
+# ======================================================================================
+def _E(e) -> np.ndarray:
+    """The textbook's E(eps) (omega = 2 E eps', eps4 scalar); linear in eps."""
+    e1, e2, e3, e4 = e
+    return np.array([[e4, e3, -e2, -e1], [-e3, e4, e1, -e2], [e2, -e1, e4, -e3]])
+
+
+def _R_eps(e) -> np.ndarray:
+    """Body -> N rotation of unit Euler parameters (the reference's ``rotation``)."""
+    e1, e2, e3, e4 = e
+    return np.array(
+        [[e4**2 + e1**2 - e2**2 - e3**2, 2 * (e1 * e2 - e3 * e4), 2 * (e1 * e3 + e2 * e4)],
+         [2 * (e1 * e2 + e3 * e4), e4**2 - e1**2 + e2**2 - e3**2, 2 * (e2 * e3 - e1 * e4)],
+         [2 * (e1 * e3 - e2 * e4), 2 * (e2 * e3 + e1 * e4), e4**2 - e1**2 - e2**2 + e3**2]])
+
+
+def _eps_of(R) -> np.ndarray:
+    """Unit Euler parameters of a rotation (Shepperd's branch choice), eps4 >= 0."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    k = int(np.argmax([R[0, 0], R[1, 1], R[2, 2], tr]))
+    if k == 3:
+        w = 0.5 * math.sqrt(1.0 + tr)
+        e = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1], 0.0]) / (4 * w)
+        e[3] = w
+    else:
+        i, j, m = k, (k + 1) % 3, (k + 2) % 3
+        e = np.empty(4)
+        e[i] = 0.5 * math.sqrt(1.0 + R[i, i] - R[j, j] - R[m, m])
+        e[j] = (R[j, i] + R[i, j]) / (4 * e[i])
+        e[m] = (R[m, i] + R[i, m]) / (4 * e[i])
+        e[3] = (R[m, j] - R[j, m]) / (4 * e[i])
+    return -e if e[3] < 0 else e
+
+
+class _Top(OsimModel):
+    """The top on a BallJoint at O = the ground origin (Z up, gravity (0, 0, -g)): body frame =
+    the reference's e1, e2, e3, mass center at (0, 0, L), central inertia diag(I, I, I3).
+    q_e = X-Y-Z angles of R(eps), u_e = omega in N axes = R (2 E(eps) eps')."""
+
+    up = (0.0, 0.0, 1.0)
+
+    def _build(self):
+        p = self.params
+        top = osim.Body("top", p["m"], vec3(0, 0, p["L"]),
+                        osim.Inertia(p["I"], p["I"], p["I3"], 0, 0, 0))
+        self.model.addBody(top)
+        self.joint = osim.BallJoint("O", self.model.getGround(), vec3(), vec3(), top, vec3(),
+                                    vec3())
+        for k, ax in enumerate("xyz"):
+            self.joint.upd_coordinates(k).setName(f"O_{ax}")
+        self.model.addJoint(self.joint)
+        self.top = top
+
+    def _engine(self, eps, eps_dot):
+        R = _R_eps(eps)
+        return _xyz(R), R @ (2.0 * _E(eps) @ eps_dot)
+
+    def _reference(self, qe, ve):
+        """(eps, eps', omega_body, R) of an engine state (eps4 >= 0)."""
+        R = _Rxyz(*qe[0:3])
+        eps = _eps_of(R)
+        w = R.T @ ve
+        return eps, 0.5 * _E(eps).T @ w, w, R
+
+    def _eps_acc(self, qe, ve):
+        """eps'' = (E(eps')^T omega + E(eps)^T omega') / 2, omega' in body axes from the
+        engine's angular acceleration (R^T alpha)."""
+        eps, eps_dot, w, R = self._reference(qe, ve)
+        alpha = _np(self.top.getAccelerationInGround(self.state).get(0))
+        return 0.5 * (_E(eps_dot).T @ w + _E(eps).T @ (R.T @ alpha))
+
+    def forward(self, q, u, t: float = 0.0):
+        """The engine's rotation does not know the sign of eps (eps and -eps are one rotation):
+        the maps return the branch eps4 >= 0, and the Euler-parameter accelerations are turned
+        to the branch of the given q (eps'' is odd in eps for a given motion)."""
+        out = super().forward(q, u, t)
+        eps = np.asarray(q, float)[-4:]
+        if eps @ _eps_of(_R_eps(eps)) < 0:
+            out.accelerations[-4:] *= -1.0
+        return out
+
+    def _socket_force(self) -> np.ndarray:
+        return _np(self.joint.calcReactionOnChildExpressedInGround(self.state).get(1))
+
+
+class TopEuler(_Top):
+    """Exercises 6.5/6.6 (q = eps, u = eps'). The reference's single row is the normalization,
+    which the engine's rotation satisfies by construction: no engine force maps to it, and its
+    multiplier depends on the formulation (0 for d'Alembert and Kane, 2V - 4K for Lagrange),
+    so multipliers is None; raw carries both textbook values from the engine's K and V and the
+    socket force."""
+
+    nq_ref = n_ref = 4
+    multipliers_note = ("the normalization's multiplier is not a force (formulation-dependent: "
+                        "0 for d'Alembert and Kane, 2V - 4K for Lagrange); raw carries both")
+
+    def to_engine_state(self, q, u):
+        return self._engine(np.asarray(q, float), np.asarray(u, float))
+
+    def from_engine_state(self, qe, ve):
+        eps, eps_dot, _, _ = self._reference(qe, ve)
+        return eps, eps_dot
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return self._eps_acc(qe, ve)
+
+    def _multipliers(self, lam_s):
+        return None
+
+    def _extra_raw(self, raw):
+        K = float(self.model.calcKineticEnergy(self.state))
+        V = float(self.model.calcPotentialEnergy(self.state))
+        raw["normalization_lambda_dalembert_kane"] = 0.0
+        raw["normalization_lambda_lagrange"] = 2.0 * V - 4.0 * K
+        raw["socket_force"] = self._socket_force()
+
+
+class TopCartesian(_Top):
+    """Exercise 6.7 (q = (x, eps), u = (x', eps')), the same tree: x = L R e3 and its rates
+    follow from the rotation; x'' is the mass center's acceleration
+    (findStationAccelerationInGround). Multipliers: (lambda1..3) = the socket's force on the top
+    = the BallJoint's reaction on its child (ground = N axes); lambda4, the normalization's
+    (formulation-dependent, d'Alembert and Kane only here), is 2 x . (lambda1..3) (reference
+    docstring)."""
+
+    nq_ref = n_ref = 7
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        return self._engine(q[3:7], u[3:7])
+
+    def from_engine_state(self, qe, ve):
+        eps, eps_dot, _, R = self._reference(qe, ve)
+        x = self.params["L"] * R[:, 2]
+        return np.concatenate([x, eps]), np.concatenate([np.cross(ve, x), eps_dot])
+
+    def _acc_to_reference(self, qe, ve, ae):
+        a_G = _np(self.top.findStationAccelerationInGround(self.state,
+                                                           vec3(0, 0, self.params["L"])))
+        return np.concatenate([a_G, self._eps_acc(qe, ve)])
+
+    def _multipliers(self, lam_s):
+        F = self._socket_force()
+        x = _np(self.top.findStationLocationInGround(self.state, vec3(0, 0, self.params["L"])))
+        return np.concatenate([F, [2.0 * x @ F]])
