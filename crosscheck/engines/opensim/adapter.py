@@ -20,7 +20,7 @@ from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from ...compare import EXACT_KKT, Tolerance
 from .common import INTEGRATORS
 from .exercises import Exercise61, Exercise62, Exercise64
-from .spatial import DoublePendulum3D, TopCartesian, TopEuler
+from .spatial import DoublePendulum3D, FrameBar, TopCartesian, TopEuler
 from .planar import PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree, SliderCrankSplit
 
 __all__ = ["OpenSimAdapter"]
@@ -37,6 +37,7 @@ _MODELS = {
     "double_pendulum_3d": DoublePendulum3D,
     "top_euler": TopEuler,
     "top_cartesian": TopCartesian,
+    "frame_bar": FrameBar,
 }
 
 _UNSUPPORTED = {
@@ -44,8 +45,6 @@ _UNSUPPORTED = {
                   "holonomic constraints and coordinate couplers (Simbody's NoSlip/knife-edge "
                   "constraints are not wrapped as OpenSim components)",
     # expressible in OpenSim but not mapped yet (issue 12): say so instead of a silent gap
-    "frame_bar": "not mapped yet in the opensim adapter (expressible: two hinges and one "
-                 "closure); see docs/engines/opensim.md",
     "pendulum_moving_support": "not mapped yet in the opensim adapter: the rheonomic support "
                                "needs a prescribed-motion coordinate, whose own multiplier "
                                "Simbody adds to the constraint's",

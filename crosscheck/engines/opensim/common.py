@@ -145,6 +145,12 @@ class OsimModel(EngineModel):
         """Reference multipliers from Simbody's (after realizeAcceleration)."""
         return np.zeros(0)
 
+    def joint(self, name: str):
+        """A joint of the built model, looked up by name: the Python handle of a joint created
+        in _build is not reliable after initSystem (a CustomJoint's reaction read through it
+        came back 1e-213, through the model's JointSet right)."""
+        return self.model.getJointSet().get(name)
+
     # ---- the engine state ------------------------------------------------------------------
     def _set_state(self, qe, ve, t: float = 0.0) -> None:
         self._set_state_on(self.state, qe, ve, t)

@@ -22,10 +22,17 @@ def _np(v) -> np.ndarray:
     return np.array([v.get(0), v.get(1), v.get(2)], float)
 
 
+def reaction(joint, state) -> tuple[np.ndarray, np.ndarray]:
+    """(moment, force) the parent applies to the child through the joint, ground axes, about
+    the child frame's origin (Joint.calcReactionOnChildExpressedInGround). The SpatialVec is
+    held while its parts are read: SpatialVec.get(k) returns a view, and reading it from a
+    temporary returned garbage (1e-213, 1e166 measured)."""
+    sv = joint.calcReactionOnChildExpressedInGround(state)
+    return _np(sv.get(0)), _np(sv.get(1))
+
+
 def _reaction_force(joint, state) -> np.ndarray:
-    """Force the parent applies to the child through the joint, ground axes (the force part
-    of Joint.calcReactionOnChildExpressedInGround, a SpatialVec (moment, force))."""
-    return _np(joint.calcReactionOnChildExpressedInGround(state).get(1))
+    return reaction(joint, state)[1]
 
 
 def _spring_damper(owner, coord, k, c) -> None:
@@ -93,9 +100,9 @@ class Exercise61(_Identity, OsimModel):
         self.model.addJoint(custom_joint("y", g, block, translations=(("y", (0, 1, 0), 1, 0),)))
         bar = lamina("bar", p["m"], (0, p["l"] / 2, 0), p["m"] * p["l"] ** 2 / 12)
         self.model.addBody(bar)
-        self.bar_joint = osim.PinJoint("theta", slider, vec3(), vec3(), bar, vec3(), vec3())
-        self.bar_joint.upd_coordinates(0).setName("theta")
-        self.model.addJoint(self.bar_joint)
+        bar_joint = osim.PinJoint("theta", slider, vec3(), vec3(), bar, vec3(), vec3())
+        bar_joint.upd_coordinates(0).setName("theta")
+        self.model.addJoint(bar_joint)
         self.model.addConstraint(osim.PointConstraint(bar, vec3(0, p["l"]), block, vec3()))
         _spring_damper(self, "x", p["k"], p["c"])
         _prescribed(self.model, "F", block, force=(0.0, -p["F"], 0.0))
@@ -104,7 +111,7 @@ class Exercise61(_Identity, OsimModel):
 
     def end_forces(self):
         """(F_A, F_B) on the bar, ground axes (after realizeAcceleration)."""
-        F_A = _reaction_force(self.bar_joint, self.state)
+        F_A = _reaction_force(self.joint("theta"), self.state)
         F_B = np.asarray(self.state.getMultipliers().to_numpy(), float)[0:3].copy()
         return F_A, F_B
 
@@ -139,9 +146,9 @@ class Exercise62(OsimModel):
                                          translations=(("x", (1, 0, 0), 1, 0),)))
         bar = lamina("bar", p["m2"], (0, -p["l"] / 2, 0), p["m2"] * p["l"] ** 2 / 12)
         self.model.addBody(bar)
-        self.bar_joint = osim.PinJoint("theta", block, vec3(), vec3(), bar, vec3(), vec3())
-        self.bar_joint.upd_coordinates(0).setName("theta")
-        self.model.addJoint(self.bar_joint)
+        bar_joint = osim.PinJoint("theta", block, vec3(), vec3(), bar, vec3(), vec3())
+        bar_joint.upd_coordinates(0).setName("theta")
+        self.model.addJoint(bar_joint)
         _spring_damper(self, "x", p["k"], p["c"])
         _prescribed(self.model, "F", block, force=(p["F"], 0.0, 0.0))
         self.block, self.bar, self.G = block, bar, vec3(0, -p["l"] / 2, 0)
@@ -168,7 +175,7 @@ class Exercise62(OsimModel):
         return np.array([ae[0], ae[1], da[0], -da[1]])
 
     def _multipliers(self, lam_s):
-        F = _reaction_force(self.bar_joint, self.state)
+        F = _reaction_force(self.joint("theta"), self.state)
         return np.array([F[0], -F[1]])
 
 
@@ -197,9 +204,9 @@ class Exercise64(OsimModel):
         Ib = p["m"] * p["l"] ** 2 / 12
         bar = osim.Body("bar", p["m"], vec3(0, 0, -p["l"] / 2), osim.Inertia(Ib, Ib, 0, 0, 0, 0))
         self.model.addBody(bar)
-        self.bar_joint = custom_joint("theta", disk, bar, rotations=(("theta", (1, 0, 0), 1, 0),),
-                                      parent_offset=(0, p["R"], 0))
-        self.model.addJoint(self.bar_joint)
+        self.model.addJoint(custom_joint("theta", disk, bar,
+                                         rotations=(("theta", (1, 0, 0), 1, 0),),
+                                         parent_offset=(0, p["R"], 0)))
         _spring_damper(self, "theta", p["k"], p["c"])
         _prescribed(self.model, "M_phi", disk, torque=(0, 0, p["M_phi"]))
         _prescribed(self.model, "M_theta_bar", bar, torque=(p["M_theta"], 0, 0), in_ground=False)
@@ -228,7 +235,7 @@ class Exercise64(OsimModel):
         return np.array([ae[0], ae[1], rdd[1], rdd[2]])
 
     def _multipliers(self, lam_s):
-        F = _reaction_force(self.bar_joint, self.state)
+        F = _reaction_force(self.joint("theta"), self.state)
         Fd = _np(self.model.getGround().expressVectorInAnotherFrame(
             self.state, vec3(*F), self.disk))
         return np.array([Fd[1], Fd[2]])

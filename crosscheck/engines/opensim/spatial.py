@@ -14,13 +14,22 @@ import math
 import numpy as np
 import opensim as osim
 
-from .common import OsimModel, vec3
+from .common import OsimModel, custom_joint, vec3
+from .exercises import _prescribed, reaction
 
-__all__ = ["DoublePendulum3D", "TopCartesian", "TopEuler"]
+__all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
 
 
 def _np(v) -> np.ndarray:
     return np.array([v.get(0), v.get(1), v.get(2)], float)
+
+
+def _rotation(frame, state) -> np.ndarray:
+    """Body -> ground rotation matrix of a frame (the Transform and its Rotation held while
+    read: views into temporaries returned garbage elsewhere, see exercises.reaction)."""
+    T = frame.getTransformInGround(state)
+    R = T.R()
+    return np.array([[R.get(i, j) for j in range(3)] for i in range(3)])
 
 
 def _R313(a, b, c) -> np.ndarray:
@@ -77,7 +86,7 @@ class DoublePendulum3D(OsimModel):
     def _build(self):
         p = self.params
         g = self.model.getGround()
-        self.links, self.joints = [], []
+        self.links = []
         parent, at = g, vec3()
         for i in (1, 2):
             link = osim.Body(f"link{i}", p[f"m{i}"], vec3(0, -p[f"l{i}"] / 2, 0),
@@ -89,7 +98,6 @@ class DoublePendulum3D(OsimModel):
                 joint.upd_coordinates(k).setName(f"{name}_{ax}")
             self.model.addJoint(joint)
             self.links.append(link)
-            self.joints.append(joint)
             parent, at = link, vec3(0, -p["l1"], 0)
         self.rho = [np.array([0.0, -p["l1"] / 2, 0.0]), np.array([0.0, -p["l2"] / 2, 0.0])]
         self.rhoA = np.array([0.0, -p["l1"], 0.0])
@@ -119,16 +127,15 @@ class DoublePendulum3D(OsimModel):
         s = self.state  # realized to acceleration by forward()
         out = []
         for link in self.links:
-            R = np.array([[link.getTransformInGround(s).R().get(i, j) for j in range(3)]
-                          for i in range(3)])
-            out.append(R.T @ _np(link.getAccelerationInGround(s).get(0)))
+            R = _rotation(link, s)
+            acc = link.getAccelerationInGround(s)  # held while read (see exercises.reaction)
+            out.append(R.T @ _np(acc.get(0)))
         for link, rho in zip(self.links, self.rho):
             out.append(_np(link.findStationAccelerationInGround(s, vec3(*rho))))
         return np.concatenate(out)
 
     def _multipliers(self, lam_s):
-        F_O, F_A = (_np(j.calcReactionOnChildExpressedInGround(self.state).get(1))
-                    for j in self.joints)
+        F_O, F_A = (reaction(self.joint(name), self.state)[1] for name in ("O", "A"))
         return np.concatenate([F_O - F_A, F_A])
 
 
@@ -180,11 +187,10 @@ class _Top(OsimModel):
         top = osim.Body("top", p["m"], vec3(0, 0, p["L"]),
                         osim.Inertia(p["I"], p["I"], p["I3"], 0, 0, 0))
         self.model.addBody(top)
-        self.joint = osim.BallJoint("O", self.model.getGround(), vec3(), vec3(), top, vec3(),
-                                    vec3())
+        joint = osim.BallJoint("O", self.model.getGround(), vec3(), vec3(), top, vec3(), vec3())
         for k, ax in enumerate("xyz"):
-            self.joint.upd_coordinates(k).setName(f"O_{ax}")
-        self.model.addJoint(self.joint)
+            joint.upd_coordinates(k).setName(f"O_{ax}")
+        self.model.addJoint(joint)
         self.top = top
 
     def _engine(self, eps, eps_dot):
@@ -202,7 +208,8 @@ class _Top(OsimModel):
         """eps'' = (E(eps')^T omega + E(eps)^T omega') / 2, omega' in body axes from the
         engine's angular acceleration (R^T alpha)."""
         eps, eps_dot, w, R = self._reference(qe, ve)
-        alpha = _np(self.top.getAccelerationInGround(self.state).get(0))
+        acc = self.top.getAccelerationInGround(self.state)  # held while read
+        alpha = _np(acc.get(0))
         return 0.5 * (_E(eps_dot).T @ w + _E(eps).T @ (R.T @ alpha))
 
     def forward(self, q, u, t: float = 0.0):
@@ -216,7 +223,7 @@ class _Top(OsimModel):
         return out
 
     def _socket_force(self) -> np.ndarray:
-        return _np(self.joint.calcReactionOnChildExpressedInGround(self.state).get(1))
+        return reaction(self.joint("O"), self.state)[1]
 
 
 class TopEuler(_Top):
@@ -279,3 +286,64 @@ class TopCartesian(_Top):
         F = self._socket_force()
         x = _np(self.top.findStationLocationInGround(self.state, vec3(0, 0, self.params["L"])))
         return np.concatenate([F, [2.0 * x @ F]])
+
+
+# ======================================================================================
+# Example 3: the rotating frame and bar (no gravity)
+# ======================================================================================
+class FrameBar(OsimModel):
+    """Example 3. A massless frame F on a CustomJoint rotating about the exact ground Z (phi),
+    the bar on a CustomJoint rotating about F's exact y axis (the arm n2) at (0, d, 0) in F
+    (theta), its mass center at the joint origin with central inertia diag(I1, I2, I3) along
+    e1, e2 = n2, e3 (the reference's R = rot_z(phi) rot_y(theta)). No gravity. M_phi: a
+    PrescribedForce torque on F about Z; M_theta: +M_theta about the bar's y axis on the bar,
+    -M_theta about F's y axis (the same axis n2) on F.
+
+    Speeds: omega = phi' k + theta' e2 = (-S phi', theta', C phi') (body axes) and inversely
+    theta' = omega2, phi' = -S omega1 + C omega3 (exact on omega1 C + omega3 S = 0). u' = the
+    bar's body-fixed angular acceleration, R^T alpha (Frame.getAccelerationInGround).
+
+    Multiplier: the n1 component of the ground's bearing moment on F about O (reference
+    docstring): the phi joint's reaction moment on its child F at O (ground axes), dotted with
+    n1 = (cos phi, sin phi, 0)."""
+
+    nq_ref, n_ref = 2, 3
+    up = (0.0, 0.0, 1.0)
+
+    def _build(self):
+        p = self.params
+        frame = osim.Body("F", 0.0, vec3(), osim.Inertia(0.0))
+        self.model.addBody(frame)
+        self.model.addJoint(custom_joint("phi", self.model.getGround(), frame,
+                                         rotations=(("phi", (0, 0, 1), 1, 0),)))
+        bar = osim.Body("bar", p["m"], vec3(), osim.Inertia(p["I1"], p["I2"], p["I3"], 0, 0, 0))
+        self.model.addBody(bar)
+        self.model.addJoint(custom_joint("theta", frame, bar,
+                                         rotations=(("theta", (0, 1, 0), 1, 0),),
+                                         parent_offset=(0, p["d"], 0)))
+        _prescribed(self.model, "M_phi", frame, torque=(0, 0, p["M_phi"]))
+        _prescribed(self.model, "M_theta_bar", bar, torque=(0, p["M_theta"], 0), in_ground=False)
+        _prescribed(self.model, "M_theta_F", frame, torque=(0, -p["M_theta"], 0),
+                    in_ground=False)
+        self.bar = bar
+
+    def to_engine_state(self, q, u):
+        phi, th = np.asarray(q, float)
+        w1, w2, w3 = np.asarray(u, float)
+        return np.array([phi, th]), np.array([-math.sin(th) * w1 + math.cos(th) * w3, w2])
+
+    def from_engine_state(self, qe, ve):
+        th = float(qe[1])
+        return (np.array(qe, float).copy(),
+                np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))
+
+    def _acc_to_reference(self, qe, ve, ae):
+        s = self.state
+        R = _rotation(self.bar, s)
+        acc = self.bar.getAccelerationInGround(s)  # held while read
+        return R.T @ _np(acc.get(0))
+
+    def _multipliers(self, lam_s):
+        phi = float(self._read(self.state.getQ())[0])
+        M = reaction(self.joint("phi"), self.state)[0]
+        return np.array([M @ np.array([math.cos(phi), math.sin(phi), 0.0])])
