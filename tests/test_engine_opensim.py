@@ -231,6 +231,21 @@ def test_pendulum_xy_multiplier_is_the_rod_force():
     assert math.isclose(f.raw["rod_tension"], -f.multipliers[0] * em.params["L"], rel_tol=1e-12)
 
 
+def test_moving_support_rod_multiplier():
+    """The rod's slot among Simbody's multipliers (after the prescribed coordinate's row): its
+    force on the bob (calcConstraintForces, body 2) is lambda (p - p_s), reference axes."""
+    em = engine("pendulum_moving_support")
+    nm = reference("pendulum_moving_support", "lagrange")
+    rng = np.random.default_rng(3)
+    t = 0.7
+    q, u = random_consistent_state(nm, rng, t=t)
+    f = em.forward(q, u, t)
+    assert rel_err(f.multipliers, nm.forward(q, u, t).multipliers) <= EXACT
+    (_, _), (_, on_bob) = em.constraint_forces()[0]
+    xs = em.params["a"] * math.sin(em.params["Omega"] * t)
+    assert np.allclose(on_bob[:2], f.multipliers[0] * np.array([q[0] - xs, -q[1]]), rtol=1e-12)
+
+
 def test_slider_crank_multiplier_is_the_guide_force_on_C():
     em, q, u, f = _forward("slider_crank")
     (_, on_ground), (_, on_slider) = em.constraint_forces()[0]
@@ -299,7 +314,8 @@ def test_timed_forward_is_forwards_engine_call(model_name):
 SIM_TOL = 1e-7
 
 
-@pytest.mark.parametrize("model_name", ["pendulum_xy", "slider_crank", "exercise_6_1"])
+@pytest.mark.parametrize("model_name", ["pendulum_xy", "slider_crank", "exercise_6_1",
+                                        "pendulum_moving_support"])
 def test_simulate_matches_reference_trajectory(model_name):
     em, nm = engine(model_name), reference(model_name, "lagrange")
     mod = get(model_name)
@@ -308,8 +324,8 @@ def test_simulate_matches_reference_trajectory(model_name):
     tr = em.simulate(q0, u0, t, integrator="RungeKuttaMerson", rtol=1e-10)
     n = len(q0)
 
-    def rhs(_, y):
-        return np.concatenate([y[n:], nm.forward(y[:n], y[n:]).accelerations])
+    def rhs(t, y):
+        return np.concatenate([y[n:], nm.forward(y[:n], y[n:], t).accelerations])
 
     sol = solve_ivp(rhs, (0.0, 0.5), np.concatenate([q0, u0]), method="DOP853", rtol=1e-12,
                     atol=1e-12, t_eval=t)

@@ -21,7 +21,8 @@ from ...compare import EXACT_KKT, Tolerance
 from .common import INTEGRATORS
 from .exercises import Exercise61, Exercise62, Exercise64
 from .spatial import DoublePendulum3D, FrameBar, TopCartesian, TopEuler
-from .planar import PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree, SliderCrankSplit
+from .planar import (MovingSupport, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
+                     SliderCrankSplit)
 
 __all__ = ["OpenSimAdapter"]
 
@@ -38,6 +39,7 @@ _MODELS = {
     "top_euler": TopEuler,
     "top_cartesian": TopCartesian,
     "frame_bar": FrameBar,
+    "pendulum_moving_support": MovingSupport,
 }
 
 _UNSUPPORTED = {
@@ -45,9 +47,6 @@ _UNSUPPORTED = {
                   "holonomic constraints and coordinate couplers (Simbody's NoSlip/knife-edge "
                   "constraints are not wrapped as OpenSim components)",
     # expressible in OpenSim but not mapped yet (issue 12): say so instead of a silent gap
-    "pendulum_moving_support": "not mapped yet in the opensim adapter: the rheonomic support "
-                               "needs a prescribed-motion coordinate, whose own multiplier "
-                               "Simbody adds to the constraint's",
 }
 
 

@@ -14,7 +14,7 @@ import opensim as osim
 
 from .common import OsimModel, custom_joint, lamina, point_body, vec3
 
-__all__ = ["PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
+__all__ = ["MovingSupport", "PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
 
 
 def _pin(name, parent, at, child, child_at=(0, 0, 0)) -> osim.PinJoint:
@@ -210,3 +210,73 @@ class SliderCrankSplit(_Identity, _SliderCrankBase):
 
     def _multipliers(self, lam_s):
         return np.array([lam_s[0], lam_s[1]])
+
+
+class MovingSupport(PendulumXY):
+    """Supplement (rheonomic): Example 1(b) with the support moving x_s(t) = a sin(Omega t).
+    The bob on the CustomJoint of PendulumXY (x_e, y_e = -y_ref); the support a 1 kg point
+    body (massless, Simbody returned NaN: M is singular in x_s; its mass does not change the
+    bob's motion or the rod force, its motion being prescribed, only the multiplier that
+    drives it) on a CustomJoint along the exact ground X whose coordinate x_s is PRESCRIBED
+    (Coordinate.setPrescribedFunction(Sine(a, Omega, 0, 0))); the rod a
+    ConstantDistanceConstraint between the support and the bob. The engine state is
+    (x_e, y_e) and, in Simbody's state, x_s(t), x_s'(t) filled in from t when it is set.
+
+    Multipliers: Simbody adds one row for the prescribed coordinate, FIRST (its multiplier is
+    the force that drives the support, not a reference row), then the rod's (slot 1, checked in
+    the tests against the rod's force from calcConstraintForces); as in PendulumXY,
+    lambda_ref = -lambda_rod / |p - p_s|.
+    """
+
+    rod_index = 1  # the rod's slot among Simbody's multipliers
+    SUPPORT_MASS = 1.0  # kg; any positive value (see above); its K is removed from energy()
+
+    def _energy_of(self, state):
+        """The bob's K and V: OpenSim's K minus the support's m_s x_s'^2 / 2 (the reference has
+        no support body; the support moves on Y = 0, so it adds nothing to V)."""
+        K, V = super()._energy_of(state)
+        xsd = self.model.getCoordinateSet().get("x_s").getSpeedValue(state)
+        return K - 0.5 * self.SUPPORT_MASS * xsd**2, V
+
+    def _build(self):
+        super()._build()
+        p = self.params
+        self.model.getConstraintSet().clearAndDestroy()
+        support = point_body("support", self.SUPPORT_MASS)
+        self.model.addBody(support)
+        self.model.addJoint(custom_joint("xs", self.model.getGround(), support,
+                                         translations=(("x_s", (1, 0, 0), 1.0, 0.0),)))
+        bob = self.model.getBodySet().get("bob")
+        self.model.addConstraint(osim.ConstantDistanceConstraint(
+            support, vec3(), bob, vec3(), float(p["L"])))
+        self.model.finalizeFromProperties()
+        xs = self.model.getCoordinateSet().get("x_s")
+        xs.setPrescribedFunction(osim.Sine(float(p["a"]), float(p["Omega"]), 0.0, 0.0))
+        xs.setDefaultIsPrescribed(True)
+
+    def _support(self, t):
+        a, W = self.params["a"], self.params["Omega"]
+        return a * math.sin(W * t), a * W * math.cos(W * t)
+
+    def _set_state_on(self, state, qe, ve, t) -> None:
+        if len(qe) == 2:
+            xs, xsd = self._support(t)
+            qe, ve = np.append(qe, xs), np.append(ve, xsd)
+        super()._set_state_on(state, qe, ve, t)
+
+    def to_engine_state(self, q, u):
+        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
+
+    def from_engine_state(self, qe, ve):
+        return self._P @ np.asarray(qe, float)[:2], self._P @ np.asarray(ve, float)[:2]
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return self._P @ np.asarray(ae, float)[:2]
+
+    def _multipliers(self, lam_s):
+        qe = self._read(self.state.getQ())
+        xs, _ = self._support(self.state.getTime())
+        return np.array([-lam_s[self.rod_index] / math.hypot(qe[0] - xs, qe[1])])
+
+    def _extra_raw(self, raw):
+        raw["rod_tension"] = float(raw["engine_multipliers"][self.rod_index])
