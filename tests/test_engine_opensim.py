@@ -14,13 +14,14 @@ from __future__ import annotations
 import math
 import tomllib
 from functools import lru_cache
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from crosscheck.engines.base import EngineUnsupported
+from crosscheck.engines.base import EngineAdapter, EngineUnsupported
 from crosscheck.engines.opensim import OpenSimAdapter
 from crosscheck.engines.opensim.common import INTEGRATORS
 from crosscheck.sampling import random_consistent_state
@@ -109,6 +110,10 @@ def test_registered_in_pyproject():
     meta = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
     eps = meta["project"]["entry-points"]["crosscheck.engines"]
     assert eps["opensim"] == "crosscheck.engines.opensim:OpenSimAdapter"
+    # what the registry does with it once the metadata is installed
+    ep = metadata.EntryPoint("opensim", eps["opensim"], "crosscheck.engines")
+    assert ep.load() is OpenSimAdapter and issubclass(ep.load(), EngineAdapter)
+    assert "opensim==4.6" in meta["project"]["dependencies"]
 
 
 @pytest.mark.parametrize("model_name", sorted(OpenSimAdapter().unsupported()))
@@ -154,7 +159,8 @@ def test_forward_agrees_with_reference(model_name):
             ref, got = nm.forward(q, u), em.forward(q, u)
             assert rel_err(got.accelerations, ref.accelerations) <= tol, (formulation, q, u)
             if model_name in NO_ENGINE_MULTIPLIERS:
-                assert got.multipliers is None and em.multipliers_note
+                assert got.multipliers is None and got.multipliers_note
+                assert got.raw["multipliers_note"] == got.multipliers_note
                 continue
             assert rel_err(got.multipliers, ref.multipliers) <= tol, (formulation, q, u)
             assert got.iterations == 1

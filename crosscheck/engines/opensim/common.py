@@ -99,6 +99,7 @@ class OsimModel(EngineModel):
     nq_ref: int
     n_ref: int
     up = (0.0, 1.0, 0.0)  # engine "up"; gravity is -g up
+    multipliers_note: str | None = None  # why forward() returns multipliers None, if it does
     mass_matrix_note = ("not mapped: OpenSim's mass matrix is Simbody's (calcM) in its own "
                         "coordinates; the comparison uses accelerations and multipliers")
 
@@ -207,7 +208,11 @@ class OsimModel(EngineModel):
                                           initial=0.0))
         self._extra_raw(raw)
         lam = self._multipliers(lam_s)
-        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw, iterations=1)
+        note = None
+        if lam is None:  # e.g. the top's normalization: the model's class says why
+            note = raw["multipliers_note"] = self.multipliers_note
+        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw, multipliers_note=note,
+                             iterations=1)
 
     def _extra_raw(self, raw: dict) -> None:
         pass
