@@ -14,11 +14,11 @@ coordinate couplers), and the models not yet mapped, each with its reason.
 """
 from __future__ import annotations
 
-from typing import Optional
+from typing import Callable, Optional
 
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from ...compare import EXACT_KKT, Tolerance
-from .common import INTEGRATORS
+from .common import INTEGRATORS, OsimModel
 from .exercises import Exercise61, Exercise62, Exercise64
 from .spatial import DoublePendulum3D, FrameBar, TopCartesian, TopEuler
 from .planar import (MovingSupport, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
@@ -26,7 +26,7 @@ from .planar import (MovingSupport, PendulumAngle, PendulumXY, SliderCrank, Slid
 
 __all__ = ["OpenSimAdapter"]
 
-_MODELS = {
+_MODELS: dict[str, Callable[[str, dict[str, float]], OsimModel]] = {
     "pendulum_angle": PendulumAngle,
     "pendulum_xy": PendulumXY,
     "slider_crank_free": SliderCrankFree,

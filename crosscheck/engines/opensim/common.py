@@ -23,7 +23,7 @@ import hashlib
 import json
 import math
 import time
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 import opensim as osim
@@ -290,11 +290,11 @@ class OsimModel(EngineModel):
         if integrator not in INTEGRATORS:
             raise ValueError(f"unknown opensim integrator {integrator!r}; valid: "
                              f"{', '.join(INTEGRATORS)}")
-        t_eval = np.asarray(t_eval, dtype=float)
-        if t_eval.ndim != 1 or t_eval.size == 0 or t_eval[0] < 0 or np.any(np.diff(t_eval) <= 0):
+        times = np.asarray(t_eval, dtype=float)
+        if times.ndim != 1 or times.size == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
             raise ValueError("t_eval must be increasing times >= 0")
         fixed = integrator in FIXED_STEP
-        if fixed and not (timestep and timestep > 0):
+        if fixed and (timestep is None or not timestep > 0):
             raise ValueError(f"{integrator} is a fixed-step integrator: give timestep > 0")
         q0, u0 = self._check(q0, u0)
         qe, ve = self.to_engine_state(q0, u0)
@@ -302,8 +302,8 @@ class OsimModel(EngineModel):
         self._set_state_on(state, qe, ve, 0.0)
         manager = osim.Manager(self.model)
         manager.setIntegratorMethod(INTEGRATORS[integrator])
-        setting = {"integrator": integrator}
-        if fixed:
+        setting: dict[str, Any] = {"integrator": integrator}
+        if fixed and timestep is not None:
             manager.setIntegratorFixedStepSize(float(timestep))
             setting["timestep"] = float(timestep)
         else:
@@ -317,7 +317,7 @@ class OsimModel(EngineModel):
         manager.initialize(state)
         Q, U, viol, vviol, E, T = [], [], [], [], [], []
         wall = 0.0
-        for t in t_eval:
+        for t in times:
             if t > 0.0:
                 t0 = time.perf_counter()
                 state = manager.integrate(float(t))
