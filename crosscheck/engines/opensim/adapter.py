@@ -52,11 +52,13 @@ _UNSUPPORTED = {
 
 # Measured floor (the only model above the suite's 1e-11): the links' axial angular
 # accelerations w_12', w_22' differ from the reference by up to 2.0e-11 relative (seed 0, 200
-# sampler states, 196 of the worst cases on w_12'; multipliers 6.5e-13), where Pinocchio on the
-# same states stays near 1e-12: the axial inertias (2e-4 and 1e-4 kg m^2 against ~0.08
-# transverse) amplify Simbody's round-off in the articulated-body recursion through its
-# Euler-angle ball mobilizers. 1e-10 is 5x the measured worst, ~1e3x below the 1e-7 effect of a
-# 1e-6 parameter fault. Measured by tests/test_engine_opensim.py::test_double_pendulum_floor.
+# sampler states, 196 of the worst cases on w_12'; multipliers 6.5e-13), where Pinocchio's
+# ball-joint tree on the first 100 of these states stays at 2.5e-13 (both adapters' forward()
+# on the model's sampler states, seed 0). The axial inertias (2e-4 and 1e-4 kg m^2 against
+# ~0.08 transverse) amplify Simbody's round-off in its articulated-body recursion through the
+# Euler-angle ball mobilizers. 1e-10 is 5x the measured worst, ~1e3x below
+# the 1e-7 effect of a 1e-6 parameter fault. Measured by
+# tests/test_engine_opensim.py::test_double_pendulum_floor.
 OPENSIM_DOUBLE_PENDULUM = Tolerance(
     1e-10, "OpenSim's answer on the 3-D double pendulum: the small axial inertias amplify "
            "Simbody's round-off in the links' axial angular accelerations to 2.0e-11 relative "

@@ -1,4 +1,4 @@
-"""Shared machinery of the OpenSim models: building blocks, the state, forward, energy, trajectories.
+"""Shared machinery of the OpenSim models: building blocks, state, forward, energy, trajectories.
 
 Every model is built in code (no .osim files): bodies, joints, constraints and forces are created
 with OpenSim's Python API and ``initSystem`` turns them into a Simbody system. One state is

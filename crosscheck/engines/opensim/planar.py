@@ -14,7 +14,8 @@ import opensim as osim
 
 from .common import OsimModel, custom_joint, lamina, point_body, vec3
 
-__all__ = ["MovingSupport", "PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
+__all__ = ["MovingSupport", "PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree",
+           "SliderCrankSplit"]
 
 
 def _pin(name, parent, at, child, child_at=(0, 0, 0)) -> osim.PinJoint:
