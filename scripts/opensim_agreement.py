@@ -39,9 +39,9 @@ def _median_us(fn, n=300) -> float:
     return 1e6 * float(np.median(out))
 
 
-def measure(name: str, n: int, seed: int) -> dict:
+def measure(name: str, n: int, seed: int, variant=None) -> dict:
     mod, adapter = get(name), OpenSimAdapter()
-    em = adapter.build(name, PARAMS.get(name, {}))
+    em = adapter.build(name, PARAMS.get(name, {}), variant=variant)
     rng = np.random.default_rng(seed)
     nm0 = NumericModel(mod, mod.formulations[0], PARAMS.get(name, {}))
     draws = []
@@ -63,7 +63,8 @@ def measure(name: str, n: int, seed: int) -> dict:
                 worst_l = max(worst_l, _rel(got.multipliers, ref.multipliers))
     q, u, t = draws[0]
     call = em.timed_forward(q, u)
-    return {"model": name, "acc": worst_a, "lam": worst_l,
+    label = name if variant is None else f"{name} ({variant})"
+    return {"model": label, "acc": worst_a, "lam": worst_l,
             "lam_mapped": em.forward(q, u, t).multipliers is not None,
             "solve_us": _median_us(call), "forward_us": _median_us(lambda: em.forward(q, u, t)),
             "tol": adapter.exact_tolerance(name).value}
@@ -75,10 +76,12 @@ def main() -> None:
     print(f"| model | worst rel. acc | worst rel. lambda | tolerance | realizeAcceleration "
           f"(us) | forward() (us) |   ({n} states, seed {seed})")
     print("|---|---|---|---|---|---|")
-    for name in OpenSimAdapter().models():
-        r = measure(name, n, seed)
+    adapter = OpenSimAdapter()
+    cases = [(name, v) for name in adapter.models() for v in adapter.variants(name)]
+    for name, variant in cases:
+        r = measure(name, n, seed, variant)
         lam = f"{r['lam']:.1e}" if r["lam_mapped"] else "None (not a force)"
-        print(f"| {name} | {r['acc']:.1e} | {lam} | {r['tol']:.0e} | {r['solve_us']:.0f} | "
+        print(f"| {r['model']} | {r['acc']:.1e} | {lam} | {r['tol']:.0e} | {r['solve_us']:.0f} | "
               f"{r['forward_us']:.0f} |")
 
 

@@ -57,6 +57,12 @@ N_STATES = 12
 PARAMS = {"slider_crank": {"T": 0.7}, "slider_crank_split": {"T": 0.7},
           "slider_crank_free": {"T": 0.7}, "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2}}
 MODELS = ADAPTER.models()
+# (model, variant) pairs: every engine variant of every mapped model
+CASES = [(m, v) for m in MODELS for v in ADAPTER.variants(m)]
+
+
+def _id(case):
+    return "-".join(str(x) for x in case if x is not None)
 # The top's normalization row has no engine force (its multiplier is formulation-dependent).
 NO_ENGINE_MULTIPLIERS = {"top_euler"}
 # Models whose q ends with Euler parameters: eps and -eps are one engine rotation.
@@ -69,10 +75,10 @@ def reference(model_name: str, formulation: str) -> NumericModel:
 
 
 @lru_cache(maxsize=None)
-def engine(model_name: str, perturb=()):
+def engine(model_name: str, perturb=(), variant=None):
     params = dict(PARAMS.get(model_name, {}))
     params.update(dict(perturb))
-    return ADAPTER.build(model_name, params)
+    return ADAPTER.build(model_name, params, variant=variant)
 
 
 def states(model_name: str, n: int = N_STATES, seed: int = 0):
@@ -136,9 +142,10 @@ def test_build_errors():
 
 
 # ---- state map, forward, energy ----------------------------------------------------------
-@pytest.mark.parametrize("model_name", MODELS)
-def test_state_map_round_trip(model_name):
-    em = engine(model_name)
+@pytest.mark.parametrize("case", CASES, ids=_id)
+def test_state_map_round_trip(case):
+    model_name, variant = case
+    em = engine(model_name, variant=variant)
     for q, u in states(model_name, 5):
         q2, u2 = em.from_engine_state(*em.to_engine_state(q, u))
         if model_name in EULER_PARAMETERS and q[-1] < 0:  # the map returns eps4 >= 0
@@ -149,10 +156,12 @@ def test_state_map_round_trip(model_name):
         assert np.max(np.abs(u2 - u)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(u)))
 
 
-@pytest.mark.parametrize("model_name", MODELS)
-def test_forward_agrees_with_reference(model_name):
-    em = engine(model_name)
-    tol = ADAPTER.exact_tolerance(model_name).value
+@pytest.mark.parametrize("case", CASES, ids=_id)
+def test_forward_agrees_with_reference(case):
+    model_name, variant = case
+    em = engine(model_name, variant=variant)
+    # the model's tolerance; the double pendulum's measured floor is its tree variant's
+    tol = EXACT if variant == "free" else ADAPTER.exact_tolerance(model_name).value
     for formulation in get(model_name).formulations:
         nm = reference(model_name, formulation)
         for q, u in states(model_name):
@@ -168,9 +177,11 @@ def test_forward_agrees_with_reference(model_name):
                 assert got.raw["udoterr"] <= UDOTERR_ATOL
 
 
-@pytest.mark.parametrize("model_name", MODELS)
-def test_energy_same_datum(model_name):
-    em, nm = engine(model_name), reference(model_name, get(model_name).formulations[0])
+@pytest.mark.parametrize("case", CASES, ids=_id)
+def test_energy_same_datum(case):
+    model_name, variant = case
+    em = engine(model_name, variant=variant)
+    nm = reference(model_name, get(model_name).formulations[0])
     for q, u in states(model_name, 5):
         for got, ref in zip(em.energy(q, u), nm.energy(q, u)):
             bound = ENERGY_RTOL * max(1.0, abs(ref))
@@ -192,9 +203,10 @@ def test_perturbed_parameter_breaks_agreement():
 
 @pytest.mark.slow
 def test_double_pendulum_floor():
-    """The measurement behind OPENSIM_DOUBLE_PENDULUM: 200 sampler states (seed 0), worst
-    relative error 2.0e-11 in the accelerations (axial w_12', w_22'), 6.5e-13 in lambda."""
-    em, nm = engine("double_pendulum_3d"), reference("double_pendulum_3d", "kane")
+    """The measurement behind OPENSIM_DOUBLE_PENDULUM: the ball-joint tree on 200 sampler
+    states (seed 0), worst relative error 2.0e-11 in the accelerations (axial w_12', w_22'),
+    6.5e-13 in lambda (the free-body variant: 4.3e-13 and 8.4e-14, within EXACT)."""
+    em, nm = engine("double_pendulum_3d", variant="tree"), reference("double_pendulum_3d", "kane")
     worst_a = worst_l = 0.0
     for q, u in states("double_pendulum_3d", 200):
         ref, got = nm.forward(q, u), em.forward(q, u)
@@ -204,12 +216,24 @@ def test_double_pendulum_floor():
     assert worst_l <= EXACT
 
 
+def test_double_pendulum_free_multipliers_are_the_point_constraints():
+    """Free variant: lambda[3:6] is the force of link 1 on link 2 at A = the A constraint's
+    force on link 2 (calcConstraintForces, body 2); F_O = the O constraint's force on link 1."""
+    em = engine("double_pendulum_3d", variant="free")
+    q, u = states("double_pendulum_3d", 1)[0]
+    f = em.forward(q, u)
+    (_, _), (_, on_link1) = em.constraint_forces()[0]
+    (_, _), (_, on_link2) = em.constraint_forces()[1]
+    assert np.allclose(f.multipliers[3:6], on_link2, rtol=1e-13, atol=1e-13)
+    assert np.allclose(f.multipliers[0:3], on_link1 - on_link2, rtol=1e-13, atol=1e-13)
+
+
 def test_ball_joint_coordinates_are_xyz_euler_angles():
     """What the double pendulum's map assumes: a BallJoint's coordinates are body-fixed X-Y-Z
     angles (R = Rx Ry Rz) and its speeds the child's angular velocity in parent axes."""
     from crosscheck.engines.opensim.spatial import _Rxyz
 
-    em = engine("double_pendulum_3d")
+    em = engine("double_pendulum_3d", variant="tree")
     qe, ve = np.array([0.3, -0.5, 0.7, 0.2, 0.4, -0.9]), np.array([0.2, -0.4, 0.9, 0, 0, 0])
     em._set_state(qe, ve)
     em.model.realizeVelocity(em.state)

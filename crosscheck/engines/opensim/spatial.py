@@ -17,7 +17,7 @@ import opensim as osim
 from .common import OsimModel, custom_joint, vec3
 from .exercises import _prescribed, reaction
 
-__all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
+__all__ = ["DoublePendulum3D", "DoublePendulum3DFree", "FrameBar", "TopCartesian", "TopEuler"]
 
 
 def _np(v) -> np.ndarray:
@@ -82,6 +82,7 @@ class DoublePendulum3D(OsimModel):
     lambda = (F_O - F_A, F_A)."""
 
     nq_ref, n_ref = 6, 12
+    variant = "tree"
 
     def _build(self):
         p = self.params
@@ -137,6 +138,66 @@ class DoublePendulum3D(OsimModel):
     def _multipliers(self, lam_s):
         F_O, F_A = (reaction(self.joint(name), self.state)[1] for name in ("O", "A"))
         return np.concatenate([F_O - F_A, F_A])
+
+
+class DoublePendulum3DFree(DoublePendulum3D):
+    """Example 4 in the textbook's own form: each link a free body (FreeJoint: X-Y-Z angles and
+    origin position in ground; speeds omega and the origin's velocity, ground axes), held by
+    PointConstraints at O (ground (0, 0, 0) - link 1's origin) and at A (link 1's (0, -l1, 0) -
+    link 2's origin). Same link frames, inertias and acceleration map as the tree.
+
+    Multipliers from state.getMultipliers(): Simbody's point-constraint multipliers are in
+    ground axes and the constraint applies +lambda_s to its body 1, -lambda_s to its body 2
+    (measured on slider_crank_split). Hence F_O = -lambda_O (ground is body 1 at O) and the
+    force of link 1 on link 2 at A is -lambda_A (link 2 is body 2):
+        lambda = (-lambda_O + lambda_A, -lambda_A)."""
+
+    variant = "free"
+
+    def _build(self):
+        p = self.params
+        g = self.model.getGround()
+        self.links = []
+        for i in (1, 2):
+            link = osim.Body(f"link{i}", p[f"m{i}"], vec3(0, -p[f"l{i}"] / 2, 0),
+                             osim.Inertia(p[f"I{i}_11"], p[f"I{i}_22"], p[f"I{i}_33"], 0, 0, 0))
+            self.model.addBody(link)
+            joint = osim.FreeJoint(f"free{i}", g, vec3(), vec3(), link, vec3(), vec3())
+            for k, ax in enumerate(("rx", "ry", "rz", "tx", "ty", "tz")):
+                joint.upd_coordinates(k).setName(f"link{i}_{ax}")
+            self.model.addJoint(joint)
+            self.links.append(link)
+        self.model.addConstraint(osim.PointConstraint(g, vec3(), self.links[0], vec3()))
+        self.model.addConstraint(osim.PointConstraint(self.links[0], vec3(0, -p["l1"], 0),
+                                                      self.links[1], vec3()))
+        self.rho = [np.array([0.0, -p["l1"] / 2, 0.0]), np.array([0.0, -p["l2"] / 2, 0.0])]
+        self.rhoA = np.array([0.0, -p["l1"], 0.0])
+        self.defaults = {"link2_ty": -p["l1"]}  # hanging straight: an assembled configuration
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        B1, B2 = _R313(*q[0:3]).T, _R313(*q[3:6]).T
+        w1g, w2g = B1 @ u[0:3], B2 @ u[3:6]
+        A = B1 @ self.rhoA
+        v1 = u[6:9] - np.cross(w1g, B1 @ self.rho[0])
+        v2 = u[9:12] - np.cross(w2g, B2 @ self.rho[1])
+        return (np.concatenate([_xyz(B1), np.zeros(3), _xyz(B2), A]),
+                np.concatenate([w1g, v1, w2g, v2]))
+
+    def _rotations(self, qe):
+        return _Rxyz(*qe[0:3]), _Rxyz(*qe[6:9])
+
+    def from_engine_state(self, qe, ve):
+        B1, B2 = self._rotations(qe)
+        w1g, w2g = ve[0:3], ve[6:9]
+        vG1 = ve[3:6] + np.cross(w1g, B1 @ self.rho[0])
+        vG2 = ve[9:12] + np.cross(w2g, B2 @ self.rho[1])
+        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        return q, np.concatenate([B1.T @ w1g, B2.T @ w2g, vG1, vG2])
+
+    def _multipliers(self, lam_s):
+        lam_O, lam_A = lam_s[0:3], lam_s[3:6]
+        return np.concatenate([-lam_O + lam_A, -lam_A])
 
 
 # ======================================================================================
