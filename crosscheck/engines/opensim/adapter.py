@@ -18,7 +18,7 @@ from typing import Callable, Optional
 
 from ..base import Capabilities, EngineAdapter, EngineUnsupported
 from ...compare import EXACT_KKT, Tolerance
-from .common import INTEGRATORS, OsimModel
+from .common import FIXED_STEP, INTEGRATORS, OsimModel
 from .exercises import Exercise61, Exercise62, Exercise64
 from .spatial import DoublePendulum3D, DoublePendulum3DFree, FrameBar, TopCartesian, TopEuler
 from .planar import (MovingSupport, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
@@ -83,7 +83,9 @@ class OpenSimAdapter(EngineAdapter):
     name = "opensim"
     distribution = "opensim"
     capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=False,
-                                integrators=tuple(INTEGRATORS), variants=True)
+                                integrators=tuple(INTEGRATORS), variants=True,
+                                adaptive_integrators=tuple(i for i in INTEGRATORS
+                                                           if i not in FIXED_STEP))
 
     def models(self) -> tuple[str, ...]:
         return tuple(_MODELS)
