@@ -16,13 +16,35 @@ import numpy as np
 
 from reference import NumericModel, models
 from reference.errors import ModelInputError
+from reference.generic import generic_parameters
 
 from . import compare as C
 from .comparison import engine_records
-from .engines.registry import available_engines, get_engine
+from .engines.registry import get_engine
 from .perturb import check_perturb, parse_perturb, perturbed
 
-__all__ = ["consistent_states", "parse_perturb", "perturbed", "run"]
+__all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
+
+# the check names of the records at the generic parameter set (reference/generic.py): distinct
+# from the textbook-default ones, so a gate sees them as records of their own
+GENERIC_SUFFIX = "_generic"
+
+
+def generic_model(name: str) -> NumericModel:
+    """The model at its generic parameter set (reference.generic), whose initial state still
+    projects onto the constraints and gives finite accelerations."""
+    model = models.get(name)
+
+    def geometry_ok(values) -> bool:
+        try:
+            nm = NumericModel(model, params=values)
+            q, u = nm.project(model.initial_q, model.initial_u)
+            return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
+        except Exception:  # noqa: BLE001 - any refusal means the geometry is not valid
+            return False
+
+    return NumericModel(model, params=generic_parameters(model, geometry_ok))
+
 
 def consistent_states(nm: NumericModel, count: int):
     """The model's initial state and count-1 seeded random consistent states near it.
@@ -94,6 +116,7 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
             params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
             for variant in adapter.variants(name):
                 records += engine_records(name, nm, states, adapter, params, variant)
+        records += _generic_records(name, adapters, n_states, perturb)
         if trajectories:
             engine_params = {a.name: perturbed(name, nm.params, perturb.get(a.name, {}))
                              for a in adapters}
@@ -107,6 +130,22 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
         if progress:
             progress(name)
     return records, series
+
+
+def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
+    """The instantaneous checks again at the model's generic parameter set, where no two
+    masses, lengths or principal inertias are equal (a swapped axis or sign cannot cancel):
+    check names "formulations_generic" and "instantaneous_generic"."""
+    nm = generic_model(name)
+    states = consistent_states(nm, n_states)
+    out = _formulation_records(name, nm, states)
+    for adapter in adapters:
+        params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
+        for variant in adapter.variants(name):
+            out += engine_records(name, nm, states, adapter, params, variant)
+    for r in out:
+        r["check"] += GENERIC_SUFFIX
+    return out
 
 
 def cmd_run(args) -> int:

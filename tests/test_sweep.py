@@ -309,7 +309,8 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
 
 
 def test_drawn_inertias_stay_physical():
-    """The generator scales all inertias by one factor, so MuJoCo accepts every draw."""
+    """The generator draws each inertia on its own but keeps every body physical (second
+    moments, rejection for shared parameters), so MuJoCo accepts every draw."""
     res = S.campaign(S.Campaign(["double_pendulum_3d", "frame_bar"], samples=6, seed=0,
                                 engines=("mujoco",)), workers=1)
     assert not res["faults"]["groups"], res["faults"]["groups"]
