@@ -131,9 +131,15 @@ def tolerance(quantity: str, soft: bool, adapter: EngineAdapter,
     return (C.RIGID_RECOVERY if soft else adapter.exact_tolerance(model_name)), "scaled_error"
 
 
-def build(adapter: EngineAdapter, name: str, params, variant: Optional[str]) -> EngineModel:
-    """The engine model of a variant (build's default when variant is None)."""
-    return adapter.build(name, params, variant=variant) if variant else adapter.build(name, params)
+def build(adapter: EngineAdapter, name: str, params, variant: Optional[str],
+          nominal: Optional[dict] = None) -> EngineModel:
+    """The engine model of a variant (build's default when variant is None); its maps use
+    `nominal` (the unperturbed values: a perturbation changes only the physics)."""
+    em = (adapter.build(name, params, variant=variant) if variant
+          else adapter.build(name, params))
+    if nominal is not None:
+        em.nominal = dict(nominal)
+    return em
 
 
 def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
@@ -146,7 +152,7 @@ def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
             r["variant"] = variant
         return r
     try:
-        em = build(adapter, name, params, variant)
+        em = build(adapter, name, params, variant, nominal=nm.params)
     except EngineUnsupported as exc:
         return [rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
                 for q in ("accelerations", "multipliers")]

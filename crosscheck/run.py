@@ -21,7 +21,7 @@ from reference.generic import generic_parameters
 from . import compare as C
 from .comparison import engine_records
 from .engines.registry import get_engine
-from .perturb import check_perturb, parse_perturb, perturbed
+from .perturb import check_perturb, check_perturb_changes, parse_perturb, perturbed
 
 __all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
 
@@ -155,6 +155,7 @@ def cmd_run(args) -> int:
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
     check_perturb(names, perturb)
+    check_perturb_changes(names, engine_names, perturb)
     output_dir(args.out)  # an unusable --out fails now, not after the computation
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet

@@ -238,7 +238,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                                    f"{adapter.name} has no trajectories in this suite"))
                 break
             try:
-                em = build(adapter, name, params, variant)
+                em = build(adapter, name, params, variant, nominal=nm.params)
             except EngineUnsupported as exc:
                 records.append(rec(adapter.name, "state_error", None, None,
                                    f"engine cannot represent the model: {exc}"))

@@ -37,3 +37,41 @@ def test_run_checks_the_generic_parameter_set_as_records_of_their_own():
     assert generic and all(r["passed"] is not False for r in generic)
     defaults = {p.name: p.default for p in models.get("pendulum_xy").parameters}
     assert all(v != defaults[k] for k, v in generic_model("pendulum_xy").params.items())
+
+
+@pytest.mark.parametrize("argv,why", [
+    (["pendulum_xy", "--engines", "pinocchio", "--perturb", "pinocchio:L=1e-3"],
+     "does not contain L"),
+    (["slider_crank", "--engines", "mujoco", "--perturb", "mujoco:T=1e-3"],
+     "T is 0 at the model's defaults"),
+    (["slider_crank", "--engines", "pinocchio", "--perturb", "mujoco:m3=1e-3"],
+     "not among this run's engines"),
+])
+def test_perturbation_that_changes_nothing_is_refused(tmp_path, capsys, argv, why):
+    """Exit 2 with the reason, before any work (no results.json)."""
+    from crosscheck.cli import main
+    code = main(["run", *argv, "--instantaneous", "--out", str(tmp_path)])
+    assert code == 2 and why in capsys.readouterr().err
+    assert not (tmp_path / "results.json").exists()
+
+
+@pytest.mark.parametrize("engine", ["pinocchio", "mujoco"])
+@pytest.mark.parametrize("name,param", [("slider_crank", "l1"), ("slider_crank", "m3"),
+                                        ("double_pendulum_3d", "l1")])
+def test_perturbation_changes_the_physics_not_the_maps(engine, name, param):
+    """With the nominal values given, a perturbed engine model maps states (and multipliers'
+    conventions) exactly as the nominal one does, and its fingerprint differs."""
+    from crosscheck.comparison import build
+    from crosscheck.engines.registry import get_engine
+    from crosscheck.run import consistent_states
+    from reference import NumericModel
+    adapter = get_engine(engine)
+    nm = NumericModel(models.get(name))
+    bad = {**nm.params, param: nm.params[param] * (1 + 1e-3)}
+    variant = adapter.variants(name)[-1]
+    good_em = build(adapter, name, nm.params, variant, nominal=nm.params)
+    bad_em = build(adapter, name, bad, variant, nominal=nm.params)
+    assert good_em.fingerprint() != bad_em.fingerprint()
+    for q, u in consistent_states(nm, 2):
+        for a, b in zip(good_em.to_engine_state(q, u), bad_em.to_engine_state(q, u)):
+            assert np.array_equal(a, b)

@@ -75,6 +75,7 @@ qpos/qvel and calls mj_forward.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from pathlib import Path
@@ -520,6 +521,23 @@ class _MjModel(EngineModel):
                            for b in self.light_bodies]
         self._post_build()
 
+    # the compiled model's arrays that carry its physics (fingerprint)
+    _PHYSICS_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_quat", "body_ipos",
+                       "body_iquat", "jnt_type", "jnt_pos", "jnt_axis", "jnt_stiffness",
+                       "qpos_spring", "dof_damping", "dof_armature", "eq_type", "eq_obj1id",
+                       "eq_obj2id", "eq_data", "site_pos", "site_quat", "geom_size")
+
+    def fingerprint(self) -> str:
+        """SHA-256 of the compiled model's physics (masses, inertias, body/joint/site
+        placements, springs, dampers, equality data, gravity) and the applied loads."""
+        h = hashlib.sha256()
+        for name in self._PHYSICS_FIELDS:
+            h.update(name.encode())
+            h.update(np.ascontiguousarray(getattr(self.m, name), float).tobytes())
+        h.update(np.asarray(self.m.opt.gravity, float).tobytes())
+        h.update(np.asarray(self.applied, float).tobytes())
+        return h.hexdigest()
+
     # ---- hooks ---------------------------------------------------------------------------
     def _xml(self, **kw) -> str:
         raise NotImplementedError
@@ -918,7 +936,7 @@ class PendulumXY(_MjModel):
         return np.array([float(f[0:3] @ r) / float(r @ r)])
 
     def _extra_raw(self, raw):
-        raw["rod_tension"] = -raw.get("rigid_multipliers", [np.nan])[0] * self.params["L"]
+        raw["rod_tension"] = -raw.get("rigid_multipliers", [np.nan])[0] * self.map_params["L"]
 
 
 # ======================================================================================
@@ -985,7 +1003,7 @@ class SliderCrank(_SliderCrankBase):
     def to_engine_state(self, q, u):
         th1, th2 = (float(v) for v in q)
         w1, w2 = (float(v) for v in u)
-        l1, l2 = self.params["l1"], self.params["l2"]
+        l1, l2 = self.map_params["l1"], self.map_params["l2"]
         x = l1 * math.cos(th1) + l2 * math.cos(th2)
         xd = -l1 * math.sin(th1) * w1 - l2 * math.sin(th2) * w2
         return np.array([th1, th2 - th1, x]), np.array([w1, w2 - w1, xd])
@@ -997,8 +1015,8 @@ class SliderCrank(_SliderCrankBase):
         return np.array([ae[0], ae[0] + ae[1]], float)
 
     def _multipliers(self, qe, ve, ae, f):
-        m3 = self.m.body_mass[self.slider]
-        return np.array([f[1] - m3 * self.m.opt.gravity[1]])
+        # the guide's force N = f_y + m3 g (Y up), with the nominal m3 and g: a map, not physics
+        return np.array([f[1] + self.map_params["m3"] * self.map_params["g"]])
 
     def _extra_raw(self, raw):
         mujoco.mj_rnePostConstraint(self.m, self.d)
@@ -1058,7 +1076,7 @@ class _DoublePendulumBase(_MjModel):
 
     def _speeds(self, Q1, Q2, w1b, w2b):
         """Consistent v_G1, v_G2 (world) from the body-fixed omegas."""
-        l1, l2 = self.params["l1"], self.params["l2"]
+        l1, l2 = self.map_params["l1"], self.map_params["l2"]
         w1, w2 = Q1 @ w1b, Q2 @ w2b
         rG1 = Q1 @ np.array([0.0, -l1 / 2, 0.0])
         rA = Q1 @ np.array([0.0, -l1, 0.0])
@@ -1090,7 +1108,7 @@ class DoublePendulumFree(_DoublePendulumBase):
 
     def to_engine_state(self, q, u):
         Q1, Q2 = self._body_rotations(q)
-        l1, l2 = self.params["l1"], self.params["l2"]
+        l1, l2 = self.map_params["l1"], self.map_params["l2"]
         G1 = Q1 @ np.array([0.0, -l1 / 2, 0.0])
         G2 = Q1 @ np.array([0.0, -l1, 0.0]) + Q2 @ np.array([0.0, -l2 / 2, 0.0])
         qe = np.concatenate([G1, _R_to_quat(Q1), G2, _R_to_quat(Q2)])
@@ -1156,7 +1174,7 @@ class DoublePendulumTree(_DoublePendulumBase):
 
     def _acc_to_reference(self, qe, ve, ae):
         Q1, Q2 = self._engine_rotations(qe)
-        l1, l2 = self.params["l1"], self.params["l2"]
+        l1, l2 = self.map_params["l1"], self.map_params["l2"]
         ve, ae = np.asarray(ve, float), np.asarray(ae, float)
         w1 = Q1 @ ve[0:3]
         w2r = Q2 @ ve[3:6]
@@ -1291,7 +1309,7 @@ class TopCartesian(_TopBase):
     def _multipliers(self, qe, ve, ae, f):
         lam_O = np.asarray(f[0:3], float)
         e3 = _quat_to_R(qe[3:7])[:, 2]
-        return np.concatenate([lam_O, [2.0 * self.params["L"] * float(lam_O @ e3)]])
+        return np.concatenate([lam_O, [2.0 * self.map_params["L"] * float(lam_O @ e3)]])
 
     def _extra_raw(self, raw):
         raw["lambda4_from_identity"] = True

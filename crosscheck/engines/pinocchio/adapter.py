@@ -72,6 +72,7 @@ Pinocchio call, shared with forward through ``_engine_call``).
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 from typing import Optional
@@ -230,6 +231,37 @@ class _PinModel(EngineModel):
             else:
                 out[iq:iq + jm.nq] = ve[iv:iv + jm.nv]
         return out
+
+    def fingerprint(self) -> str:
+        """SHA-256 of the built model's physics: joint types and placements, every body's
+        mass, lever and inertia, gravity, the point constraints' joints and anchors, and the
+        loads (and the 'kkt' solver's rows) at a fixed probe state, which is how the loads read
+        from parameters at run time (springs, dampers, turning forces) enter it."""
+        h = hashlib.sha256()
+
+        def add(x) -> None:
+            h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
+        m = self.model
+        for jm, placement in zip(m.joints, m.jointPlacements):
+            h.update(jm.shortname().encode())
+            add(placement.homogeneous)
+        for inertia in m.inertias:
+            add([inertia.mass])
+            add(inertia.lever)
+            add(inertia.inertia)
+        add(m.gravity.vector)
+        for cm in self.cms:
+            h.update(f"{cm.joint1_id},{cm.joint2_id}".encode())
+            add(cm.joint1_placement.homogeneous)
+            add(cm.joint2_placement.homogeneous)
+        # a probe away from the neutral configuration (a spring at rest exerts no force)
+        ve = np.linspace(0.3, 0.7, m.nv)
+        qe = pin.integrate(m, pin.neutral(m), 0.5 * ve)
+        add(self._applied(qe, ve, 0.7))
+        if self.solver == "kkt":
+            for x in self._kkt_rows(qe, ve, 0.7):
+                add(x)
+        return h.hexdigest()
 
     def _normalize(self, qe) -> np.ndarray:
         """Engine configuration on its manifold: unit quaternions (the integrator's drift of
@@ -608,7 +640,7 @@ class PendulumXY(_PinModel):
         return lam_e.copy()
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
-        raw["rod_tension"] = float(-lam_e[0] * self.params["L"])
+        raw["rod_tension"] = float(-lam_e[0] * self.map_params["L"])
 
     def constraint_violation(self, qe, t: float = 0.0):
         """| |p| - L |: the rod's length error."""
@@ -715,7 +747,7 @@ class SliderCrank(_SliderCrankBase):
             j3, pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
 
     def to_engine_state(self, q, u):
-        p = self.params
+        p = self.map_params
         th1, th2 = np.asarray(q, float)
         w1, w2 = np.asarray(u, float)
         xs = p["l1"] * math.cos(th1) + p["l2"] * math.cos(th2)
@@ -729,7 +761,7 @@ class SliderCrank(_SliderCrankBase):
         return np.array([ae[0], ae[0] + ae[1]])
 
     def _multipliers(self, qe, ve, ae, lam_e):
-        return np.array([lam_e[1] + self.params["m3"] * self.params["g"]])
+        return np.array([lam_e[1] + self.map_params["m3"] * self.map_params["g"]])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         d = self.data
@@ -899,7 +931,7 @@ class DoublePendulumFree(_DoublePendulumBase):
         return P
 
     def to_engine_state(self, q, u):
-        p = self.params
+        p = self.map_params
         B1, B2 = self._rotations(q)
         u = np.asarray(u, float)
         e2 = np.array([0.0, 1.0, 0.0])
@@ -965,7 +997,12 @@ class DoublePendulumTree(_DoublePendulumBase):
         self.model.appendBodyToJoint(
             j2, pin.Inertia(I2.mass, np.array([0.0, -p["l2"] / 2, 0.0]), I2.inertia),
             pin.SE3.Identity())
-        self.G = (_at(0, -p["l1"] / 2, 0), _at(0, -p["l2"] / 2, 0))
+
+    @property
+    def G(self):
+        """The mass centers in the joint frames, for the maps: nominal values."""
+        p = self.map_params
+        return (_at(0, -p["l1"] / 2, 0), _at(0, -p["l2"] / 2, 0))
 
     def to_engine_state(self, q, u):
         B1, B2 = self._rotations(q)
@@ -1084,7 +1121,8 @@ class _TopCartesianBase(_TopBase):
     nq_ref = n_ref = 7
 
     def _lambda(self, F_O, eps):
-        return np.concatenate([F_O, [2.0 * self.params["L"] * F_O @ (_quat_to_R(eps)[:, 2])]])
+        return np.concatenate([F_O, [2.0 * self.map_params["L"] *
+                                     F_O @ (_quat_to_R(eps)[:, 2])]])
 
 
 class TopCartesianFree(_TopCartesianBase):
@@ -1140,7 +1178,11 @@ class TopCartesianTree(_TopCartesianBase):
         j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
         self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, self.params["L"]]),
                                      pin.SE3.Identity())
-        self.G = _at(0, 0, self.params["L"])
+
+    @property
+    def G(self):
+        """The mass center in the ball joint's frame, for the maps: nominal value."""
+        return _at(0, 0, self.map_params["L"])
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
