@@ -75,3 +75,39 @@ def test_perturbation_changes_the_physics_not_the_maps(engine, name, param):
     for q, u in consistent_states(nm, 2):
         for a, b in zip(good_em.to_engine_state(q, u), bad_em.to_engine_state(q, u)):
             assert np.array_equal(a, b)
+
+
+def test_reference_drift_is_held_to_the_projection_guarantee():
+    """The reference's drift records carry the projection's own bounds, so a run without
+    stabilization fails them: the same model integrated without projection (index1) exceeds
+    both, with projection it stays inside."""
+    from crosscheck.trajectory import (REF_RTOL, _residual_series, output_grid,
+                                       projected_drift, projected_velocity_drift)
+    from reference import NumericModel
+    from reference.integrate import simulate
+    nm = NumericModel(models.get("pendulum_xy"))
+    q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
+    for method, inside in (("projection", True), ("index1", False)):
+        r = simulate(nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL,
+                     t_eval=output_grid(5.0))
+        pos, vel = _residual_series(nm, r.t, r.q, r.u)
+        assert bool(pos.max() <= projected_drift(r.q).value) is inside, (method, pos.max())
+        assert bool(vel.max() <= projected_velocity_drift(r.u).value) is inside, (method, vel.max())
+
+
+def test_failed_integration_is_a_failed_record_and_the_run_goes_on(monkeypatch):
+    """A reference run that raises (here: a step-size underflow) gives a failed record with the
+    reason, the engines' trajectory records are skipped with why, and nothing is raised."""
+    import crosscheck.trajectory as T
+    from reference import NumericModel
+    from reference.integrate import IntegrationError
+
+    def underflow(*a, **k):
+        raise IntegrationError("pendulum_xy: step size underflow at t = 0.31")
+    monkeypatch.setattr(T, "simulate", underflow)
+    from crosscheck.engines.registry import get_engine
+    nm = NumericModel(models.get("pendulum_xy"))
+    records, series = T.trajectory_records("pendulum_xy", nm, [get_engine("pinocchio")], 0.1)
+    ref = [r for r in records if r["engine"] == "reference"]
+    assert len(ref) == 1 and ref[0]["passed"] is False and "underflow" in ref[0]["reason"]
+    assert all(r["skipped"] for r in records if r["engine"] == "pinocchio")
