@@ -27,6 +27,8 @@ from pathlib import Path
 
 from reference.errors import ModelInputError
 
+from . import report_sensitivity  # the section of sensitivity.json beside results.json
+
 DEFAULT_RESULTS = "out/results.json"
 BASE_VERSION_KEYS = ("python", "numpy", "scipy", "sympy")
 
@@ -692,6 +694,7 @@ def render_html(c: Content) -> str:
             parts.append(_named_items_html(section))
     if c.sweep is not None:
         parts.append(_sweep_html(c))
+    parts.append(report_sensitivity.html(c))
     parts.append(_footer_html(c))
     parts.append("</main></body></html>")
     return "\n".join(p for p in parts if p) + "\n"
@@ -926,6 +929,7 @@ def render_md(c: Content) -> str:
                               for name, st, _, desc, _, notes, _ in named_items(section)])
     if c.sweep is not None:
         out += _sweep_md(c)
+    out += report_sensitivity.md(c)
     out += ["---", "", "Regenerate:", "", "```bash"] + c.regenerate() + ["```", ""]
     for label, m in c.meta_rows():
         v = _versions(m)

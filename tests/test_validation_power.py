@@ -111,3 +111,26 @@ def test_failed_integration_is_a_failed_record_and_the_run_goes_on(monkeypatch):
     ref = [r for r in records if r["engine"] == "reference"]
     assert len(ref) == 1 and ref[0]["passed"] is False and "underflow" in ref[0]["reason"]
     assert all(r["skipped"] for r in records if r["engine"] == "pinocchio")
+
+
+def test_report_shows_sensitivity_beside_results(tmp_path, capsys):
+    """`crosscheck report` adds DIR/sensitivity.json (when beside results.json) as a table and a
+    plot; a parameter nothing catches is marked in red with its reason."""
+    import json
+
+    from crosscheck.cli import main
+    out = str(tmp_path)
+    assert main(["run", "pendulum_xy", "--engines", "pinocchio", "--states", "2",
+                 "--instantaneous", "--no-report", "--out", out]) == 0
+    assert main(["sensitivity", "pendulum_xy", "--engines", "pinocchio", "--states", "1",
+                 "--out", out]) == 0
+    doc = json.loads((tmp_path / "sensitivity.json").read_text())
+    missed = [t for t in doc["thresholds"] if t["caught_at"] is None]
+    assert missed, "pendulum_xy's L is not in Pinocchio's model: nothing can catch it"
+    assert main(["report", "--results", str(tmp_path / "results.json"), "--out", out]) == 0
+    page = (tmp_path / "index.html").read_text()
+    assert 'id="sensitivity"' in page and "not caught" in page and "sensitivity thresholds" in page
+    import html
+    assert html.escape(missed[0]["reason"], quote=True) in page
+    md = (tmp_path / "report.md").read_text()
+    assert "## Sensitivity" in md and "NOT CAUGHT" in md
