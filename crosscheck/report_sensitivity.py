@@ -87,7 +87,7 @@ def plot_svg(doc: dict) -> str | None:
     ax.set_xticks(range(len(labels)))
     ax.set_xticklabels(labels, rotation=70, ha="right", fontsize=6)
     ax.set_ylabel("smallest relative change caught", fontsize=8)
-    ax.legend(fontsize=7, loc="upper left", frameon=False)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False)
     return _svg(fig)
 
 
