@@ -11,7 +11,6 @@ All figures come from one run, so their ratios are meaningful on this noisy mach
 """
 from __future__ import annotations
 
-import json
 import platform
 import sys
 import time
@@ -23,6 +22,7 @@ import sympy as sp
 from reference import NumericModel, models
 from reference.formulations import derive
 
+from . import jsonio
 from .timing import per_call_seconds
 
 BATCH = 10_000
@@ -30,7 +30,7 @@ BATCH = 10_000
 
 def _states(nm, n):
     """n seeded consistent states (the ones `crosscheck run` compares at) as (Q, U) arrays."""
-    from .run import consistent_states
+    from .sampling import consistent_states
     states = consistent_states(nm, n)
     return np.array([q for q, _ in states]), np.array([u for _, u in states])
 
@@ -129,7 +129,6 @@ def meta(argv) -> dict:
 
 
 def cmd_bench(args) -> int:
-    from .cli import _json_default
     from .stress import stress_records
     from .workprecision import (profile_for_missed, skip_savings, targets,
                                 work_precision_records)
@@ -164,7 +163,7 @@ def cmd_bench(args) -> int:
     log("targets and skip measurements done")
     result["meta"]["quick"] = bool(args.quick)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
-    (out / "bench.json").write_text(json.dumps(result, indent=2, default=_json_default))
+    (out / "bench.json").write_text(jsonio.dumps(result))
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "

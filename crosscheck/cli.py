@@ -5,13 +5,13 @@ Bad input prints one line `crosscheck: error: ...` and exits with status 2, neve
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 import sys
 
 from reference.errors import ModelInputError
 
+from . import jsonio
 from .arguments import OneLineParser
 
 EXIT_USAGE = 2
@@ -49,20 +49,11 @@ def _assignments(pairs: list[str]) -> dict[str, float]:
     return out
 
 
-def _json_default(x):
-    try:
-        import numpy as np
-        if isinstance(x, np.ndarray):
-            return x.tolist()
-        if isinstance(x, np.generic):
-            return x.item()
-    except ImportError:  # pragma: no cover
-        pass
-    raise TypeError(f"not JSON serializable: {type(x)}")
+_json_default = jsonio.default
 
 
 def dump_json(obj) -> str:
-    return json.dumps(obj, indent=2, default=_json_default, allow_nan=False)
+    return jsonio.dumps(obj, allow_nan=False)
 
 
 # ---- models ------------------------------------------------------------------------------

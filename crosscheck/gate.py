@@ -23,12 +23,12 @@ rows, not the trajectories ("series") or absolute timings.
 """
 from __future__ import annotations
 
-import json
 import math
 import shlex
 import sys
 from pathlib import Path
 
+from . import jsonio
 from .report import ReportInputError, check_bench, check_results, load_json
 
 # An accuracy figure may grow by this factor before it is a regression. The figures are worst
@@ -321,7 +321,7 @@ def cmd_gate(args) -> int:
             if not changed:
                 print("  nothing beyond the gate's factor and floor (figures refreshed)")
         baseline_path.parent.mkdir(parents=True, exist_ok=True)
-        baseline_path.write_text(json.dumps(new, indent=2, allow_nan=True) + "\n")
+        baseline_path.write_text(jsonio.dumps(new) + "\n")
         return 0
     if not baseline_path.exists():
         raise GateInputError(f"baseline file {args.baseline!r} not found (create it "

@@ -57,7 +57,6 @@ tolerance or faulted, 2 on bad input (one line), 130 when interrupted (after wri
 from __future__ import annotations
 
 import copy
-import json
 import math
 import os
 import shlex
@@ -75,6 +74,7 @@ from reference import NumericModel, models
 from reference.errors import ModelInputError, SingularSystemError
 
 from . import compare as C
+from . import jsonio
 from .comparison import ReferenceAnswer, build, compare_at_state, rigid_answer, tolerance
 from .engines.base import EngineUnsupported
 from .engines.registry import available_engines, engine_modules, get_engine
@@ -1022,7 +1022,6 @@ def _print_summary(res: dict, path: Path) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import _json_default
     samples = _int(args.samples, "--samples", 1)
     seed = _int(args.seed, "--seed", 0)
     index = _int(args.index, "--index", 0)
@@ -1046,7 +1045,7 @@ def cmd_sweep(args) -> int:
         b = bench(names, samples, seed, engines,
                   log=lambda m: print(m, file=sys.stderr, flush=True))
         out.mkdir(parents=True, exist_ok=True)
-        (out / "sweep_bench.json").write_text(json.dumps(b, indent=2, default=_json_default))
+        (out / "sweep_bench.json").write_text(jsonio.dumps(b))
         _print_bench(b)
         print(f"wrote {out / 'sweep_bench.json'}")
         return 0
@@ -1065,7 +1064,7 @@ def cmd_sweep(args) -> int:
             bar.close()
     out.mkdir(parents=True, exist_ok=True)
     path = out / "sweep.json"
-    path.write_text(json.dumps(res, indent=2, default=_json_default, allow_nan=True))
+    path.write_text(jsonio.dumps(res))
     _print_summary(res, path)
     if res["status"]["stopped"] == "interrupted":
         code = 130

@@ -22,7 +22,7 @@ from reference.errors import ModelInputError
 from reference.integrate import simulate
 
 from . import compare as C
-from .comparison import build
+from .comparison import build, constraint_residual, energy_drift, work_energy_balance
 from .engines.base import EngineUnsupported
 from .engines.registry import engine_label
 
@@ -66,24 +66,11 @@ def state_error(q, u, ref_q, ref_u) -> np.ndarray:
 
 
 def _residual_series(nm: NumericModel, t, q, u) -> np.ndarray:
-    out = []
-    for ti, qi, ui in zip(t, q, u):
-        pos, vel = nm.residuals(qi, ui, ti)
-        out.append(float(np.max(np.abs(pos))) if pos.size else 0.0)
-    return np.array(out)
+    return np.array([constraint_residual(nm, qi, ui, ti)[0] for ti, qi, ui in zip(t, q, u)])
 
 
 def _energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
     return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u)])
-
-
-def _energy_drift(E: np.ndarray) -> float:
-    return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
-
-
-def _balance(E: np.ndarray, W: np.ndarray) -> float:
-    """max |E(t) - E(0) - W(t)| / max(max |E|, 1)."""
-    return float(np.max(np.abs(E - E[0] - W)) / max(float(np.max(np.abs(E))), 1.0))
 
 
 def _series(model, engine, formulation, label, t, err, res, E, variant=None):
@@ -137,8 +124,8 @@ def _fixed_step_runs(nm, em, integrator, q0, u0, t_end, conserved, work):
         f"in this run by halving the step ({halving:.1e}), times 10, plus the "
         f"reference's own accuracy")
     E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
-    E0, E1 = ((_energy_drift(E0), _energy_drift(E1)) if conserved
-              else (_balance(E0, work), _balance(E1, work)))
+    E0, E1 = ((energy_drift(E0), energy_drift(E1)) if conserved
+              else (work_energy_balance(E0, work), work_energy_balance(E1, work)))
     energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
                              f"{integrator}'s energy error estimated by halving the step "
                              f"({abs(E0 - E1):.1e}), times 10")
@@ -180,9 +167,9 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
         1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
               "(projection does not conserve energy exactly, NUMERICS.md 1.3)")
     if conserved:
-        records.append(rec("reference", "energy_drift", _energy_drift(E_ref), ref_energy_tol))
+        records.append(rec("reference", "energy_drift", energy_drift(E_ref), ref_energy_tol))
     else:
-        records.append(rec("reference", "work_energy_balance", _balance(E_ref, work),
+        records.append(rec("reference", "work_energy_balance", work_energy_balance(E_ref, work),
                            ref_energy_tol, label="E(t) - E(0) - W(t), W integrated with the run"))
     series.append(_series(name, "reference", f, f"DOP853+projection rtol={REF_RTOL:g}",
                           ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref))
@@ -191,7 +178,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
     loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL, t_eval=grid)
     loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
     E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
-    loose_E = _energy_drift(E_loose) if conserved else _balance(E_loose, work)
+    loose_E = energy_drift(E_loose) if conserved else work_energy_balance(E_loose, work)
 
     for adapter in adapters:
         for variant in adapter.variants(name):
@@ -230,7 +217,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                     records.append(rec(adapter.name, "constraint_drift", float(res.max()),
                                        drift_tol, label=label, **extra))
                 if conserved:
-                    records.append(rec(adapter.name, "energy_drift", _energy_drift(E),
+                    records.append(rec(adapter.name, "energy_drift", energy_drift(E),
                                        energy_tol, label=label, **extra))
                 else:
                     balance_tol = energy_tol if energy_tol is SOFT_ENERGY else C.Tolerance(
@@ -239,6 +226,6 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                         "reference's run: they differ by the engine's energy error plus the "
                         "work along the trajectory difference, bounded by the state tolerance "
                         "(x10 for the size of grad E)")
-                    records.append(rec(adapter.name, "work_energy_balance", _balance(E, work),
+                    records.append(rec(adapter.name, "work_energy_balance", work_energy_balance(E, work),
                                        balance_tol, label=label, **extra))
     return records, series

@@ -36,6 +36,7 @@ from reference.integrate import METHODS, simulate
 from reference.errors import ModelInputError
 from reference.minimal import reference_final_state
 
+from .comparison import constraint_residual, energy_drift
 from .engines.base import EngineAdapter
 from .engines.registry import available_engines, engine_label, get_engine
 
@@ -93,20 +94,15 @@ def _finite(x) -> Optional[float]:
 
 def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool):
     """error vs the reference, max residuals and energy drift of mapped states."""
-    res, en, p = nm._scalar["residuals"], nm._scalar["energy"], nm.p
     rp = rv = 0.0
     E = []
     for t, q, u in zip(T, Q, U):
-        pos, vel = res(list(map(float, q)), list(map(float, u)), float(t), p)
-        rp = max([rp] + [abs(v) for v in pos])
-        rv = max([rv] + [abs(v) for v in vel])
+        pos, vel = constraint_residual(nm, q, u, t)
+        rp, rv = max(rp, pos), max(rv, vel)
         if energy_conserved:
-            E.append(sum(en(list(map(float, q)), list(map(float, u)), float(t), p)[0][:2]))
+            E.append(sum(nm.energy(q, u, t)))
     err = float(np.max(np.abs(np.concatenate([Q[-1], U[-1]]) - ref_state)))
-    drift = None
-    if energy_conserved and E:
-        E = np.array(E)
-        drift = float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1e-300))
+    drift = energy_drift(E) if energy_conserved and E else None
     return err, rp, rv, drift
 
 

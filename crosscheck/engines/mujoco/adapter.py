@@ -84,6 +84,7 @@ import mujoco
 import numpy as np
 
 from ...compare import Tolerance
+from ..kinematics import E, R313, angles313, eps_ddot
 from ..base import (Capabilities, EngineAdapter, EngineForward, EngineModel, EngineTrajectory,
                     EngineUnsupported)
 
@@ -1035,26 +1036,13 @@ class SliderCrankSplit(_SliderCrankBase):
 # ======================================================================================
 # Example 4: 3-D double pendulum
 # ======================================================================================
-def _angles_from_R313(R) -> tuple[float, float, float]:
-    """Inverse of the textbook's 3-1-3 R (N -> body), theta2 in [0, pi]."""
-    R = np.asarray(R, float)
-    b = math.acos(max(-1.0, min(1.0, R[2, 2])))
-    a = math.atan2(R[2, 0], -R[2, 1])
-    c = math.atan2(R[0, 2], R[1, 2])
-    return a, b, c
-
-
 class _DoublePendulumBase(_MjModel):
     nq_ref, n_ref = 6, 12
-
-    def _R313(self, angles):
-        from reference.models.double_pendulum import R313
-        return np.asarray(R313(*(float(a) for a in angles)), float)
 
     def _body_rotations(self, q):
         """Body -> world rotations Q_i = R_i^T of the textbook's R_i (N -> n_i)."""
         q = np.asarray(q, float)
-        return self._R313(q[0:3]).T, self._R313(q[3:6]).T
+        return R313(*q[0:3]).T, R313(*q[3:6]).T
 
     def _speeds(self, Q1, Q2, w1b, w2b):
         """Consistent v_G1, v_G2 (world) from the body-fixed omegas."""
@@ -1099,7 +1087,7 @@ class DoublePendulumFree(_DoublePendulumBase):
     def from_engine_state(self, qe, ve):
         q = []
         for k in (3, 10):
-            q += _angles_from_R313(_quat_to_R(qe[k:k + 4]).T)
+            q += list(angles313(_quat_to_R(qe[k:k + 4]).T))
         return np.array(q), self._P.T @ np.asarray(ve, float)
 
     def _acc_to_reference(self, qe, ve, ae):
@@ -1151,8 +1139,8 @@ class DoublePendulumTree(_DoublePendulumBase):
         w1b = np.asarray(ve[0:3], float)
         w2b = np.asarray(ve[3:6], float) + Q2.T @ Q1 @ w1b
         v1, v2 = self._speeds(Q1, Q2, w1b, w2b)
-        q = _angles_from_R313(Q1.T) + _angles_from_R313(Q2.T)
-        return np.array(q), np.concatenate([w1b, w2b, v1, v2])
+        q = np.concatenate([angles313(Q1.T), angles313(Q2.T)])
+        return q, np.concatenate([w1b, w2b, v1, v2])
 
     def _acc_to_reference(self, qe, ve, ae):
         Q1, Q2 = self._engine_rotations(qe)
@@ -1183,11 +1171,6 @@ class DoublePendulumTree(_DoublePendulumBase):
 # ======================================================================================
 # Exercises 6.5-6.7: the top with Euler parameters
 # ======================================================================================
-def _E(e) -> np.ndarray:
-    e1, e2, e3, e4 = (float(x) for x in e)
-    return np.array([[e4, e3, -e2, -e1], [-e3, e4, e1, -e2], [e2, -e1, e4, -e3]])
-
-
 class _TopBase(_MjModel):
     """Euler parameters eps = (eps1, eps2, eps3, eps4), eps4 scalar, R(eps) the standard
     quaternion rotation (body -> inertial), omega_body = 2 E eps' (reference docstring; this is
@@ -1208,9 +1191,7 @@ class _TopBase(_MjModel):
         q = q / np.linalg.norm(q)
         return np.array([q[1], q[2], q[3], q[0]])
 
-    @staticmethod
-    def _eps_ddot(eps, eps_dot, omega, omega_dot):
-        return 0.5 * (_E(eps_dot).T @ omega + _E(eps).T @ omega_dot)
+    _eps_ddot = staticmethod(eps_ddot)
 
 
 class TopEuler(_TopBase):
@@ -1232,11 +1213,11 @@ class TopEuler(_TopBase):
         self.top = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, "top")
 
     def to_engine_state(self, q, u):
-        return self._quat(q), 2.0 * _E(q) @ np.asarray(u, float)
+        return self._quat(q), 2.0 * E(q) @ np.asarray(u, float)
 
     def from_engine_state(self, qe, ve):
         eps = self._eps(qe)
-        return eps, 0.5 * _E(eps).T @ np.asarray(ve, float)
+        return eps, 0.5 * E(eps).T @ np.asarray(ve, float)
 
     def _acc_to_reference(self, qe, ve, ae):
         eps, eps_dot = self.from_engine_state(qe, ve)
@@ -1275,12 +1256,12 @@ class TopCartesian(_TopBase):
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
         return (np.concatenate([q[0:3], self._quat(q[3:7])]),
-                np.concatenate([u[0:3], 2.0 * _E(q[3:7]) @ u[3:7]]))
+                np.concatenate([u[0:3], 2.0 * E(q[3:7]) @ u[3:7]]))
 
     def from_engine_state(self, qe, ve):
         eps = self._eps(qe[3:7])
         return (np.concatenate([qe[0:3], eps]),
-                np.concatenate([ve[0:3], 0.5 * _E(eps).T @ np.asarray(ve[3:6], float)]))
+                np.concatenate([ve[0:3], 0.5 * E(eps).T @ np.asarray(ve[3:6], float)]))
 
     def _acc_to_reference(self, qe, ve, ae):
         q, u = self.from_engine_state(qe, ve)

@@ -80,6 +80,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
+from ..kinematics import E, R313, angles313, eps_ddot, eps_rates
 from ..base import (Capabilities, EngineAdapter, EngineForward, EngineModel, EngineTrajectory,
                     EngineUnsupported)
 
@@ -122,30 +123,6 @@ def _quat_rate(qxyzw, omega_local) -> np.ndarray:
     v, w = np.asarray(qxyzw[:3]), qxyzw[3]
     return 0.5 * np.concatenate([w * omega_local + np.cross(v, omega_local),
                                  [-(v @ omega_local)]])
-
-
-def _E(e) -> np.ndarray:
-    """The textbook's E(eps) (omega = 2 E eps', eps4 scalar); linear in eps."""
-    e1, e2, e3, e4 = e
-    return np.array([[e4, e3, -e2, -e1], [-e3, e4, e1, -e2], [e2, -e1, e4, -e3]])
-
-
-def _R313(a, b, c) -> np.ndarray:
-    """The textbook's 3-1-3 matrix (N components -> body components), Example 4."""
-    C1, S1, C2, S2, C3, S3 = (math.cos(a), math.sin(a), math.cos(b), math.sin(b),
-                              math.cos(c), math.sin(c))
-    return np.array([[C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
-                     [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
-                     [S1 * S2, -C1 * S2, C2]])
-
-
-def _angles313(Rnb) -> np.ndarray:
-    """3-1-3 angles of an N -> body matrix, on the branch theta2 in [0, pi] (the reference's
-    sampler keeps theta2 in [0.3, pi - 0.3]), theta1, theta3 in (-pi, pi]."""
-    b = math.acos(max(-1.0, min(1.0, Rnb[2, 2])))
-    a = math.atan2(Rnb[2, 0], -Rnb[2, 1])
-    c = math.atan2(Rnb[0, 2], Rnb[1, 2])
-    return np.array([a, b, c])
 
 
 def _prox(settings) -> pin.ProximalSettings:
@@ -859,7 +836,7 @@ class _DoublePendulumBase(_PinModel):
 
     def _rotations(self, q):
         q = np.asarray(q, float)
-        return _R313(*q[0:3]).T, _R313(*q[3:6]).T
+        return R313(*q[0:3]).T, R313(*q[3:6]).T
 
 
 class DoublePendulumFree(_DoublePendulumBase):
@@ -910,7 +887,7 @@ class DoublePendulumFree(_DoublePendulumBase):
 
     def from_engine_state(self, qe, ve):
         B1, B2 = _quat_to_R(qe[3:7]), _quat_to_R(qe[10:14])
-        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        q = np.concatenate([angles313(B1.T), angles313(B2.T)])
         return q, self._P_of(B1, B2).T @ np.asarray(ve, float)  # P is orthogonal
 
     def _acc_to_reference(self, qe, ve, ae):
@@ -979,7 +956,7 @@ class DoublePendulumTree(_DoublePendulumBase):
         B1 = _quat_to_R(qe[0:4])
         B12 = _quat_to_R(qe[4:8])
         B2 = B1 @ B12
-        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        q = np.concatenate([angles313(B1.T), angles313(B2.T)])
         pin.forwardKinematics(self.model, self.data, qe, ve)
         vG1 = self._anchor_velocity(1, self.G[0])
         vG2 = self._anchor_velocity(2, self.G[1])
@@ -1019,14 +996,11 @@ class _TopBase(_PinModel):
         p = self.params
         return pin.Inertia(p["m"], np.asarray(lever, float), np.diag([p["I"], p["I"], p["I3"]]))
 
-    @staticmethod
-    def _eps_rates(eps, omega):
-        return 0.5 * _E(eps).T @ omega
+    _eps_rates = staticmethod(eps_rates)
 
     @staticmethod
     def _eps_acc(eps, omega, omega_dot):
-        eps_dot = 0.5 * _E(eps).T @ omega
-        return 0.5 * (_E(eps_dot).T @ omega + _E(eps).T @ omega_dot)
+        return eps_ddot(eps, eps_rates(eps, omega), omega, omega_dot)
 
 
 class TopEuler(_TopBase):
@@ -1051,7 +1025,7 @@ class TopEuler(_TopBase):
 
     def to_engine_state(self, q, u):
         eps = np.asarray(q, float).reshape(4)
-        return eps.copy(), 2.0 * _E(eps) @ np.asarray(u, float)
+        return eps.copy(), 2.0 * E(eps) @ np.asarray(u, float)
 
     def from_engine_state(self, qe, ve):
         eps = np.asarray(qe, float).copy()
@@ -1110,7 +1084,7 @@ class TopCartesianFree(_TopCartesianBase):
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
         R = _quat_to_R(q[3:7])
-        return q.copy(), np.concatenate([R.T @ u[0:3], 2.0 * _E(q[3:7]) @ u[3:7]])
+        return q.copy(), np.concatenate([R.T @ u[0:3], 2.0 * E(q[3:7]) @ u[3:7]])
 
     def from_engine_state(self, qe, ve):
         qe, ve = np.asarray(qe, float), np.asarray(ve, float)
@@ -1144,7 +1118,7 @@ class TopCartesianTree(_TopCartesianBase):
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
-        return q[3:7].copy(), 2.0 * _E(q[3:7]) @ u[3:7]
+        return q[3:7].copy(), 2.0 * E(q[3:7]) @ u[3:7]
 
     def from_engine_state(self, qe, ve):
         qe, ve = np.asarray(qe, float), np.asarray(ve, float)
