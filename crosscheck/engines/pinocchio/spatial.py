@@ -244,6 +244,9 @@ class TopEuler(_TopBase):
         K, V = self._energy_engine(qe, ve)
         raw["normalization_lambda_dalembert_kane"] = 0.0
         raw["normalization_lambda_lagrange"] = 2.0 * V - 4.0 * K
+        raw["multipliers_note"] = ("no normalization row in Pinocchio (its quaternion is unit "
+                                   "by construction); the reference's lambda is "
+                                   "formulation-dependent (0 for d'Alembert/Kane)")
         pin.forwardKinematics(self.model, self.data, qe)
         pin.rnea(self.model, self.data, qe, ve, ae)
         raw["socket_force"] = self.data.oMi[1].rotation @ self.data.f[1].linear
