@@ -130,8 +130,8 @@ def meta(argv) -> dict:
 
 def cmd_bench(args) -> int:
     from .stress import stress_records
-    from .workprecision import (profile_for_missed, skip_savings, targets,
-                                work_precision_records)
+    from .targets import profile_for_missed, targets
+    from .workprecision import skip_savings, work_precision_records
 
     t_start = time.perf_counter()
     names = args.models or models.names()
