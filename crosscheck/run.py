@@ -106,7 +106,8 @@ def cmd_run(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
-                       "state_seed": "crc32 of the model name (crosscheck.sampling.consistent_states)",
+                       "state_seed": "crc32 of the model name "
+                                     "(crosscheck.sampling.consistent_states)",
                        "metrics": C.METRICS},
               "records": records, "series": series}
     (out / "results.json").write_text(jsonio.dumps(result))

@@ -12,9 +12,9 @@ never on the worker that ran it, the chunking, the executor or the other models.
 
 Checks. For every sample and every engine variant, the instantaneous cross-checks of
 `crosscheck run` (crosscheck.comparison.compare_at_state, the one comparison path; the same
-metrics and named tolerances): state map, mass matrix (where the coordinates map one to one), energy,
-accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer recovered
-from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
+metrics and named tolerances): state map, mass matrix (where the coordinates map one to one),
+energy, accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer
+recovered from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
 `*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance
 predicts (`*_soft_vs_predicted`, SOFT_PREDICTION). The reference is evaluated for all samples of
 a chunk in one batched call of its compiled code, with per-sample parameter arrays.

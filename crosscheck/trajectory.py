@@ -226,6 +226,7 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
                         "reference's run: they differ by the engine's energy error plus the "
                         "work along the trajectory difference, bounded by the state tolerance "
                         "(x10 for the size of grad E)")
-                    records.append(rec(adapter.name, "work_energy_balance", work_energy_balance(E, work),
+                    records.append(rec(adapter.name, "work_energy_balance",
+                                       work_energy_balance(E, work),
                                        balance_tol, label=label, **extra))
     return records, series
