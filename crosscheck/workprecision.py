@@ -2,9 +2,10 @@
 
 One record per model x engine x method x setting:
 - reference: every method of reference.integrate over a tolerance ladder (rtol = atol), DOP853;
-- pinocchio: the adapter's simulate (scipy DOP853 on Pinocchio's forward dynamics, engine
-  coordinates, no stabilization) over the same ladder;
-- mujoco: the adapter's simulate (mj_step) over a time-step ladder per integrator.
+- every engine, through its simulate() and Capabilities.integrators: an error-controlled
+  integrator over the same rtol ladder (method "index1": Pinocchio's forward dynamics under scipy's
+  DOP853 in engine coordinates, no stabilization), a fixed-step one over a time-step ladder per
+  integrator (MuJoCo's mj_step).
 Fields: model, engine, method, integrator, setting (rtol = atol, or the time step), setting_kind,
 wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state - reference|,
 the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u + a0|,
@@ -14,8 +15,9 @@ reference's kind and estimated accuracy. A run that fails keeps its row with "fa
 
 Timings are medians over repeats and meaningful only as ratios within one run (crosscheck/timing).
 What is inside each wall_s: reference: simulate() from the projected initial state to t_end
-(outputs = every accepted step); pinocchio: simulate() including the mapping of its 21 output
-states; mujoco: its own loop timer (mj_step calls plus two recorded states).
+(outputs = every accepted step); an engine: the wall time its simulate() reports (Pinocchio: the
+whole call, including the mapping of its 21 output states; MuJoCo: its own loop timer, mj_step
+calls plus two recorded states), else the call.
 """
 from __future__ import annotations
 

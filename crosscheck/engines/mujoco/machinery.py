@@ -281,6 +281,16 @@ class MjEngineModel(EngineModel):
             return self._answer(acc, lam, raw)
         if not np.all(d.efc_type[:nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY):
             raise RuntimeError(f"{self.model_name}: unexpected non-equality constraint rows")
+        lam = self._soft_recovery(qe, ve, qacc, acc, raw)
+        self._extra_raw(raw)
+        return self._answer(acc, lam, raw)
+
+    def _soft_recovery(self, qe, ve, qacc, acc, raw) -> np.ndarray:
+        """The mapped multipliers of MuJoCo's soft answer at the state in self.d; fills raw with
+        the rigid answer recovered from it, the impedance's predicted error and its bounds, and
+        independent residuals (see the package's adapter docstring)."""
+        m, d = self.m, self.d
+        nefc = d.nefc
         f = d.efc_force[:nefc].copy()
         J = dense_efc_J(m, d)
         M = full_M(m, d)
@@ -348,8 +358,7 @@ class MjEngineModel(EngineModel):
         if jdv is not None:
             # at a consistent state MuJoCo's aref must be -J-dot v (connect rows)
             raw["aref_plus_jdot_v"] = float(np.max(np.abs(aref + jdv)))
-        self._extra_raw(raw)
-        return self._answer(acc, lam, raw)
+        return lam
 
     @staticmethod
     def _answer(acc, lam, raw) -> EngineForward:
