@@ -13,9 +13,9 @@ never on the worker that ran it, the chunking, the executor or the other models.
 
 Checks. For every sample and every engine variant, the instantaneous cross-checks of
 `crosscheck run` (crosscheck.comparison.compare_at_state, the one comparison path; the same
-metrics and named tolerances): state map, mass matrix (where the coordinates map one to one), energy,
-accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer recovered
-from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
+metrics and named tolerances): state map, mass matrix (where the coordinates map one to one),
+energy, accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer
+recovered from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
 `*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance
 predicts (`*_soft_vs_predicted`, SOFT_PREDICTION). The reference is evaluated for all samples of
 a chunk in one batched call of its compiled code, with per-sample parameter arrays.
@@ -64,7 +64,6 @@ status.passed is then false).
 from __future__ import annotations
 
 import copy
-import json
 import math
 import os
 import shlex
@@ -82,6 +81,7 @@ from reference import NumericModel, models
 from reference.errors import ModelInputError, SingularSystemError
 
 from . import compare as C
+from . import jsonio
 from .comparison import ReferenceAnswer, build, compare_at_state, rigid_answer, tolerance
 from .engines.base import EngineUnsupported
 from .engines.registry import available_engines, engine_modules, get_engine
@@ -1044,7 +1044,6 @@ def _print_summary(res: dict, path: Path) -> None:
 
 def cmd_sweep(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
-    from .cli import _json_default
     from .output import write_atomic
     from .sweep_store import ChunkStore
     if args.workers is not None and args.dask is not None:
@@ -1072,8 +1071,7 @@ def cmd_sweep(args) -> int:
     finally:
         if bar:
             bar.close()
-    path = write_atomic(out / "sweep.json",
-                        json.dumps(res, indent=2, default=_json_default, allow_nan=True))
+    path = write_atomic(out / "sweep.json", jsonio.dumps(res))
     _print_summary(res, path)
     if res["status"]["complete"]:
         store.remove()  # after sweep.json is in place: nothing left to resume
@@ -1115,13 +1113,12 @@ def _resumed_campaign(args):
 
 
 def _cmd_bench(args, names, engines, out) -> int:
-    from .cli import _json_default
     from .output import write_atomic
     cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
     cfg.validate()
     b = bench(names, args.samples, args.seed, engines,
               log=lambda m: print(m, file=sys.stderr, flush=True))
-    write_atomic(out / "sweep_bench.json", json.dumps(b, indent=2, default=_json_default))
+    write_atomic(out / "sweep_bench.json", jsonio.dumps(b))
     _print_bench(b)
     print(f"wrote {out / 'sweep_bench.json'}")
     return 0

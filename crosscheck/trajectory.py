@@ -18,6 +18,7 @@ removed, so a coordinate reported modulo 2 pi does not count as an error.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from reference import NumericModel
 from reference.integrate import simulate
 
 from . import compare as C
-from .comparison import build
+from .comparison import build, constraint_residual, energy_drift, work_energy_balance
 from .engines.base import EngineUnsupported
 from .engines.registry import engine_label
 
@@ -101,24 +102,11 @@ def state_error(q, u, ref_q, ref_u) -> np.ndarray:
 
 
 def _residual_series(nm: NumericModel, t, q, u) -> np.ndarray:
-    out = []
-    for ti, qi, ui in zip(t, q, u):
-        pos, vel = nm.residuals(qi, ui, ti)
-        out.append(float(np.max(np.abs(pos))) if pos.size else 0.0)
-    return np.array(out)
+    return np.array([constraint_residual(nm, qi, ui, ti)[0] for ti, qi, ui in zip(t, q, u)])
 
 
 def _energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
     return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u)])
-
-
-def _energy_drift(E: np.ndarray) -> float:
-    return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
-
-
-def _balance(E: np.ndarray, W: np.ndarray) -> float:
-    """max |E(t) - E(0) - W(t)| / max(max |E|, 1)."""
-    return float(np.max(np.abs(E - E[0] - W)) / max(float(np.max(np.abs(E))), 1.0))
 
 
 def _series(model, engine, formulation, label, t, err, res, E, variant=None):
@@ -151,8 +139,8 @@ def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
 
 
 def _fixed_step_runs(nm, em, integrator, q0, u0, t_end, conserved, work):
-    """A fixed-step engine integrator on the step ladder (step_ladder): soft constraint rows
-    are characterized (SOFT_*), otherwise the tolerances come from halving the step."""
+    """A fixed-step engine integrator on the step ladder FIXED_STEPS: soft constraint rows are
+    characterized (SOFT_*), otherwise the tolerances come from halving the step."""
     grid = output_grid(t_end)
     ladder = step_ladder(t_end)
     runs, trs = [], {}
@@ -173,22 +161,40 @@ def _fixed_step_runs(nm, em, integrator, q0, u0, t_end, conserved, work):
         f"in this run by halving the step ({halving:.1e}), times 10, plus the "
         f"reference's own accuracy")
     E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
-    E0, E1 = ((_energy_drift(E0), _energy_drift(E1)) if conserved
-              else (_balance(E0, work), _balance(E1, work)))
+    E0, E1 = ((energy_drift(E0), energy_drift(E1)) if conserved
+              else (work_energy_balance(E0, work), work_energy_balance(E1, work)))
     energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
                              f"{integrator}'s energy error estimated by halving the step "
                              f"({abs(E0 - E1):.1e}), times 10")
     return runs, state_tol, INDEX1_DRIFT, energy_tol
 
 
-def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
-                       engine_params: dict | None = None):
-    """Records and plot series for one model: the reference, then every engine variant."""
+@dataclass(frozen=True)
+class _Reference:
+    """The reference's run of one model, and what the engines' tolerances take from it."""
+
+    name: str
+    nm: NumericModel
+    t_end: float
+    grid: np.ndarray
+    q0: np.ndarray
+    u0: np.ndarray
+    ref: object  # the reference trajectory at rtol REF_RTOL
+    work: np.ndarray  # work of loads and moving constraints along it
+    conserved: bool
+    loose_err: float  # the reference's own global error at ENGINE_RTOL (index-1)
+    loose_E: float  # and its energy drift (or work-energy balance) there
+
+    def rec(self, engine, qty, err, tol, reason="", **k):
+        return C.record(self.name, self.nm.formulation, engine, "trajectory", qty, err, tol,
+                        reason, t_end=self.t_end, **k)
+
+
+def _reference_run(name: str, nm: NumericModel, t_end: float):
+    """The reference's run, its records and series, and the context the engines need."""
     model = nm.model
-    f = nm.formulation
     grid = output_grid(t_end)
     q0, u0 = nm.project(model.initial_q, model.initial_u)
-    records, series = [], []
     ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL, t_eval=grid)
     tight = simulate(nm, q0, u0, t_end, "projection", rtol=REF_CHECK_RTOL, atol=REF_CHECK_RTOL,
                      t_eval=grid)
@@ -204,11 +210,16 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
     work = ref.work if ref.work is not None else np.zeros(len(ref.t))
     E_ref = _energy_series(nm, ref.t, ref.q, ref.u)
     res_ref = _residual_series(nm, ref.t, ref.q, ref.u)
-    rec = lambda engine, qty, err, tol, reason="", **k: C.record(  # noqa: E731
-        name, f, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k)
-    records.append(rec("reference", "state_error", ref_acc, REFERENCE_ACCURACY,
-                       label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
-                       nfev=ref.nfev))
+    # the reference's own global error at the engines' tolerance, for the adaptive bound
+    loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL, t_eval=grid)
+    loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
+    E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
+    loose_E = energy_drift(E_loose) if conserved else work_energy_balance(E_loose, work)
+    ctx = _Reference(name, nm, t_end, grid, q0, u0, ref, work, conserved, loose_err, loose_E)
+    rec = ctx.rec
+    records = [rec("reference", "state_error", ref_acc, REFERENCE_ACCURACY,
+                   label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
+                   nfev=ref.nfev)]
     if nm.m:
         records.append(rec("reference", "constraint_drift", float(res_ref.max()),
                            PROJECTED_DRIFT, label="DOP853+projection"))
@@ -216,68 +227,79 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
         1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
               "(projection does not conserve energy exactly, docs/numerics.md)")
     if conserved:
-        records.append(rec("reference", "energy_drift", _energy_drift(E_ref), ref_energy_tol))
+        records.append(rec("reference", "energy_drift", energy_drift(E_ref), ref_energy_tol))
     else:
-        records.append(rec("reference", "work_energy_balance", _balance(E_ref, work),
+        records.append(rec("reference", "work_energy_balance", work_energy_balance(E_ref, work),
                            ref_energy_tol, label="E(t) - E(0) - W(t), W integrated with the run"))
-    series.append(_series(name, "reference", f, f"DOP853+projection rtol={REF_RTOL:g}",
-                          ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref))
+    series = [_series(name, "reference", nm.formulation, f"DOP853+projection rtol={REF_RTOL:g}",
+                      ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref)]
+    return ctx, records, series
 
-    # the reference's own global error at the engines' tolerance, for Pinocchio's bound
-    loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL, t_eval=grid)
-    loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
-    E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
-    loose_E = _energy_drift(E_loose) if conserved else _balance(E_loose, work)
 
+def _engine_run(ctx: _Reference, adapter, em, variant):
+    """Records (the first rung) and series (every rung) of one engine model's trajectories."""
+    nm, ref, name = ctx.nm, ctx.ref, ctx.name
+    integrator = adapter.capabilities.integrators[0]
+    if integrator in adapter.capabilities.adaptive_integrators:
+        runs, state_tol, drift_tol, energy_tol = _adaptive_runs(
+            em, integrator, ctx.q0, ctx.u0, ctx.grid, ctx.loose_err, ctx.loose_E)
+    else:
+        runs, state_tol, drift_tol, energy_tol = _fixed_step_runs(
+            nm, em, integrator, ctx.q0, ctx.u0, ctx.t_end, ctx.conserved, ctx.work)
+    extra = {"variant": variant} if variant else {}
+    records, series = [], []
+    for k, (label, t, q, u, info) in enumerate(runs):
+        if len(t) != len(ref.t) or \
+                np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(ctx.t_end, 1.0):
+            raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, {len(t)} times) "
+                               f"is not on the reference's output grid ({len(ref.t)} times over "
+                               f"{ctx.t_end:g} s): a bug in output_grid / step_ladder")
+        err = state_error(q, u, ref.q, ref.u)
+        res = _residual_series(nm, t, q, u)
+        E = _energy_series(nm, t, q, u)
+        series.append(_series(name, adapter.name, nm.formulation, label, t, err, res, E,
+                              variant))
+        if k:  # records for the first rung; the others feed the estimate and plots
+            continue
+        records.append(ctx.rec(adapter.name, "state_error", float(err.max()), state_tol,
+                               label=label, **info, **extra))
+        if nm.m:
+            records.append(ctx.rec(adapter.name, "constraint_drift", float(res.max()),
+                                   drift_tol, label=label, **extra))
+        if ctx.conserved:
+            records.append(ctx.rec(adapter.name, "energy_drift", energy_drift(E), energy_tol,
+                                   label=label, **extra))
+            continue
+        balance_tol = energy_tol if energy_tol is SOFT_ENERGY else C.Tolerance(
+            energy_tol.value + 10 * state_tol.value,
+            "the engine's energy change against the work done along the "
+            "reference's run: they differ by the engine's energy error plus the "
+            "work along the trajectory difference, bounded by the state tolerance "
+            "(x10 for the size of grad E)")
+        records.append(ctx.rec(adapter.name, "work_energy_balance",
+                               work_energy_balance(E, ctx.work), balance_tol, label=label,
+                               **extra))
+    return records, series
+
+
+def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
+                       engine_params: dict | None = None):
+    """Records and plot series for one model: the reference, then every engine variant."""
+    ctx, records, series = _reference_run(name, nm, t_end)
     for adapter in adapters:
-        for variant in adapter.variants(name):
-            params = (engine_params or {}).get(adapter.name, nm.params)
-            integrators = adapter.capabilities.integrators
-            if not integrators:
-                records.append(rec(adapter.name, "state_error", None, None,
+        params = (engine_params or {}).get(adapter.name, nm.params)
+        if not adapter.capabilities.integrators:
+            records.append(ctx.rec(adapter.name, "state_error", None, None,
                                    f"{adapter.name} has no trajectories in this suite"))
-                break
+            continue
+        for variant in adapter.variants(name):
             try:
                 em = build(adapter, name, params, variant)
             except EngineUnsupported as exc:
-                records.append(rec(adapter.name, "state_error", None, None,
-                                   f"engine cannot represent the model: {exc}"))
+                records.append(ctx.rec(adapter.name, "state_error", None, None,
+                                       f"engine cannot represent the model: {exc}"))
                 continue
-            extra = {"variant": variant} if variant else {}
-            if integrators[0] in adapter.capabilities.adaptive_integrators:
-                runs, state_tol, drift_tol, energy_tol = _adaptive_runs(
-                    em, integrators[0], q0, u0, grid, loose_err, loose_E)
-            else:
-                runs, state_tol, drift_tol, energy_tol = _fixed_step_runs(
-                    nm, em, integrators[0], q0, u0, t_end, conserved, work)
-            for k, (label, t, q, u, info) in enumerate(runs):
-                if len(t) != len(ref.t) or \
-                        np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(t_end, 1.0):
-                    raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, "
-                                       f"{len(t)} times) is not on the reference's output grid "
-                                       f"({len(ref.t)} times over {t_end:g} s): a bug in "
-                                       f"output_grid / step_ladder")
-                err = state_error(q, u, ref.q, ref.u)
-                res = _residual_series(nm, t, q, u)
-                E = _energy_series(nm, t, q, u)
-                series.append(_series(name, adapter.name, f, label, t, err, res, E, variant))
-                if k:  # records for the first rung; the others feed the estimate and plots
-                    continue
-                records.append(rec(adapter.name, "state_error", float(err.max()), state_tol,
-                                   label=label, **info, **extra))
-                if nm.m:
-                    records.append(rec(adapter.name, "constraint_drift", float(res.max()),
-                                       drift_tol, label=label, **extra))
-                if conserved:
-                    records.append(rec(adapter.name, "energy_drift", _energy_drift(E),
-                                       energy_tol, label=label, **extra))
-                else:
-                    balance_tol = energy_tol if energy_tol is SOFT_ENERGY else C.Tolerance(
-                        energy_tol.value + 10 * state_tol.value,
-                        "the engine's energy change against the work done along the "
-                        "reference's run: they differ by the engine's energy error plus the "
-                        "work along the trajectory difference, bounded by the state tolerance "
-                        "(x10 for the size of grad E)")
-                    records.append(rec(adapter.name, "work_energy_balance", _balance(E, work),
-                                       balance_tol, label=label, **extra))
+            recs, ser = _engine_run(ctx, adapter, em, variant)
+            records += recs
+            series += ser
     return records, series
