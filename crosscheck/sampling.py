@@ -86,7 +86,9 @@ def draw_sample(base: NumericModel, seed: int, index: int):
 
 
 def consistent_states(nm: NumericModel, count: int):
-    """The model's initial state and count-1 seeded random consistent states near it.
+    """The model's initial state and count-1 seeded random consistent states: drawn by the
+    model's own state_sampler where it has one (it knows the coordinates' singular poses),
+    else near the initial state.
 
     The seed is derived from the model name so every run draws the same states (deterministic
     results), and a state whose projection fails is replaced by the next draw.
@@ -97,8 +99,11 @@ def consistent_states(nm: NumericModel, count: int):
     tries = 0
     while len(states) < count and tries < 20 * count:
         tries += 1
-        q = np.asarray(m.initial_q) + 0.4 * rng.standard_normal(len(m.initial_q))
-        u = np.asarray(m.initial_u) + rng.standard_normal(len(m.initial_u))
+        if m.state_sampler is not None:
+            q, u = m.state_sampler(rng, nm.params)
+        else:
+            q = np.asarray(m.initial_q) + 0.4 * rng.standard_normal(len(m.initial_q))
+            u = np.asarray(m.initial_u) + rng.standard_normal(len(m.initial_u))
         try:
             q, u = nm.project(q, u)
             nm.forward(q, u)

@@ -131,3 +131,38 @@ def test_a_claimed_model_satisfies_the_contract(engine, name):
             assert C.scaled_error(u2, u) <= C.STATE_MAP.value
             _check_forward(adapter, em, nm, q, u)
         _check_simulate(adapter, em, nm, *states[0])
+
+
+def test_registry_order_labels_and_unknown_names():
+    """Default engine order follows EngineAdapter.rank (the built-ins first), an unknown name
+    is refused with the registered ones listed, and results' versions are keyed by package."""
+    from crosscheck.engines.registry import (UnknownEngineError, engine_label, engine_names,
+                                             engine_versions)
+    order = list(ENGINES)
+    assert order.index("pinocchio") < order.index("mujoco")
+    assert [get_engine(e).rank for e in order] == sorted(get_engine(e).rank for e in order)
+    assert engine_label("mujoco") == "MuJoCo" and engine_label("no_such") == "no_such"
+    with pytest.raises(UnknownEngineError) as exc:
+        get_engine("no_such_engine")
+    assert all(name in str(exc.value) for name in engine_names())
+    versions = engine_versions()
+    assert set(versions) == {get_engine(e).distribution for e in ENGINES}
+    assert all(versions.values())
+
+
+def test_perturbation_is_parsed_checked_and_applied_in_one_place():
+    from crosscheck.perturb import check_parameters, parse_perturb, perturbed
+    from reference.errors import ModelInputError
+    assert parse_perturb(["mujoco:m2=1e-6", "mujoco:l1=-0.5"]) == {"mujoco": {"m2": 1e-6,
+                                                                             "l1": -0.5}}
+    with pytest.raises(ModelInputError, match="pinocchio"):  # the registered ones are listed
+        parse_perturb(["nope:m=1"])
+    with pytest.raises(ModelInputError, match="ENGINE:PARAM=REL"):
+        parse_perturb(["mujoco-m2"])
+    names = [p.name for p in models.get("slider_crank").parameters]
+    with pytest.raises(ModelInputError, match="no parameter 'zz'"):
+        check_parameters("slider_crank", names, {"mujoco": {"zz": 1.0}})
+    base = NumericModel(models.get("slider_crank")).params
+    out = perturbed("slider_crank", base, {"m2": 0.5})
+    assert out["m2"] == base["m2"] * 1.5 and base["m2"] != out["m2"]
+    assert all(out[k] == base[k] for k in base if k != "m2")
