@@ -138,6 +138,70 @@ def _campaign_meta(cfg: Campaign, aggs) -> dict:
     }
 
 
+def _group_faults(cfg: Campaign, name: str, agg, fault_groups: dict,
+                  fault_records: list) -> None:
+    """One model's faults into their groups; the first FAULTS_KEPT of each kept with the
+    command that reproduces it."""
+    faults = sorted(agg.faults, key=lambda f: (f["index"], str(f["engine"]),
+                                               str(f["variant"]), f["stage"]))
+    for f in faults:
+        key = (name, f["engine"], f["variant"], f["stage"], f["type"])
+        g = fault_groups.setdefault(key, {"model": name, "engine": f["engine"],
+                                          "variant": f["variant"], "stage": f["stage"],
+                                          "type": f["type"], "count": 0,
+                                          "first_reason": f["reason"]})
+        g["count"] += 1
+        if g["count"] <= FAULTS_KEPT:
+            f = dict(f)
+            f["reproduce"] = _fault_command(cfg, name, f)
+            fault_records.append(f)
+
+
+def _quantity_record(cfg: Campaign, name: str, agg, e: str, v, qn: str, soft: bool,
+                     case) -> tuple[dict, int | None]:
+    """The results row of one model x engine x variant x quantity, and how many samples are
+    outside its tolerance (None: no tolerance)."""
+    tol, metric = tolerance(qn, soft, _adapter(e), name)
+    row = {"model": name, "formulation": agg.formulation, "engine": e,
+           "variant": v, "quantity": qn}
+    if (e, v, qn) not in agg.values:
+        return {**row, "skipped": agg.skips[(e, v, qn)], "count": 0}, None
+    arr = agg.values[(e, v, qn)]
+    idx = np.flatnonzero(~np.isnan(arr))
+    vals = arr[idx]
+    fin = np.isfinite(vals)
+    outside = None
+    if tol is not None:
+        outside = int(np.sum(~(vals <= tol.value)))
+    order = np.lexsort((idx, -np.where(fin, vals, np.inf)))[:cfg.worst]
+    worst = []
+    for j in order:
+        i = int(cfg.index + idx[j])
+        s, nm, t, q, u = case(i)
+        w = {"index": i, "sample_seed": s, "error": float(vals[j]),
+             "parameters": nm.params, "t": t, "q": np.asarray(q).tolist(),
+             "u": np.asarray(u).tolist(),
+             "reproduce": reproduce_commands(cfg, name, agg.formulation, e, i,
+                                             nm, t, q, u)}
+        if cfg.perturb.get(e):
+            w["engine_parameters"] = perturbed(name, nm.params, cfg.perturb[e])
+        worst.append(w)
+    rec = {**row, "metric": metric,
+           "tolerance": None if tol is None else tol.value,
+           "reason": SOFT_ERROR_REASON if tol is None else tol.reason,
+           "count": int(len(vals)), "nonfinite": int(np.sum(~fin)),
+           "outside_tolerance": outside,
+           "max": float(vals.max()) if len(vals) else None,
+           "mean": float(vals[fin].mean()) if fin.any() else None,
+           "quantiles": ({str(p): float(x) for p, x in zip(
+               QUANTILES, np.quantile(vals, QUANTILES, method=QUANTILE_METHOD))}
+               if len(vals) else {}),
+           "histogram": _histogram(vals), "worst": worst}
+    if soft and qn in ("accelerations", "multipliers"):
+        rec["answer"] = rigid_answer(e)
+    return rec, outside
+
+
 def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
     results, series_rows, fault_groups, fault_records, chunk_faults = [], [], {}, [], []
     outside_total = 0
@@ -150,19 +214,7 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
                 redrawn[i] = draw_sample(base, cfg.seed, i)
             return redrawn[i]
 
-        faults = sorted(agg.faults, key=lambda f: (f["index"], str(f["engine"]),
-                                                   str(f["variant"]), f["stage"]))
-        for f in faults:
-            key = (name, f["engine"], f["variant"], f["stage"], f["type"])
-            g = fault_groups.setdefault(key, {"model": name, "engine": f["engine"],
-                                              "variant": f["variant"], "stage": f["stage"],
-                                              "type": f["type"], "count": 0,
-                                              "first_reason": f["reason"]})
-            g["count"] += 1
-            if g["count"] <= FAULTS_KEPT:
-                f = dict(f)
-                f["reproduce"] = _fault_command(cfg, name, f)
-                fault_records.append(f)
+        _group_faults(cfg, name, agg, fault_groups, fault_records)
         chunk_faults += agg.chunk_faults
         for (e, v), reason in agg.unsupported.items():
             series_rows.append({"model": name, "engine": e, "variant": v, "unsupported": reason,
@@ -180,46 +232,9 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
                                 "faults": n_faults})
             soft = bool(agg.soft.get((e, v)))
             for qn in keys:
-                tol, metric = tolerance(qn, soft, _adapter(e), name)
-                row = {"model": name, "formulation": agg.formulation, "engine": e,
-                       "variant": v, "quantity": qn}
-                if (e, v, qn) not in agg.values:
-                    results.append({**row, "skipped": agg.skips[(e, v, qn)], "count": 0})
-                    continue
-                arr = agg.values[(e, v, qn)]
-                idx = np.flatnonzero(~np.isnan(arr))
-                vals = arr[idx]
-                fin = np.isfinite(vals)
-                outside = None
-                if tol is not None:
-                    outside = int(np.sum(~(vals <= tol.value)))
+                rec, outside = _quantity_record(cfg, name, agg, e, v, qn, soft, case)
+                if outside is not None:
                     outside_total += outside
-                order = np.lexsort((idx, -np.where(fin, vals, np.inf)))[:cfg.worst]
-                worst = []
-                for j in order:
-                    i = int(cfg.index + idx[j])
-                    s, nm, t, q, u = case(i)
-                    w = {"index": i, "sample_seed": s, "error": float(vals[j]),
-                         "parameters": nm.params, "t": t, "q": np.asarray(q).tolist(),
-                         "u": np.asarray(u).tolist(),
-                         "reproduce": reproduce_commands(cfg, name, agg.formulation, e, i,
-                                                         nm, t, q, u)}
-                    if cfg.perturb.get(e):
-                        w["engine_parameters"] = perturbed(name, nm.params, cfg.perturb[e])
-                    worst.append(w)
-                rec = {**row, "metric": metric,
-                       "tolerance": None if tol is None else tol.value,
-                       "reason": SOFT_ERROR_REASON if tol is None else tol.reason,
-                       "count": int(len(vals)), "nonfinite": int(np.sum(~fin)),
-                       "outside_tolerance": outside,
-                       "max": float(vals.max()) if len(vals) else None,
-                       "mean": float(vals[fin].mean()) if fin.any() else None,
-                       "quantiles": ({str(p): float(x) for p, x in zip(
-                           QUANTILES, np.quantile(vals, QUANTILES, method=QUANTILE_METHOD))}
-                           if len(vals) else {}),
-                       "histogram": _histogram(vals), "worst": worst}
-                if soft and qn in ("accelerations", "multipliers"):
-                    rec["answer"] = rigid_answer(e)
                 results.append(rec)
     n_faults = sum(g["count"] for g in fault_groups.values())
     complete = stopped is None and all(d == cfg.samples for d in done.values())

@@ -61,6 +61,28 @@ def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
     return specs
 
 
+def _executor(cfg: Campaign, workers, dask, chunk):
+    """The executor's settings: (client, cluster, workers, threads, chunk, meta's "executor")."""
+    threads = None
+    client = cluster = None
+    if dask is not None:
+        client, cluster = _dask_client(dask)
+        threads = sum(client.nthreads().values()) or 1
+        chunk = chunk or dask_chunk(cfg.samples, threads)
+        executor = {"kind": "dask", "address": dask if isinstance(dask, str)
+                    else str(client.scheduler.address), "threads": threads, "chunk": chunk}
+    else:
+        workers = workers or default_workers()
+        if workers < 1:
+            raise ModelInputError(f"--workers must be >= 1, got {workers}")
+        chunk = chunk or local_chunk(cfg.samples, workers)
+        executor = {"kind": "serial" if workers == 1 else "processes", "workers": workers,
+                    "chunk": chunk}
+    if chunk < 1:
+        raise ModelInputError(f"--chunk must be >= 1, got {chunk}")
+    return client, cluster, workers, threads, chunk, executor
+
+
 def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | None = None,
              max_seconds: float | None = None, progress=None, on_chunk=None,
              store=None, resume: bool = False) -> dict:
@@ -79,22 +101,7 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
     t_start = time.perf_counter()
     deadline = None if max_seconds is None else time.time() + max_seconds
     aggs = _plan(cfg)
-    client = cluster = None
-    if dask is not None:
-        client, cluster = _dask_client(dask)
-        threads = sum(client.nthreads().values()) or 1
-        chunk = chunk or dask_chunk(cfg.samples, threads)
-        executor = {"kind": "dask", "address": dask if isinstance(dask, str)
-                    else str(client.scheduler.address), "threads": threads, "chunk": chunk}
-    else:
-        workers = workers or default_workers()
-        if workers < 1:
-            raise ModelInputError(f"--workers must be >= 1, got {workers}")
-        chunk = chunk or local_chunk(cfg.samples, workers)
-        executor = {"kind": "serial" if workers == 1 else "processes", "workers": workers,
-                    "chunk": chunk}
-    if chunk < 1:
-        raise ModelInputError(f"--chunk must be >= 1, got {chunk}")
+    client, cluster, workers, threads, chunk, executor = _executor(cfg, workers, dask, chunk)
     loaded = _load_stored(cfg, aggs, store, resume, progress)
     specs = _specs(cfg, aggs, chunk, deadline)
     stopped = None

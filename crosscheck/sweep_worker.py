@@ -93,28 +93,9 @@ def reference_batch(base: NumericModel, nms, T, Q, U):
     return UD, LAM, errors
 
 
-def run_chunk(spec: ChunkSpec) -> dict:
-    """Samples spec.start .. spec.stop-1 of one model: draws, the batched reference, then every
-    engine variant per sample. Never raises for a sample: faults are returned as records.
-
-    Returns {"model", "start", "completed" (samples done from start on: a prefix), "values"
-    {(engine, variant, quantity): float array over the completed samples, NaN = not evaluated},
-    "soft" {(engine, variant): bool}, "skips" {(engine, variant, quantity): reason},
-    "faults" [...], "timing" {...}}."""
+def _draw_chunk(spec: ChunkSpec, base, past, timing: dict) -> list:
+    """1. draws (the property tests' generator, one seeded Generator per sample)."""
     name = spec.model
-    base = base_model(name, spec.formulation)
-    perturb = {e: dict(p) for e, p in spec.perturb}
-    n = spec.stop - spec.start
-    timing = {"draw_s": 0.0, "reference_s": 0.0, "reference_aux_s": 0.0, "samples": 0}
-    faults: list[dict] = []
-
-    def fault(i, s, engine, variant, stage, exc):
-        faults.append({"model": name, "engine": engine, "variant": variant, "index": i,
-                       "sample_seed": s, "stage": stage, "type": type(exc).__name__,
-                       "reason": _first_line(exc)})
-
-    past = (lambda: False) if spec.deadline is None else (lambda: time.time() > spec.deadline)
-    # 1. draws (the property tests' generator, one seeded Generator per sample)
     t0 = time.perf_counter()
     drawn = []  # (index, sample seed, nm, t, q, u) or (index, sample seed, exception)
     for i in range(spec.start, spec.stop):
@@ -126,7 +107,13 @@ def run_chunk(spec: ChunkSpec) -> dict:
             drawn.append((i, sample_seed(spec.seed, name, i), exc))
     t1 = time.perf_counter()
     timing["draw_s"] = t1 - t0
-    # 2. the reference, batched over the drawn samples (M and the energy are cheap scalar calls)
+    return drawn
+
+
+def _reference_chunk(base, drawn: list, timing: dict) -> dict:
+    """2. the reference, batched over the drawn samples (M and the energy are cheap scalar
+    calls)."""
+    t1 = time.perf_counter()
     ok = [d for d in drawn if len(d) == 6]
     ref = {}
     if ok:
@@ -139,7 +126,13 @@ def run_chunk(spec: ChunkSpec) -> dict:
                 continue
             ref[i] = (UD[j], LAM[j], nm.matrices(q, u, t)[0], nm.energy(q, u, t))
     timing["reference_aux_s"] = time.perf_counter() - t1 - timing["reference_s"]
-    # 3. every engine variant, sample by sample
+    return ref
+
+
+def _evaluate_chunk(spec: ChunkSpec, base, drawn: list, ref: dict, perturb: dict, n: int,
+                    past, fault) -> tuple:
+    """3. every engine variant, sample by sample."""
+    name = spec.model
     values: dict[tuple, np.ndarray] = {}
     skips: dict[tuple, str] = {}
     soft: dict[tuple, bool] = {}
@@ -192,6 +185,34 @@ def run_chunk(spec: ChunkSpec) -> dict:
                 if arr is None:
                     arr = values[(engine, variant, qn)] = np.full(n, np.nan)
                 arr[k] = v
+    return values, skips, soft, per_series, completed
+
+
+def run_chunk(spec: ChunkSpec) -> dict:
+    """Samples spec.start .. spec.stop-1 of one model: draws, the batched reference, then every
+    engine variant per sample. Never raises for a sample: faults are returned as records.
+
+    Returns {"model", "start", "completed" (samples done from start on: a prefix), "values"
+    {(engine, variant, quantity): float array over the completed samples, NaN = not evaluated},
+    "soft" {(engine, variant): bool}, "skips" {(engine, variant, quantity): reason},
+    "faults" [...], "timing" {...}}."""
+    name = spec.model
+    base = base_model(name, spec.formulation)
+    perturb = {e: dict(p) for e, p in spec.perturb}
+    n = spec.stop - spec.start
+    timing = {"draw_s": 0.0, "reference_s": 0.0, "reference_aux_s": 0.0, "samples": 0}
+    faults: list[dict] = []
+
+    def fault(i, s, engine, variant, stage, exc):
+        faults.append({"model": name, "engine": engine, "variant": variant, "index": i,
+                       "sample_seed": s, "stage": stage, "type": type(exc).__name__,
+                       "reason": _first_line(exc)})
+
+    past = (lambda: False) if spec.deadline is None else (lambda: time.time() > spec.deadline)
+    drawn = _draw_chunk(spec, base, past, timing)
+    ref = _reference_chunk(base, drawn, timing)
+    values, skips, soft, per_series, completed = _evaluate_chunk(
+        spec, base, drawn, ref, perturb, n, past, fault)
     timing["samples"] = completed
     timing["series"] = {sv: tuple(x) for sv, x in per_series.items()}
     return {"model": name, "start": spec.start, "stop": spec.stop, "completed": completed,
