@@ -110,7 +110,7 @@ def bench(model_names=None, samples: int = 200, seed: int = 0, engines=None,
         log(f"{w} worker(s): {total / wall:.0f} samples/s")
     for s in scaling:
         s["speedup_vs_1"] = s["samples_per_s"] / scaling[0]["samples_per_s"]
-    from .bench import meta
+    from .provenance import meta
     return {"meta": {**meta(sys.argv[1:]), "samples_per_model": samples, "seed": seed,
                      "cores": default_workers(),
                      "note": "samples_per_s_per_core: one-engine campaign in one process after "

@@ -94,7 +94,7 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
     called after each chunk is merged (tests use it to interrupt); store: a
     sweep_store.ChunkStore that keeps every finished chunk on disk, and with resume=True
     supplies the chunks an interrupted run of the same campaign finished (not recomputed)."""
-    from .bench import meta
+    from .provenance import meta
     cfg.validate()
     if max_seconds is not None and not max_seconds > 0:
         raise ModelInputError(f"--max-seconds must be > 0, got {max_seconds}")
