@@ -11,7 +11,6 @@ All figures come from one run, so their ratios are meaningful on this noisy mach
 """
 from __future__ import annotations
 
-import platform
 import sys
 import time
 from pathlib import Path
@@ -23,6 +22,7 @@ from reference import NumericModel, models
 from reference.formulations import derive
 
 from . import jsonio
+from .provenance import meta
 from .timing import per_call_seconds
 
 BATCH = 10_000
@@ -158,19 +158,6 @@ def _ratios(name, recs) -> dict:
 def _engines(requested):
     from .engines.registry import get_engine
     return [get_engine(name) for name in requested]
-
-
-def meta(argv) -> dict:
-    import scipy
-    versions = {"python": platform.python_version(), "numpy": np.__version__,
-                "scipy": scipy.__version__, "sympy": sp.__version__}
-    from .engines.registry import engine_versions
-    versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
-    import shlex
-    return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
-            "machine": {"platform": platform.platform(), "processor": platform.machine(),
-                        "cpus": __import__("os").cpu_count()},
-            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
 
 
 def cmd_bench(args) -> int:

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from . import jsonio
 from .output import write_atomic
-from .report import ReportInputError, check_bench, check_results, load_json
+from .results_io import ReportInputError, check_bench, check_results, load_json
 
 # An accuracy figure may grow by this factor before it is a regression. The figures are worst
 # cases over a handful of states or a tolerance ladder; a real defect (a wrong sign, a missing

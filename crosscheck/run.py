@@ -86,7 +86,7 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
 
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
-    from .bench import meta
+    from .provenance import meta
     names = resolve_models(args.models)  # unknown or repeated names fail before any work
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
