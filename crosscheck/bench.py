@@ -11,8 +11,6 @@ All figures come from one run, so their ratios are meaningful on this noisy mach
 """
 from __future__ import annotations
 
-import json
-import platform
 import sys
 import time
 from pathlib import Path
@@ -23,6 +21,8 @@ import sympy as sp
 from reference import NumericModel, models
 from reference.formulations import derive
 
+from . import jsonio
+from .provenance import meta
 from .timing import per_call_seconds
 
 BATCH = 10_000
@@ -30,7 +30,7 @@ BATCH = 10_000
 
 def _states(nm, n):
     """n seeded consistent states (the ones `crosscheck run` compares at) as (Q, U) arrays."""
-    from .run import consistent_states
+    from .sampling import consistent_states
     states = consistent_states(nm, n)
     return np.array([q for q, _ in states]), np.array([u for _, u in states])
 
@@ -160,34 +160,17 @@ def _engines(requested):
     return [get_engine(name) for name in requested]
 
 
-def meta(argv) -> dict:
-    import scipy
-    versions = {"python": platform.python_version(), "numpy": np.__version__,
-                "scipy": scipy.__version__, "sympy": sp.__version__}
-    from .engines.registry import engine_versions
-    versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
-    import shlex
-    return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
-            "machine": {"platform": platform.platform(), "processor": platform.machine(),
-                        "cpus": __import__("os").cpu_count()},
-            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-
-
 def cmd_bench(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
-    from .cli import _json_default
     from .output import write_atomic
     from .stress import stress_records
-    from .workprecision import (
-        profile_for_missed,
-        skip_savings,
-        targets,
-        work_precision_records,
-    )
+    from .targets import profile_for_missed, targets
+    from .workprecision import skip_savings, work_precision_records
 
     t_start = time.perf_counter()
     names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
-    engines = _engines(resolve_engines(args.engines))  # unknown or unimportable: exit 2
+    requested = resolve_engines(args.engines)  # unknown or unimportable: exit 2
+    engines = _engines(requested)
     output_dir(args.out)  # an unusable --out fails now, not after the benchmark
     out = Path(args.out)
 
@@ -212,7 +195,7 @@ def cmd_bench(args) -> int:
     log("targets and skip measurements done")
     result["meta"]["quick"] = bool(args.quick)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
-    write_atomic(out / "bench.json", json.dumps(result, indent=2, default=_json_default))
+    write_atomic(out / "bench.json", jsonio.dumps(result))
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "

@@ -93,7 +93,7 @@ def plot_svg(doc: dict) -> str | None:
 
 def html(c) -> str:
     """The section (empty without a sensitivity.json beside results.json)."""
-    from .report import _e, _img, _table
+    from .report_html import _e, _img, _table
     doc = load(c)
     if doc is None:
         return ""
@@ -129,7 +129,7 @@ def html(c) -> str:
 
 def md(c) -> list[str]:
     """The Markdown section (empty without a sensitivity.json beside results.json)."""
-    from .report import _md_table
+    from .report_md import _md_table
     doc = load(c)
     if doc is None:
         return []

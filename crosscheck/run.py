@@ -7,21 +7,20 @@ record fields). Exit 0 when every executed record passes, 1 when any fails, 2 on
 """
 from __future__ import annotations
 
-import json
 import sys
-import zlib
 from pathlib import Path
 
 import numpy as np
 
 from reference import NumericModel, models
-from reference.errors import ModelInputError
 from reference.generic import generic_parameters
 
 from . import compare as C
+from . import jsonio
 from .comparison import engine_records
 from .engines.registry import get_engine
 from .perturb import check_perturb, check_perturb_changes, parse_perturb, perturbed
+from .sampling import consistent_states
 
 __all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
 
@@ -44,29 +43,6 @@ def generic_model(name: str) -> NumericModel:
             return False
 
     return NumericModel(model, params=generic_parameters(model, geometry_ok))
-
-
-def consistent_states(nm: NumericModel, count: int):
-    """The model's initial state and count-1 seeded random consistent states near it.
-
-    The seed is derived from the model name so every run draws the same states (deterministic
-    results), and a state whose projection fails is replaced by the next draw.
-    """
-    rng = np.random.default_rng(zlib.crc32(nm.model.name.encode()))
-    m = nm.model
-    states = [nm.project(m.initial_q, m.initial_u)]
-    tries = 0
-    while len(states) < count and tries < 20 * count:
-        tries += 1
-        q = np.asarray(m.initial_q) + 0.4 * rng.standard_normal(len(m.initial_q))
-        u = np.asarray(m.initial_u) + rng.standard_normal(len(m.initial_u))
-        try:
-            q, u = nm.project(q, u)
-            nm.forward(q, u)
-        except ModelInputError:
-            continue
-        states.append((q, u))
-    return states
 
 
 def _formulation_records(name, nm, states):
@@ -150,7 +126,7 @@ def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
 
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
-    from .bench import meta
+    from .provenance import meta
     names = resolve_models(args.models)  # unknown or repeated names fail before any work
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
@@ -168,10 +144,11 @@ def cmd_run(args) -> int:
         bar.close()
     out = Path(args.out)
     result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
-                       "state_seed": "crc32 of the model name (crosscheck.run.consistent_states)",
+                       "state_seed": "crc32 of the model name "
+                                     "(crosscheck.sampling.consistent_states)",
                        "metrics": C.METRICS},
               "records": records, "series": series}
-    _write_outputs(out, json.dumps(result, indent=2, allow_nan=True), not args.no_report)
+    _write_outputs(out, jsonio.dumps(result), not args.no_report)
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
     passed = sum(1 for r in records if r["passed"])

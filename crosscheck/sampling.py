@@ -1,5 +1,6 @@
 """Seeded random parameter sets and consistent states: ONE generator for the property tests
-(tests/test_properties.py) and the sweeps (crosscheck.sweep).
+(tests/test_properties.py) and the sweeps (crosscheck.sweep); `consistent_states` draws the
+states of `crosscheck run` (and of the forward benchmark) at the model's own parameters.
 
 An instance is drawn from one numpy Generator in a fixed order (the property tests' `_instance`):
     params = random_params(model, rng)          # each positive parameter x U(0.8, 1.25)
@@ -31,6 +32,7 @@ import numpy as np
 import sympy as sp
 
 from reference import NumericModel, models
+from reference.errors import ModelInputError
 from reference.generic import inertia_triples
 
 # Range of the relative scale factor of every positive parameter: wide enough to move the
@@ -172,3 +174,31 @@ def draw_sample(base: NumericModel, seed: int, index: int):
     """Sample `index` of a campaign with seed `seed`: (sample seed, nm, t, q, u)."""
     s = sample_seed(seed, base.model.name, index)
     return (s, *draw_instance(base, np.random.default_rng(s)))
+
+
+def consistent_states(nm: NumericModel, count: int):
+    """The model's initial state and count-1 seeded random consistent states: drawn by the
+    model's own state_sampler where it has one (it knows the coordinates' singular poses),
+    else near the initial state.
+
+    The seed is derived from the model name so every run draws the same states (deterministic
+    results), and a state whose projection fails is replaced by the next draw.
+    """
+    rng = np.random.default_rng(zlib.crc32(nm.model.name.encode()))
+    m = nm.model
+    states = [nm.project(m.initial_q, m.initial_u)]
+    tries = 0
+    while len(states) < count and tries < 20 * count:
+        tries += 1
+        if m.state_sampler is not None:
+            q, u = m.state_sampler(rng, nm.params)
+        else:
+            q = np.asarray(m.initial_q) + 0.4 * rng.standard_normal(len(m.initial_q))
+            u = np.asarray(m.initial_u) + rng.standard_normal(len(m.initial_u))
+        try:
+            q, u = nm.project(q, u)
+            nm.forward(q, u)
+        except ModelInputError:
+            continue
+        states.append((q, u))
+    return states

@@ -98,7 +98,8 @@ class EngineForward:
     @property
     def soft(self) -> bool:
         """The answer is regularized here: compare its rigid recovery, predict the raw one."""
-        return self.rigid_accelerations is not None and self.predicted_acceleration_error is not None
+        return (self.rigid_accelerations is not None
+                and self.predicted_acceleration_error is not None)
 
 
 @dataclass

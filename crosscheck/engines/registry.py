@@ -49,7 +49,8 @@ def engine_names() -> tuple[str, ...]:
 def _adapter_class(name: str) -> type[EngineAdapter]:
     eps = _entry_points()
     if name not in eps:
-        raise UnknownEngineError(f"unknown engine {name!r}; registered: {', '.join(engine_names())}")
+        raise UnknownEngineError(f"unknown engine {name!r}; registered: "
+                                 f"{', '.join(engine_names())}")
     try:
         cls = eps[name].load()
     except ImportError as exc:
