@@ -187,6 +187,10 @@ def cmd_bench(args) -> int:
                                 work_precision_records)
 
     t_start = time.perf_counter()
+    # the benchmark times the compiled kernels: compile them here if the cache is cold (the
+    # 'auto' default would time the Python path until a background worker has compiled them)
+    import os
+    os.environ.setdefault("CROSSCHECK_BACKEND", "numba")
     names = args.models or models.names()
     requested = [e for e in args.engines.split(",") if e]
     try:
