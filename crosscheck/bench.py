@@ -215,8 +215,12 @@ def cmd_bench(args) -> int:
     # per generated module: writing the numba source, importing it, and each kernel's first
     # call (a compile, or a load from numba's on-disk cache: from_cache says which)
     result["forward_ratios"] = forward_ratios(result["forward"])
+    from reference.codegen import cache_dir
     result["compiled"] = {"backend": compiled.backend(), "threads": compiled.threads(),
-                          "modules": dict(compiled.TIMINGS)}
+                          "modules": dict(compiled.TIMINGS),
+                          "background_compile_s": {
+                              stem: compiled.worker_times(stem, cache_dir())
+                              for stem in compiled.TIMINGS}}
     log("forward records done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
+import json
 import os
 import sys
 import time
@@ -375,10 +376,18 @@ def warm(path: Path) -> dict:
         mod.forward_batch(q[None], u[None], np.zeros(1), p[None], db[None],
                           np.empty((1, mod.OUT_SIZES["forward"])), np.empty(1, np.int64))
         times["forward_batch"] = time.perf_counter() - t0
+        path.with_suffix(".times.json").write_text(json.dumps(times))
         path.with_suffix(".ready").write_text(_digest(text))
     finally:
         path.with_suffix(".warming").unlink(missing_ok=True)
     return times
+
+
+def worker_times(stem: str, directory: Path) -> dict | None:
+    """Seconds the background worker spent compiling each kernel of a module (None: no
+    worker has compiled it)."""
+    f = directory / f"{stem}_numba.times.json"
+    return json.loads(f.read_text()) if f.exists() else None
 
 
 def _import(path: Path, text: str):

@@ -23,6 +23,8 @@ from .system import Model
 # for the answer, the least a validation suite can call a number.
 PIVOT_RATIO_MIN = 1e-12
 
+_ND = np.ndarray
+
 # A consistent state satisfies its constraints to round-off of the expressions (entries of size
 # ~1 in SI): 1e-9 absolute (scaled by the state size) separates "consistent" from "off manifold"
 # with a wide margin on both sides.
@@ -66,7 +68,7 @@ def _floats(x) -> list[float]:
     return [float(v) for v in x]
 
 
-@dataclass
+@dataclass(slots=True)  # slots: a cheaper construction on the checked call's hot path
 class Forward:
     accelerations: np.ndarray  # u'
     multipliers: np.ndarray  # lambda, constraint order
@@ -194,6 +196,8 @@ class NumericModel:
         """Run the checked kernel `name` at one state: its flat output array."""
         out = np.empty(self._k.total[name])
         f = self._k.get(name)
+        if type(q) is not _ND or type(u) is not _ND:
+            q, u, t = self._arrays(q, u, t)
         try:
             st = f(q, u, t, self._pa, out)
         except TypeError:  # not float64 vectors and a float: convert, then call
@@ -209,6 +213,8 @@ class NumericModel:
         kf = self._kf
         if kf is not None:
             out = np.empty(self._nf)
+            if type(q) is not _ND or type(u) is not _ND:  # lists: convert first (a failed
+                q, u, t = self._arrays(q, u, t)  # dispatch costs numba ~1 ms to explain)
             try:
                 st = kf(q, u, t, self._pa, self._db0, out)
             except TypeError:  # not float64 vectors and a float: convert, then call
@@ -238,6 +244,8 @@ class NumericModel:
                                            self._no_db if db is None else db)
         out = np.empty(self._nf)
         db = self._db0 if db is None else np.asarray(db, float)
+        if type(q) is not _ND or type(u) is not _ND:
+            q, u, t = self._arrays(q, u, t)
         try:
             st = self._kf(q, u, t, self._pa, db, out)
         except TypeError:  # lists (the Python path's inputs): convert, then call
@@ -263,6 +271,8 @@ class NumericModel:
 
         def call(q, u, t, p=None):
             out = np.empty(total)
+            if type(q) is not _ND or type(u) is not _ND:
+                q, u, t = arrays(q, u, t)
             try:
                 st = f(q, u, t, pa, out)
             except TypeError:  # lists: convert, then call
