@@ -89,6 +89,9 @@ def forward_records(names, quick=False, engines=()):
         # each backend's native inputs: float64 vectors for the kernels, lists for Python
         qr, ur = (q, u) if nm.backend == "numba" else (ql, ul)
         rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
+        if nm.backend == "numba":  # the kernel alone, output into a preallocated array
+            into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
+            rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
         reps = int(np.ceil(BATCH / Q.shape[0]))
         QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
         rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
@@ -142,11 +145,16 @@ def _ratios(name, recs) -> dict:
         if e:
             out[f"checked_over_{eng}"] = t["single"] / e
             out[f"raw_over_{eng}"] = t["single-raw"] / e
+            if "single-into" in t:
+                out[f"into_over_{eng}"] = t["single-into"] / e
         if loop:
             out[f"{eng}_loop_over_batched"] = loop / t["batched"]
     if "checked_over_pinocchio" in out:
         out["met"] = {"checked <= 0.5 x pinocchio": out["checked_over_pinocchio"] <= 0.5,
                       "raw <= 0.25 x pinocchio": out["raw_over_pinocchio"] <= 0.25}
+        if "into_over_pinocchio" in out:
+            out["met"]["kernel into a preallocated output <= 0.25 x pinocchio"] = \
+                out["into_over_pinocchio"] <= 0.25
         if "pinocchio_loop_over_batched" in out:
             out["met"]["batched >= 20 x pinocchio loop"] = out["pinocchio_loop_over_batched"] >= 20
     return out

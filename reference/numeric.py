@@ -258,6 +258,13 @@ class NumericModel:
         n, nm = self.n, self._nlam
         return out[:n], out[n:nm], float(out[nm])
 
+    def forward_into(self, q, u, t: float, out) -> int:
+        """The bare compiled forward: u', lambda and the pivot ratio written into `out`
+        (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
+        status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
+        checked in the kernel). q, u: float64 vectors. The compiled backend only."""
+        return self._kf(q, u, t, self._pa, self._db0, out)
+
     def raw_function(self, name: str):
         """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
         kinematics, energy, matrices, position_jacobian): the integrators' unchecked calls.

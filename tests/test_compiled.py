@@ -58,6 +58,9 @@ def test_compiled_equals_fallback(monkeypatch, name):
             _same(x, y, what)
         _same(fast.energy(q, u), slow.energy(q, u), "energy")
         _same(fast.kinematics(q, u), slow.kinematics(q, u), "q'")
+        buf = np.empty(fast.n + fast.m + 1)
+        assert fast.forward_into(np.asarray(q, float), np.asarray(u, float), 0.0, buf) == 0
+        _same(buf[:fast.n], b.accelerations, "u' written into a preallocated array")
         raw = fast.forward_raw(q, u, 0.3, db=np.full(max(fast.m, 1), 0.1))
         ref = slow.forward_raw(list(q), list(u), 0.3, db=[0.1] * max(slow.m, 1))
         _same(raw[0], ref[0], "raw u' with a b offset")
