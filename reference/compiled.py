@@ -176,6 +176,27 @@ def _check(_qa, _ua, _t):
     return {OK}
 '''
 
+def _batch_forward(body: list[str]) -> list[str]:
+    """forward_batch with the body inside the loop: reads _Q[i, k] and writes _OUT[i, k]
+    directly, so no row views and no call per state (measured: the per-state overhead of a
+    loop calling the single-state kernel bounded the batch, docs/compiled.md)."""
+    lines = ["@njit(cache=True, error_model='numpy', nogil=True)",
+             "def forward_batch(_Q, _U, _T, _P, _DB, _OUT, _ST):",
+             "    nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1",
+             "    for _i in range(_Q.shape[0]):",
+             "        _t = _T[_i if nt else 0]",
+             "        _jp = _i if np_ else 0",
+             "        _jd = _i if nd else 0"]
+    for ln in body[2:]:
+        ln = (ln.replace("_qa[", "_Q[_i, ").replace("_ua[", "_U[_i, ")
+              .replace("_pa[", "_P[_jp, ").replace("_db[", "_DB[_jd, ")
+              .replace("_out[", "_OUT[_i, "))
+        if ln.startswith("    return "):
+            ln = "    _ST[_i] = " + ln[len("    return "):]
+        lines.append("    " + ln)
+    return lines
+
+
 _WRAPPERS = '''
 
 @njit(cache=True, error_model='numpy', nogil=True)
@@ -213,10 +234,17 @@ def numba_source(src: str, nq: int, n: int, npar: int, m: int, pmin: float) -> t
         lines, sizes[fn.name] = _kernel(fn, nq, n, npar, pmin)
         out += ["", ""] + lines
         fwd = fn.name == "forward"
+        if fwd:
+            out += ["", ""] + _batch_forward(lines)
         args = "_qa, _ua, _t, _pa, _db, _out" if fwd else "_qa, _ua, _t, _pa, _out"
         bargs = ("_Q[i], _U[i], _T[i if nt else 0], _P[i if np_ else 0], "
                  + ("_DB[i if nd else 0], " if fwd else "") + "_OUT[i]")
-        out.append(_WRAPPERS.format(name=fn.name, args=args, bargs=bargs, OK=OK))
+        wrappers = _WRAPPERS.format(name=fn.name, args=args, bargs=bargs, OK=OK)
+        if fwd:  # forward_batch is the inlined loop above
+            head = "@njit(cache=True, error_model='numpy', nogil=True)\ndef forward_batch("
+            a = wrappers.index(head)
+            wrappers = wrappers[:a] + wrappers[wrappers.index("@njit", a + 1):]
+        out.append(wrappers)
     totals = {k: sum(g) + (1 if k == "forward" else 0) for k, g in sizes.items()}
     out.append(f"OUT_SIZES = {totals!r}")
     return "\n".join(out) + "\n", sizes
