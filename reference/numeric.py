@@ -95,9 +95,11 @@ class NumericModel:
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
         self._k = self._kernels()
-        # the forward kernel (every use of a model calls it): compiled or loaded here, the
-        # other functions on first use
+        # every single-state kernel compiled or loaded here (the batch kernels on first use)
         self._kf = self._k.get("forward") if self._k is not None else None
+        if self._k is not None:  # the other single-state kernels too: a first-use compile
+            for name in compiled.FUNCTIONS:  # must not land inside a timed or wall-bounded
+                self._k.get(name)  # call (simulate's max_wall_s, a benchmark loop)
         self._nlam = self.n + self.m
         self._pack()
 
