@@ -23,6 +23,8 @@ from .system import Model
 # for the answer, the least a validation suite can call a number.
 PIVOT_RATIO_MIN = 1e-12
 
+_ND = np.ndarray
+
 # A consistent state satisfies its constraints to round-off of the expressions (entries of size
 # ~1 in SI): 1e-9 absolute (scaled by the state size) separates "consistent" from "off manifold"
 # with a wide margin on both sides.
@@ -66,7 +68,7 @@ def _floats(x) -> list[float]:
     return [float(v) for v in x]
 
 
-@dataclass
+@dataclass(slots=True)  # slots: a cheaper construction on the checked call's hot path
 class Forward:
     accelerations: np.ndarray  # u'
     multipliers: np.ndarray  # lambda, constraint order (minimum norm when rows are dependent)
@@ -96,9 +98,11 @@ class NumericModel:
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
         self._k = self._kernels()
-        # the forward kernel (every use of a model calls it): compiled or loaded here, the
-        # other functions on first use
+        # every single-state kernel compiled or loaded here (the batch kernels on first use)
         self._kf = self._k.get("forward") if self._k is not None else None
+        if self._k is not None:  # the other single-state kernels too: a first-use compile
+            for name in compiled.FUNCTIONS:  # must not land inside a timed or wall-bounded
+                self._k.get(name)  # call (simulate's max_wall_s, a benchmark loop)
         self._nlam = self.n + self.m
         self._pack()
 
@@ -205,6 +209,8 @@ class NumericModel:
         """Run the checked kernel `name` at one state: its flat output array."""
         out = np.empty(self._k.total[name])
         f = self._k.get(name)
+        if type(q) is not _ND or type(u) is not _ND:
+            q, u, t = self._arrays(q, u, t)
         try:
             st = f(q, u, t, self._pa, out)
         except TypeError:  # not float64 vectors and a float: convert, then call
@@ -220,6 +226,8 @@ class NumericModel:
         kf = None if self.redundant else self._kf  # dependent rows: the rank-revealing solve
         if kf is not None:
             out = np.empty(self._nf)
+            if type(q) is not _ND or type(u) is not _ND:  # lists: convert first (a failed
+                q, u, t = self._arrays(q, u, t)  # dispatch costs numba ~1 ms to explain)
             try:
                 st = kf(q, u, t, self._pa, self._db0, out)
             except TypeError:  # not float64 vectors and a float: convert, then call
@@ -257,6 +265,8 @@ class NumericModel:
                                            self._no_db if db is None else db)
         out = np.empty(self._nf)
         db = self._db0 if db is None else np.asarray(db, float)
+        if type(q) is not _ND or type(u) is not _ND:
+            q, u, t = self._arrays(q, u, t)
         try:
             st = self._kf(q, u, t, self._pa, db, out)
         except TypeError:  # lists (the Python path's inputs): convert, then call
@@ -268,6 +278,13 @@ class NumericModel:
             out[:] = np.nan  # as the Python path: NaN in, NaN out (the caller's ratio test)
         n, nm = self.n, self._nlam
         return out[:n], out[n:nm], float(out[nm])
+
+    def forward_into(self, q, u, t: float, out) -> int:
+        """The bare compiled forward: u', lambda and the pivot ratio written into `out`
+        (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
+        status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
+        checked in the kernel). q, u: float64 vectors. The compiled backend only."""
+        return self._kf(q, u, t, self._pa, self._db0, out)
 
     def raw_function(self, name: str):
         """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
@@ -282,6 +299,8 @@ class NumericModel:
 
         def call(q, u, t, p=None):
             out = np.empty(total)
+            if type(q) is not _ND or type(u) is not _ND:
+                q, u, t = arrays(q, u, t)
             try:
                 st = f(q, u, t, pa, out)
             except TypeError:  # lists: convert, then call
