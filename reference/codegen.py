@@ -24,6 +24,8 @@ import math
 import os
 from pathlib import Path
 
+from typing import Any
+
 import numpy as np
 import sympy as sp
 from sympy.printing.lambdarepr import LambdaPrinter
@@ -260,7 +262,7 @@ def _forward_source(eom: EquationsOfMotion, augment: bool, X) -> list[str]:
     flat = [X(_tidy(e)) for e in flat]
     code = w.cse_block(flat)
     it = iter(code)
-    Mc = [["0"] * n for _ in range(n)]
+    Mc: list[list[Any]] = [["0"] * n for _ in range(n)]
     for i in range(n):
         for j in range(i, n):
             Mc[i][j] = Mc[j][i] = next(it)

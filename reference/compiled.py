@@ -123,6 +123,8 @@ def _kernel(fn: ast.FunctionDef, nq: int, n: int, npar: int,
             continue  # the unpacking of _q, _u, _p, done above by index
         else:
             lines.append("    " + ast.unparse(st))
+    if ret is None:
+        raise ValueError(f"generated function {fn.name} has no return statement")
     groups, piv = _groups(ret)
     k = 0
     for g in groups:
@@ -423,6 +425,8 @@ def _import(path: Path, text: str):
     mod = sys.modules.get(modname)
     if mod is None:
         spec = importlib.util.spec_from_file_location(modname, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"cannot load the kernel module {path}")
         mod = importlib.util.module_from_spec(spec)
         sys.modules[modname] = mod
         spec.loader.exec_module(mod)
