@@ -89,6 +89,9 @@ def forward_records(names, quick=False, engines=()):
         # each backend's native inputs: float64 vectors for the kernels, lists for Python
         qr, ur = (q, u) if nm.backend == "numba" else (ql, ul)
         rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
+        if nm.backend == "numba":  # the kernel alone, output into a preallocated array
+            into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
+            rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
         reps = int(np.ceil(BATCH / Q.shape[0]))
         QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
         rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
@@ -143,11 +146,16 @@ def _ratios(name, recs) -> dict:
         e, loop = t[path], t.get(f"engine-loop:{eng}")
         out[f"checked_over_{eng}"] = t["single"] / e
         out[f"raw_over_{eng}"] = t["single-raw"] / e
+        if "single-into" in t:
+            out[f"into_over_{eng}"] = t["single-into"] / e
         if loop:
             out[f"{eng}_loop_over_batched"] = loop / t["batched"]
         if get_engine(eng).capabilities.exact:
             met[f"checked <= 0.5 x {eng}"] = out[f"checked_over_{eng}"] <= 0.5
             met[f"raw <= 0.25 x {eng}"] = out[f"raw_over_{eng}"] <= 0.25
+            if "single-into" in t:
+                met[f"kernel into a preallocated output <= 0.25 x {eng}"] = \
+                    out[f"into_over_{eng}"] <= 0.25
             if loop:
                 met[f"batched >= 20 x {eng} loop"] = out[f"{eng}_loop_over_batched"] >= 20
     if met:
@@ -168,6 +176,10 @@ def cmd_bench(args) -> int:
     from .workprecision import skip_savings, work_precision_records
 
     t_start = time.perf_counter()
+    # the benchmark times the compiled kernels: compile them here if the cache is cold (the
+    # 'auto' default would time the Python path until a background worker has compiled them)
+    import os
+    os.environ.setdefault("CROSSCHECK_BACKEND", "numba")
     names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
     requested = resolve_engines(args.engines)  # unknown or unimportable: exit 2
     engines = _engines(requested)
@@ -182,8 +194,12 @@ def cmd_bench(args) -> int:
     # per generated module: writing the numba source, importing it, and each kernel's first
     # call (a compile, or a load from numba's on-disk cache: from_cache says which)
     result["forward_ratios"] = forward_ratios(result["forward"])
+    from reference.codegen import cache_dir
     result["compiled"] = {"backend": compiled.backend(), "threads": compiled.threads(),
-                          "modules": dict(compiled.TIMINGS)}
+                          "modules": dict(compiled.TIMINGS),
+                          "background_compile_s": {
+                              stem: compiled.worker_times(stem, cache_dir())
+                              for stem in compiled.TIMINGS}}
     log("forward records done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)

@@ -24,6 +24,8 @@ import math
 import os
 from pathlib import Path
 
+from typing import Any
+
 import numpy as np
 import sympy as sp
 from sympy.printing.lambdarepr import LambdaPrinter
@@ -75,15 +77,32 @@ def cache_key(model, formulation: str) -> str:
 TIDY_MAX_OPS = 200
 
 
+_TIDIED: dict = {}
+
+
 def _tidy(e):
-    """Cheap algebraic cleanup before code generation (sin^2 + cos^2, collected constants)."""
+    """Cheap algebraic cleanup before code generation (sin^2 + cos^2, collected constants).
+
+    Memoized per expression within the process: the formulations of one model (and models that
+    share bodies, slider_crank and slider_crank_free) hand it the same entries of M, f, A and b,
+    and trigsimp is most of a cold derivation (measured in docs/compiled.md)."""
     e = sp.sympify(e)
     if e.is_number or e.is_Symbol:
         return e
+    hit = _TIDIED.get(e)
+    if hit is None:
+        hit = _TIDIED[e] = _tidy_uncached(e)
+    return hit
+
+
+def _tidy_uncached(e):
+    """The smallest (by operation count) of e, its expansion and, where the expansion is
+    small enough for trigsimp to be affordable, the trigsimp of it: kept only where it pays."""
     ex = sp.expand(e)
-    if sp.count_ops(ex) > TIDY_MAX_OPS:
-        return e if sp.count_ops(e) <= sp.count_ops(ex) else ex
-    return sp.trigsimp(ex)
+    options = [e, ex]
+    if sp.count_ops(ex) <= TIDY_MAX_OPS:
+        options.append(sp.trigsimp(ex))
+    return min(reversed(options), key=sp.count_ops)  # ties: the simplified form
 
 
 def _is_zero(e) -> bool:
@@ -243,7 +262,7 @@ def _forward_source(eom: EquationsOfMotion, augment: bool, X) -> list[str]:
     flat = [X(_tidy(e)) for e in flat]
     code = w.cse_block(flat)
     it = iter(code)
-    Mc = [["0"] * n for _ in range(n)]
+    Mc: list[list[Any]] = [["0"] * n for _ in range(n)]
     for i in range(n):
         for j in range(i, n):
             Mc[i][j] = Mc[j][i] = next(it)
