@@ -186,7 +186,8 @@ def cmd_bench(args) -> int:
     )
 
     t_start = time.perf_counter()
-    names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
+    # the same rules as `run`: bad names exit 2 up front
+    names = resolve_models(args.models, getattr(args, "user_models", None))
     engines = _engines(resolve_engines(args.engines))  # unknown or unimportable: exit 2
     output_dir(args.out)  # an unusable --out fails now, not after the benchmark
     out = Path(args.out)

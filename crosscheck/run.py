@@ -112,7 +112,8 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .bench import meta
-    names = resolve_models(args.models)  # unknown or repeated names fail before any work
+    # unknown or repeated names fail before any work; none named: the --model-file models
+    names = resolve_models(args.models, getattr(args, "user_models", None))
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
     check_perturb(names, perturb)
