@@ -527,6 +527,10 @@ class _MjModel(EngineModel):
     def _post_build(self) -> None:
         pass
 
+    def _fresh_model(self):
+        """A new MjModel of the same model (trajectories run on their own copy)."""
+        return mujoco.MjModel.from_xml_string(self.xml)
+
     def _applied(self) -> np.ndarray:
         """qfrc_applied: the reference's constant loads as engine generalized forces."""
         return np.zeros(self.m.nv)
@@ -793,7 +797,7 @@ class _MjModel(EngineModel):
         marks = np.rint(t_eval / timestep).astype(int)
         if np.max(np.abs(marks * timestep - t_eval)) > 1e-9 * max(1.0, float(t_eval[-1])):
             raise ValueError(f"t_eval is not on the {timestep:g} s step grid")
-        m = mujoco.MjModel.from_xml_string(self.xml)
+        m = self._fresh_model()
         m.opt.timestep = float(timestep)
         m.opt.integrator = INTEGRATORS[integrator]
         d = mujoco.MjData(m)
@@ -1609,6 +1613,11 @@ _UNSUPPORTED = {
 }
 
 
+def _is_user_model(model_name: str) -> bool:
+    from reference.models import user_names
+    return model_name in user_names()
+
+
 def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
     from reference.models import get
     from reference.numeric import resolve_parameters
@@ -1658,7 +1667,8 @@ class MujocoAdapter(EngineAdapter):
         self.solref, self.solimp = tuple(solref), tuple(solimp)
 
     def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
+        from reference.models import user_names
+        return (*_MODELS, *user_names())
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return MUJOCO_EXACT
@@ -1674,6 +1684,11 @@ class MujocoAdapter(EngineAdapter):
               variant: Optional[str] = None):
         if model_name in _UNSUPPORTED:
             raise EngineUnsupported(_UNSUPPORTED[model_name])
+        if model_name not in _MODELS and _is_user_model(model_name):
+            from .user_file import UserFileModel
+            if variant is not None:
+                raise EngineUnsupported(f"{model_name}: a user's file has a single variant")
+            return UserFileModel(model_name, params)
         if model_name not in _MODELS:
             raise EngineUnsupported(
                 f"mujoco adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
