@@ -28,6 +28,7 @@ joint's linear part in the body frame, MuJoCo's in the world frame).
 """
 from __future__ import annotations
 
+import time
 from typing import Optional
 
 import mujoco
@@ -35,7 +36,7 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from ..base import EngineForward, EngineModel
+from ..base import EngineForward, EngineModel, EngineTrajectory
 from ..mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
 
 JNT = mujoco.mjtJoint
@@ -297,7 +298,11 @@ class UserFilePinModel(EngineModel):
         K = pin.computeKineticEnergy(model, data, qe, ve)
         K += 0.5 * float(np.asarray(model.armature) @ (ve * ve)) if not self._armature_in_K() \
             else 0.0
-        V = pin.computePotentialEnergy(model, data, qe)
+        # pin sums joints 1.., so bodies welded to the world (inertias[0]) are added here:
+        # MuJoCo's d.energy and the reference count them (a constant)
+        I0 = model.inertias[0]
+        V = pin.computePotentialEnergy(model, data, qe) - I0.mass * float(
+            model.gravity.linear @ I0.lever)
         qpos, _ = self._mj_state(qe, ve)
         for j in self.jmap:
             if int(m.jnt_type[j]) in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
@@ -316,6 +321,60 @@ class UserFilePinModel(EngineModel):
             M = np.triu(M) + np.triu(M, 1).T
             self._arm_k = abs(K - 0.5 * v @ M @ v) <= 1e-12 * max(1.0, abs(K))
         return self._arm_k
+
+    def violation(self, qe, ve) -> tuple[float, float]:
+        """Position and velocity residuals of the equality rows (max abs) at an engine state:
+        connect/weld points p1 - p2 (the weld's rotation rows by their rate only), joint
+        q1 - poly(q2)."""
+        J, _g = self._rows(qe, ve)  # also updates the frame placements at qe
+        pos = [0.0]
+        for kind, objs, extra in self._eq:
+            if kind == "joint":
+                j1, j2 = objs
+                x1 = qe[self.model.idx_qs[self.jmap[j1]]]
+                x2 = qe[self.model.idx_qs[self.jmap[j2]]] if j2 >= 0 else 0.0
+                pos.append(abs(x1 - sum(c * x2**k for k, c in enumerate(extra))))
+            else:
+                dp = self.data.oMf[objs[0]].translation - self.data.oMf[objs[1]].translation
+                pos.append(float(np.max(np.abs(dp))))
+        return max(pos), float(np.max(np.abs(J @ ve), initial=0.0))
+
+    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
+                 timestep: Optional[float] = None) -> EngineTrajectory:
+        """solve_ivp (method `integrator`, rtol = atol) on Pinocchio's forward dynamics in the
+        reference's coordinates (qpos and coordinate rates: q' = u, u' = forward()), no
+        constraint stabilization (as the built-in models, adapter._PinModel.simulate)."""
+        from scipy.integrate import solve_ivp
+
+        from .adapter import INTEGRATORS
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+        if rtol is None or not rtol > 0:
+            raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+        t_start = time.perf_counter()
+        t_eval = np.asarray(t_eval, dtype=float)
+        n = len(q0)
+
+        def rhs(t, y):
+            return np.concatenate([y[n:], self.forward(y[:n], y[n:]).accelerations])
+
+        sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), np.concatenate([q0, u0]),
+                        method=integrator, rtol=rtol, atol=rtol, t_eval=t_eval)
+        Q, U, viol, vviol, E = [], [], [], [], []
+        for y in sol.y.T:
+            q, u = y[:n], y[n:]
+            Q.append(q)
+            U.append(u)
+            p, v = self.violation(*self.to_engine_state(q, u))
+            viol.append(p)
+            vviol.append(v)
+            E.append(sum(self.energy(q, u)))
+        return EngineTrajectory(
+            t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
+            velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
+            setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
+            steps=int(sol.nfev), failure=None if sol.success else str(sol.message),
+            raw={"stabilization": "none", "coordinates": "reference (qpos, rates)"})
 
     def mass_matrix(self, q) -> Optional[np.ndarray]:
         if self._quat:
