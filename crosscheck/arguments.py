@@ -156,11 +156,16 @@ def load_model_files(args: argparse.Namespace) -> list[str]:
     `crosscheck.models` (a name clash or a bad file is one line, exit 2), before any model
     name is resolved; returns the files' model names in order. A command given files and no
     model names then runs just those (``args.user_models``, read by resolve_models)."""
+    from importlib import metadata
+
+    files = list(getattr(args, "model_file", None) or [])
+    args.user_models = []
+    if not files and not metadata.entry_points(group="crosscheck.models"):
+        return []  # nothing to load: the commands stay as light as before (no MuJoCo import)
     from reference import models
 
     from .user_models import load_all, register_all
 
-    files = list(getattr(args, "model_file", None) or [])
     found = load_all(files, builtin_names=models.names())
     names = register_all(found)
     args.user_models = [um.name for um in found if um.kind != "entry-point"]
