@@ -174,8 +174,9 @@ def load_model_files(args: argparse.Namespace) -> list[str]:
 
 def add_engines(parser: argparse.ArgumentParser) -> None:
     """--engines a,b (checked by resolve_engines before any work)."""
-    parser.add_argument("--engines", type=name_list, default="pinocchio,mujoco",
-                        metavar="E1,E2", help="engines, comma-separated (default: all)")
+    parser.add_argument("--engines", type=name_list, default=None, metavar="E1,E2",
+                        help="engines, comma-separated (default: every registered engine that "
+                             "imports here, see `crosscheck engines`)")
 
 
 def output_dir(path: str, option: str = "--out") -> Path:

@@ -11,8 +11,6 @@ All figures come from one run, so their ratios are meaningful on this noisy mach
 """
 from __future__ import annotations
 
-import json
-import platform
 import sys
 import time
 from pathlib import Path
@@ -23,6 +21,8 @@ import sympy as sp
 from reference import NumericModel, models
 from reference.formulations import derive
 
+from . import jsonio
+from .provenance import meta
 from .timing import per_call_seconds
 
 BATCH = 10_000
@@ -30,7 +30,7 @@ BATCH = 10_000
 
 def _states(nm, n):
     """n seeded consistent states (the ones `crosscheck run` compares at) as (Q, U) arrays."""
-    from .run import consistent_states
+    from .sampling import consistent_states
     states = consistent_states(nm, n)
     return np.array([q for q, _ in states]), np.array([u for _, u in states])
 
@@ -94,6 +94,9 @@ def forward_records(names, quick=False, engines=()):
         # each backend's native inputs: float64 vectors for the kernels, lists for Python
         qr, ur = (q, u) if nm.backend == "numba" else (ql, ul)
         rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
+        if nm.backend == "numba":  # the kernel alone, output into a preallocated array
+            into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
+            rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
         reps = int(np.ceil(BATCH / Q.shape[0]))
         QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
         rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
@@ -148,11 +151,16 @@ def _ratios(name, recs) -> dict:
         e, loop = t[path], t.get(f"engine-loop:{eng}")
         out[f"checked_over_{eng}"] = t["single"] / e
         out[f"raw_over_{eng}"] = t["single-raw"] / e
+        if "single-into" in t:
+            out[f"into_over_{eng}"] = t["single-into"] / e
         if loop:
             out[f"{eng}_loop_over_batched"] = loop / t["batched"]
         if get_engine(eng).capabilities.exact:
             met[f"checked <= 0.5 x {eng}"] = out[f"checked_over_{eng}"] <= 0.5
             met[f"raw <= 0.25 x {eng}"] = out[f"raw_over_{eng}"] <= 0.25
+            if "single-into" in t:
+                met[f"kernel into a preallocated output <= 0.25 x {eng}"] = \
+                    out[f"into_over_{eng}"] <= 0.25
             if loop:
                 met[f"batched >= 20 x {eng} loop"] = out[f"{eng}_loop_over_batched"] >= 20
     if met:
@@ -165,32 +173,18 @@ def _engines(requested):
     return [get_engine(name) for name in requested]
 
 
-def meta(argv) -> dict:
-    import scipy
-    versions = {"python": platform.python_version(), "numpy": np.__version__,
-                "scipy": scipy.__version__, "sympy": sp.__version__}
-    from .engines.registry import engine_versions
-    versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
-    import shlex
-    return {"command": shlex.join(["crosscheck", *argv]), "versions": versions,
-            "machine": {"platform": platform.platform(), "processor": platform.machine(),
-                        "cpus": __import__("os").cpu_count()},
-            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-
-
 def cmd_bench(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
-    from .cli import _json_default
     from .output import write_atomic
     from .stress import stress_records
-    from .workprecision import (
-        profile_for_missed,
-        skip_savings,
-        targets,
-        work_precision_records,
-    )
+    from .targets import profile_for_missed, targets
+    from .workprecision import skip_savings, work_precision_records
 
     t_start = time.perf_counter()
+    # the benchmark times the compiled kernels: compile them here if the cache is cold (the
+    # 'auto' default would time the Python path until a background worker has compiled them)
+    import os
+    os.environ.setdefault("CROSSCHECK_BACKEND", "numba")
     # the same rules as `run`: bad names exit 2 up front
     names = resolve_models(args.models, getattr(args, "user_models", None))
     requested = resolve_engines(args.engines)  # unknown or unimportable: exit 2
@@ -206,8 +200,12 @@ def cmd_bench(args) -> int:
     # per generated module: writing the numba source, importing it, and each kernel's first
     # call (a compile, or a load from numba's on-disk cache: from_cache says which)
     result["forward_ratios"] = forward_ratios(result["forward"])
+    from reference.codegen import cache_dir
     result["compiled"] = {"backend": compiled.backend(), "threads": compiled.threads(),
-                          "modules": dict(compiled.TIMINGS)}
+                          "modules": dict(compiled.TIMINGS),
+                          "background_compile_s": {
+                              stem: compiled.worker_times(stem, cache_dir())
+                              for stem in compiled.TIMINGS}}
     log("forward records done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)
@@ -219,7 +217,7 @@ def cmd_bench(args) -> int:
     log("targets and skip measurements done")
     result["meta"]["quick"] = bool(args.quick)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
-    write_atomic(out / "bench.json", json.dumps(result, indent=2, default=_json_default))
+    write_atomic(out / "bench.json", jsonio.dumps(result))
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "

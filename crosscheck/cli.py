@@ -8,7 +8,6 @@ nothing failed exits 4 (incomplete, not passed).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import re
@@ -18,6 +17,7 @@ import sys
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
 from .arguments import OneLineParser, add_model_files, finite_float
+from . import jsonio  # standard library only
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
@@ -59,20 +59,11 @@ def _assignments(pairs: list[str]) -> dict[str, float]:
     return out
 
 
-def _json_default(x):
-    try:
-        import numpy as np
-        if isinstance(x, np.ndarray):
-            return x.tolist()
-        if isinstance(x, np.generic):
-            return x.item()
-    except ImportError:  # pragma: no cover
-        pass
-    raise TypeError(f"not JSON serializable: {type(x)}")
+_json_default = jsonio.default
 
 
 def dump_json(obj) -> str:
-    return json.dumps(obj, indent=2, default=_json_default, allow_nan=False)
+    return jsonio.dumps(obj, allow_nan=False)
 
 
 # ---- models ------------------------------------------------------------------------------

@@ -7,7 +7,8 @@ and `crosscheck sweep` aggregates the same per-state values over its samples. Ea
 tolerance is chosen once, by ``tolerance``.
 
 Quantities: state_map (reference -> engine -> reference), mass_matrix (where the coordinates
-map one to one), energy (``energy_error``), accelerations and multipliers. An engine whose
+map one to one), energy (``energy_error``), accelerations and multipliers. Along
+trajectories: ``energy_drift``, ``work_energy_balance`` and ``constraint_residual``. An engine whose
 answer is regularized at the state (``EngineForward.soft``) is held to its rigid recovery, and
 its raw answer to the error its regularization predicts (``*_soft_vs_predicted``; the raw error
 itself is ``*_soft_error``, reported, not judged).
@@ -58,6 +59,26 @@ def energy_error(engine_kv, reference_kv) -> float:
     Ke, Ve = engine_kv
     Kr, Vr = reference_kv
     return abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0)
+
+
+def energy_drift(E) -> float:
+    """Drift of a total-energy series: max |E(t) - E(0)| / max(max |E|, 1)."""
+    E = np.asarray(E, float)
+    return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
+
+
+def work_energy_balance(E, W) -> float:
+    """max |E(t) - E(0) - W(t)| / max(max |E|, 1), W the work of loads and moving constraints."""
+    E = np.asarray(E, float)
+    return float(np.max(np.abs(E - E[0] - np.asarray(W, float)))
+                 / max(float(np.max(np.abs(E))), 1.0))
+
+
+def constraint_residual(nm, q, u, t: float = 0.0) -> tuple[float, float]:
+    """(max |f(q, t)|, max |A u + a0|) of the reference's constraints at a state (0 without)."""
+    pos, vel = nm.residuals(q, u, t)
+    return (float(np.max(np.abs(pos))) if pos.size else 0.0,
+            float(np.max(np.abs(vel))) if vel.size else 0.0)
 
 
 def _finite(x: float) -> float:
@@ -131,9 +152,15 @@ def tolerance(quantity: str, soft: bool, adapter: EngineAdapter,
     return (C.RIGID_RECOVERY if soft else adapter.exact_tolerance(model_name)), "scaled_error"
 
 
-def build(adapter: EngineAdapter, name: str, params, variant: Optional[str]) -> EngineModel:
-    """The engine model of a variant (build's default when variant is None)."""
-    return adapter.build(name, params, variant=variant) if variant else adapter.build(name, params)
+def build(adapter: EngineAdapter, name: str, params, variant: Optional[str],
+          nominal: Optional[dict] = None) -> EngineModel:
+    """The engine model of a variant (build's default when variant is None); its maps use
+    `nominal` (the unperturbed values: a perturbation changes only the physics)."""
+    em = (adapter.build(name, params, variant=variant) if variant
+          else adapter.build(name, params))
+    if nominal is not None:
+        em.nominal = dict(nominal)
+    return em
 
 
 def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
@@ -146,7 +173,7 @@ def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
             r["variant"] = variant
         return r
     try:
-        em = build(adapter, name, params, variant)
+        em = build(adapter, name, params, variant, nominal=nm.params)
     except EngineUnsupported as exc:
         return [rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
                 for q in ("accelerations", "multipliers")]

@@ -25,14 +25,14 @@ rows, not the trajectories ("series") or absolute timings.
 """
 from __future__ import annotations
 
-import json
 import math
 import shlex
 import sys
 from pathlib import Path
 
+from . import jsonio
 from .output import write_atomic
-from .report import ReportInputError, check_bench, check_results, load_json
+from .results_io import ReportInputError, check_bench, check_results, load_json
 
 # An accuracy figure may grow by this factor before it is a regression. The figures are worst
 # cases over a handful of states or a tolerance ladder; a real defect (a wrong sign, a missing
@@ -339,7 +339,7 @@ def cmd_gate(args) -> int:
             _print_list("still failing", o.known_failures)
             if not changed:
                 print("  nothing beyond the gate's factor and floor (figures refreshed)")
-        write_atomic(baseline_path, json.dumps(new, indent=2, allow_nan=True) + "\n")
+        write_atomic(baseline_path, jsonio.dumps(new) + "\n")
         return 0
     if not baseline_path.exists():
         raise GateInputError(f"baseline file {args.baseline!r} not found (create it "

@@ -58,3 +58,45 @@ def check_perturb(names, perturb: dict) -> None:
         for ps in perturb.values():
             resolve_parameters(model, perturbed(
                 name, {p.name: p.default for p in model.parameters}, ps))
+
+
+def check_perturb_changes(names, engine_names, perturb: dict) -> None:
+    """Before any work: every perturbation changes its engine's model of every model in the
+    run (issue 14: a perturbation that does nothing passes and proves nothing). The engine's
+    model is built at the defaults with and without each perturbed parameter and the two
+    fingerprints (EngineModel.fingerprint: masses, inertias, geometry, gravity, loads) are
+    compared; an engine whose models have no fingerprint is not checked."""
+    from reference import models
+
+    from .comparison import build
+    from .engines.base import EngineUnsupported
+    from .engines.registry import get_engine
+    for engine, ps in perturb.items():
+        if engine not in engine_names:
+            raise ModelInputError(
+                f"--perturb {engine}:...: {engine} is not among this run's engines "
+                f"({', '.join(engine_names)}), so the perturbation would change nothing; add it "
+                f"to --engines")
+        adapter = get_engine(engine)
+        for name in names:
+            defaults = {p.name: p.default for p in models.get(name).parameters}
+            for variant in adapter.variants(name):
+                for p, rel in ps.items():
+                    try:
+                        before = build(adapter, name, defaults, variant).fingerprint()
+                        after = build(adapter, name, perturbed(name, defaults, {p: rel}),
+                                      variant).fingerprint()
+                    except (EngineUnsupported, NotImplementedError):
+                        break  # nothing built, or no fingerprint: not checked
+                    if before == after:
+                        raise ModelInputError(_no_effect(engine, name, variant, p, rel,
+                                                         defaults[p]))
+
+
+def _no_effect(engine, name, variant, p, rel, value) -> str:
+    where = f"{engine}'s model of {name!r}" + (f" (variant {variant})" if variant else "")
+    why = (f"{p} is 0 at the model's defaults, and a relative change of 0 is 0" if value == 0.0
+           else f"{where} does not contain {p} (its masses, inertias, geometry, gravity and "
+                f"loads are unchanged; the engine's coordinates or loads do not use it)")
+    return (f"--perturb {engine}:{p}={rel:g} does not change {where}: {why}; perturb a "
+            f"parameter the engine's model uses")

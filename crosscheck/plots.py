@@ -118,35 +118,49 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
                 ax.text(lo * 1.5, yy, f"{eng}: skipped", va="center", ha="left", fontsize=7,
                         color="#777777", style="italic")
                 continue
-            err, tol = _num(r.get("error")), _num(r.get("tolerance"))
-            if math.isfinite(tol) and tol > 0:
-                ax.plot([tol], [yy], marker="|", markersize=13, markeredgewidth=2.2,
-                        color="#222222", linestyle="none", zorder=3)
-            failed = r.get("passed") is False
-            if not math.isfinite(err):
-                notes["inf"] = True
-                ax.plot([hi / 2], [yy], marker=">", markersize=8, color=color, label=label,
-                        linestyle="none", zorder=4)
-                ax.text(hi / 8, yy, "NaN" if err != err else "inf", ha="right", va="center",
-                        fontsize=7, color=FAIL_COLOR if failed else color)
-            elif err <= 0:
-                notes["zero"] = True
-                ax.plot([ZERO_AT], [yy], marker="o", markersize=6, markerfacecolor="white",
-                        markeredgecolor=color, markeredgewidth=1.6, linestyle="none",
-                        label=label, zorder=4)
-            else:
-                ax.plot([err], [yy], marker="o", markersize=6, color=color, linestyle="none",
-                        label=label, zorder=4)
-            if failed:
-                notes["fail"] = True
-                x = hi / 2 if not math.isfinite(err) else max(err, ZERO_AT)
-                ax.plot([x], [yy], marker="o", markersize=12, markerfacecolor="none",
-                        markeredgecolor=FAIL_COLOR, markeredgewidth=1.8, linestyle="none",
-                        zorder=5)
+            _agreement_point(ax, r, yy, color, label, hi, notes)
         y = ys[-1] - 1.3
     ax.set_yticks(yticks, ylabels, fontsize=8)
     ax.set_ylim(y + 0.6, 0.8)
     ax.set_xlabel("error (scaled: max |engine − reference| / max(|reference|, 1))", fontsize=8)
+    _agreement_legend(ax, notes)
+    if title:
+        ax.set_title(title, fontsize=10, loc="left")
+    return _svg(fig)
+
+
+def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dict) -> None:
+    """One executed check: its tolerance bar, its error marker (0, inf and NaN drawn apart)
+    and a red ring when it fails; `notes` records which legend entries are needed."""
+    err, tol = _num(r.get("error")), _num(r.get("tolerance"))
+    if math.isfinite(tol) and tol > 0:
+        ax.plot([tol], [yy], marker="|", markersize=13, markeredgewidth=2.2,
+                color="#222222", linestyle="none", zorder=3)
+    failed = r.get("passed") is False
+    if not math.isfinite(err):
+        notes["inf"] = True
+        ax.plot([hi / 2], [yy], marker=">", markersize=8, color=color, label=label,
+                linestyle="none", zorder=4)
+        ax.text(hi / 8, yy, "NaN" if err != err else "inf", ha="right", va="center",
+                fontsize=7, color=FAIL_COLOR if failed else color)
+    elif err <= 0:
+        notes["zero"] = True
+        ax.plot([ZERO_AT], [yy], marker="o", markersize=6, markerfacecolor="white",
+                markeredgecolor=color, markeredgewidth=1.6, linestyle="none",
+                label=label, zorder=4)
+    else:
+        ax.plot([err], [yy], marker="o", markersize=6, color=color, linestyle="none",
+                label=label, zorder=4)
+    if failed:
+        notes["fail"] = True
+        x = hi / 2 if not math.isfinite(err) else max(err, ZERO_AT)
+        ax.plot([x], [yy], marker="o", markersize=12, markerfacecolor="none",
+                markeredgecolor=FAIL_COLOR, markeredgewidth=1.8, linestyle="none",
+                zorder=5)
+
+
+def _agreement_legend(ax, notes: dict) -> None:
+    """The engines' markers, the tolerance bar, and the entries `notes` asks for."""
     from matplotlib.lines import Line2D
     handles, labels = ax.get_legend_handles_labels()
     handles.append(Line2D([], [], marker="|", markersize=11, markeredgewidth=2.2,
@@ -165,9 +179,6 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
         labels.append("inf / NaN")
     ax.legend(handles, labels, fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0),
               frameon=False)
-    if title:
-        ax.set_title(title, fontsize=10, loc="left")
-    return _svg(fig)
 
 
 def _row_key(r: dict) -> tuple:

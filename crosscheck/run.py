@@ -7,44 +7,42 @@ record fields). Exit 0 when every executed record passes, 1 when any fails, 2 on
 """
 from __future__ import annotations
 
-import json
 import sys
-import zlib
 from pathlib import Path
 
 import numpy as np
 
 from reference import NumericModel, models
-from reference.errors import ModelInputError
+from reference.generic import generic_parameters
 
 from . import compare as C
+from . import jsonio
 from .comparison import engine_records
-from .engines.registry import available_engines, get_engine
-from .perturb import check_perturb, parse_perturb, perturbed
+from .engines.registry import get_engine
+from .perturb import check_perturb, check_perturb_changes, parse_perturb, perturbed
+from .sampling import consistent_states
 
-__all__ = ["consistent_states", "parse_perturb", "perturbed", "run"]
+__all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
 
-def consistent_states(nm: NumericModel, count: int):
-    """The model's initial state and count-1 seeded random consistent states near it.
+# the check names of the records at the generic parameter set (reference/generic.py): distinct
+# from the textbook-default ones, so a gate sees them as records of their own
+GENERIC_SUFFIX = "_generic"
 
-    The seed is derived from the model name so every run draws the same states (deterministic
-    results), and a state whose projection fails is replaced by the next draw.
-    """
-    rng = np.random.default_rng(zlib.crc32(nm.model.name.encode()))
-    m = nm.model
-    states = [nm.project(m.initial_q, m.initial_u)]
-    tries = 0
-    while len(states) < count and tries < 20 * count:
-        tries += 1
-        q = np.asarray(m.initial_q) + 0.4 * rng.standard_normal(len(m.initial_q))
-        u = np.asarray(m.initial_u) + rng.standard_normal(len(m.initial_u))
+
+def generic_model(name: str) -> NumericModel:
+    """The model at its generic parameter set (reference.generic), whose initial state still
+    projects onto the constraints and gives finite accelerations."""
+    model = models.get(name)
+
+    def geometry_ok(values) -> bool:
         try:
-            q, u = nm.project(q, u)
-            nm.forward(q, u)
-        except ModelInputError:
-            continue
-        states.append((q, u))
-    return states
+            nm = NumericModel(model, params=values)
+            q, u = nm.project(model.initial_q, model.initial_u)
+            return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
+        except Exception:  # noqa: BLE001 - any refusal means the geometry is not valid
+            return False
+
+    return NumericModel(model, params=generic_parameters(model, geometry_ok))
 
 
 def _formulation_records(name, nm, states):
@@ -133,6 +131,7 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
             for variant in adapter.variants(name):
                 records += _user_file_notes(name, adapter.name, engine_records(
                     name, nm, states, adapter, params, variant))
+        records += _generic_records(name, adapters, n_states, perturb)
         if trajectories:
             engine_params = {a.name: perturbed(name, nm.params, perturb.get(a.name, {}))
                              for a in adapters}
@@ -148,14 +147,31 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
     return records, series
 
 
+def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
+    """The instantaneous checks again at the model's generic parameter set, where no two
+    masses, lengths or principal inertias are equal (a swapped axis or sign cannot cancel):
+    check names "formulations_generic" and "instantaneous_generic"."""
+    nm = generic_model(name)
+    states = consistent_states(nm, n_states)
+    out = _formulation_records(name, nm, states)
+    for adapter in adapters:
+        params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
+        for variant in adapter.variants(name):
+            out += engine_records(name, nm, states, adapter, params, variant)
+    for r in out:
+        r["check"] += GENERIC_SUFFIX
+    return out
+
+
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
-    from .bench import meta
+    from .provenance import meta
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
     check_perturb(names, perturb)
+    check_perturb_changes(names, engine_names, perturb)
     output_dir(args.out)  # an unusable --out fails now, not after the computation
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
@@ -168,10 +184,11 @@ def cmd_run(args) -> int:
         bar.close()
     out = Path(args.out)
     result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
-                       "state_seed": "crc32 of the model name (crosscheck.run.consistent_states)",
+                       "state_seed": "crc32 of the model name "
+                                     "(crosscheck.sampling.consistent_states)",
                        "metrics": C.METRICS},
               "records": records, "series": series}
-    _write_outputs(out, json.dumps(result, indent=2, allow_nan=True), not args.no_report)
+    _write_outputs(out, jsonio.dumps(result), not args.no_report)
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
     passed = sum(1 for r in records if r["passed"])

@@ -13,30 +13,11 @@ import sys
 import time
 from pathlib import Path
 
-from reference import NumericModel, models
-from reference.generic import generic_parameters
-
 from .sensitivity import DECADES, Threshold, search
 
 DEFAULT_MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d")
 # "caught" means the suite's own verdict: some instantaneous record fails its tolerance
 STATES = 3
-
-
-def generic_model(name: str) -> NumericModel:
-    """The model at its generic parameter set, whose initial state still projects."""
-    model = models.get(name)
-
-    def geometry_ok(values) -> bool:
-        import numpy as np
-        try:
-            nm = NumericModel(model, params=values)
-            q, u = nm.project(model.initial_q, model.initial_u)
-            return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
-        except Exception:  # noqa: BLE001 - any refusal means the geometry is not valid
-            return False
-
-    return NumericModel(model, params=generic_parameters(model, geometry_ok))
 
 
 def _engine_figures(name, nm, states, adapter, perturb) -> tuple[str, dict[str, float]]:
@@ -58,7 +39,7 @@ def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Th
     """One threshold per parameter of the model, for one engine."""
     from .engines.base import EngineUnsupported
     from .engines.registry import get_engine
-    from .run import consistent_states
+    from .run import consistent_states, generic_model
 
     adapter = get_engine(engine)
     nm = generic_model(name)

@@ -8,8 +8,9 @@
   one on a time-step ladder h and h/2 (MuJoCo: its own RK4; h = 1 ms, or for a horizon that
   is not a whole number of ms the largest step below 1 ms that divides it, see step_ladder),
   every run recorded on the reference's output times (output_grid).
-Each run yields records (state error against the reference, constraint drift, energy drift)
-and a series for the report's plots.
+Each run yields records (state error against the reference, constraint drift, velocity drift
+|A u + a0|, energy drift) and a series for the report's plots; a run that does not finish is a
+failed record with its reason, and the other runs go on.
 
 State error: max over the output times of max |x - x_ref| / max(max |x_ref|, 1), x = (q, u) in
 the reference's coordinates. Angles are unwrapped in time and a whole-turn offset at t = 0 is
@@ -18,14 +19,15 @@ removed, so a coordinate reported modulo 2 pi does not count as an error.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from reference import NumericModel
-from reference.integrate import simulate
+from reference.integrate import PROJECTION_TOL, simulate
 
 from . import compare as C
-from .comparison import build
+from .comparison import build, constraint_residual, energy_drift, work_energy_balance
 from .engines.base import EngineUnsupported
 from .engines.registry import engine_label
 
@@ -71,9 +73,48 @@ REFERENCE_ACCURACY = C.Tolerance(
     1e-8, "the reference trajectory (rtol 1e-12) against a tighter one (rtol 1e-13): the "
           "engines are judged against it, so its own error must sit far below the 1e-6..1e-2 "
           "they are held to")
-PROJECTED_DRIFT = C.Tolerance(
-    1e-11, "coordinate projection after every step holds f(q, t) = 0 to its Gauss-Newton "
-           "tolerance (~1e-15 relative) on unit-size coordinates")
+# The reference's stabilization guarantees its own bounds, so they are the tolerances: a run
+# whose projection is switched off must fail here, not only at the gate. Measured over 5 s on
+# every constrained model (issue 14; the ratios are per output time):
+#   |f| / (PROJECTION_TOL (1 + |q|_inf)): 0.88..1.00 with projection, 17..1.6e5 without (index1)
+#   |A u + a0| / (eps max(|u|_inf, 1)):   0.1..1.1 with projection, 610..1e5 without
+# (PYTHONPATH=$PWD python scripts/drift_guarantee.py). Gauss-Newton stops at
+# |f| <= PROJECTION_TOL (1 + |q|_inf) at every output (reference.integrate.project_q); the
+# slack of 2 covers the largest |q| falling elsewhere than the largest |f|.
+PROJECTION_SLACK = 2.0
+# the velocity projection is an exact minimum-norm correction: what is left is the round-off of
+# evaluating A u + a0, a few eps times the size of the speeds (1.1 measured, 16 allowed)
+VELOCITY_ROUND_OFF = 16 * float(np.finfo(float).eps)
+
+
+def projected_drift(q) -> C.Tolerance:
+    """The projection's own guarantee on f(q, t) over a run with coordinates q."""
+    qmax = float(np.max(np.abs(np.asarray(q)))) if np.size(q) else 0.0
+    return C.Tolerance(
+        PROJECTION_SLACK * PROJECTION_TOL * (1.0 + qmax),
+        f"coordinate projection after every step stops Gauss-Newton at |f| <= PROJECTION_TOL "
+        f"(1 + |q|) = {PROJECTION_TOL:g} x {1 + qmax:.3g} (reference.integrate), x"
+        f"{PROJECTION_SLACK:g} for where the largest |q| falls; without projection the drift is "
+        f"17x..1.6e5x that bound")
+
+
+def projected_velocity_drift(u) -> C.Tolerance:
+    """The velocity projection's guarantee on A u + a0 over a run with speeds u."""
+    umax = max(float(np.max(np.abs(np.asarray(u)))) if np.size(u) else 0.0, 1.0)
+    return C.Tolerance(
+        VELOCITY_ROUND_OFF * umax,
+        f"the velocity projection u <- u - A^T (A A^T)^-1 (A u + a0) is exact: round-off of "
+        f"A u + a0 only, 16 eps x max |u| ({umax:.3g}); measured <= 1.1 eps |u| with it, >= "
+        f"610 eps |u| without")
+
+
+def _failed(rec, engine, what: str, exc: Exception) -> dict:
+    """A failed record for a run that did not finish (step underflow, a projection that does
+    not converge, a singular system): the run goes on with the next one."""
+    message = (str(exc).splitlines() or [""])[0]
+    return rec(engine, "state_error", math.inf, C.Tolerance(0.0, "the run must finish"),
+               f"{what} failed: {type(exc).__name__}: {message}", failure=True)
+
 INDEX1_DRIFT = C.Tolerance(
     1e-7, "no stabilization: the position drift follows the integrator's error, ~10..100x its "
           "tolerance over 5..10 s (docs/numerics.md); 1e3x rtol")
@@ -86,6 +127,14 @@ SOFT_STATE = C.Tolerance(
 SOFT_DRIFT = C.Tolerance(
     1e-5, "MuJoCo's soft constraints settle at a violation set by solref (time constant "
           "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md")
+INDEX1_VELOCITY_DRIFT = C.Tolerance(
+    1e-7, "no stabilization: A u + a0 drifts with the integrator's error like the positions "
+          "(INDEX1_DRIFT); measured 4e-13..4e-10 for the reference's own index-1 run at rtol "
+          "1e-12 (scripts/drift_guarantee.py)")
+SOFT_VELOCITY_DRIFT = C.Tolerance(
+    1e-3, "MuJoCo's soft constraints: the velocity violation is damped with solref's time "
+          "constant (0.02 s), not removed; characterization (measured in crosscheck run, "
+          "docs/engines/mujoco.md)")
 SOFT_ENERGY = C.Tolerance(
     1e-2, "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
           "characterization (docs/engines/mujoco.md: 6e-4 J of 7 J for the slider-crank, RK4)")
@@ -100,25 +149,15 @@ def state_error(q, u, ref_q, ref_u) -> np.ndarray:
     return np.max(np.abs(diff), axis=1) / scale
 
 
-def _residual_series(nm: NumericModel, t, q, u) -> np.ndarray:
-    out = []
-    for ti, qi, ui in zip(t, q, u):
-        pos, vel = nm.residuals(qi, ui, ti)
-        out.append(float(np.max(np.abs(pos))) if pos.size else 0.0)
-    return np.array(out)
+def _residual_series(nm: NumericModel, t, q, u) -> tuple[np.ndarray, np.ndarray]:
+    """max |f(q, t)| and max |A u + a0| at every output time (0 where there are no rows)."""
+    res = np.array([constraint_residual(nm, qi, ui, ti) for ti, qi, ui in zip(t, q, u)])
+    res = res.reshape(len(t), 2)
+    return res[:, 0], res[:, 1]
 
 
 def _energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
     return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u)])
-
-
-def _energy_drift(E: np.ndarray) -> float:
-    return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
-
-
-def _balance(E: np.ndarray, W: np.ndarray) -> float:
-    """max |E(t) - E(0) - W(t)| / max(max |E|, 1)."""
-    return float(np.max(np.abs(E - E[0] - W)) / max(float(np.max(np.abs(E))), 1.0))
 
 
 def _series(model, engine, formulation, label, t, err, res, E, variant=None):
@@ -151,8 +190,8 @@ def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
 
 
 def _fixed_step_runs(nm, em, integrator, q0, u0, t_end, conserved, work):
-    """A fixed-step engine integrator on the step ladder (step_ladder): soft constraint rows
-    are characterized (SOFT_*), otherwise the tolerances come from halving the step."""
+    """A fixed-step engine integrator on the step ladder FIXED_STEPS: soft constraint rows are
+    characterized (SOFT_*), otherwise the tolerances come from halving the step."""
     grid = output_grid(t_end)
     ladder = step_ladder(t_end)
     runs, trs = [], {}
@@ -173,25 +212,69 @@ def _fixed_step_runs(nm, em, integrator, q0, u0, t_end, conserved, work):
         f"in this run by halving the step ({halving:.1e}), times 10, plus the "
         f"reference's own accuracy")
     E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
-    E0, E1 = ((_energy_drift(E0), _energy_drift(E1)) if conserved
-              else (_balance(E0, work), _balance(E1, work)))
+    E0, E1 = ((energy_drift(E0), energy_drift(E1)) if conserved
+              else (work_energy_balance(E0, work), work_energy_balance(E1, work)))
     energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
                              f"{integrator}'s energy error estimated by halving the step "
                              f"({abs(E0 - E1):.1e}), times 10")
     return runs, state_tol, INDEX1_DRIFT, energy_tol
 
 
-def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
-                       engine_params: dict | None = None):
-    """Records and plot series for one model: the reference, then every engine variant."""
+@dataclass(frozen=True)
+class _Reference:
+    """The reference's run of one model, and what the engines' tolerances take from it."""
+
+    name: str
+    nm: NumericModel
+    t_end: float
+    grid: np.ndarray
+    q0: np.ndarray
+    u0: np.ndarray
+    ref: object  # the reference trajectory at rtol REF_RTOL
+    work: np.ndarray  # work of loads and moving constraints along it
+    conserved: bool
+    loose_err: float  # the reference's own global error at ENGINE_RTOL (index-1)
+    loose_E: float  # and its energy drift (or work-energy balance) there
+
+    def rec(self, engine, qty, err, tol, reason="", **k):
+        return C.record(self.name, self.nm.formulation, engine, "trajectory", qty, err, tol,
+                        reason, t_end=self.t_end, **k)
+
+
+def _reference_runs(nm: NumericModel, q0, u0, t_end: float, grid):
+    """The reference at REF_RTOL, at REF_CHECK_RTOL, and index-1 at the engines' rtol; raises
+    RuntimeError naming the run that failed."""
+    what = f"the reference run (DOP853+projection rtol {REF_RTOL:g})"
+    try:
+        ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL,
+                       t_eval=grid)
+        what = f"the tighter reference run (rtol {REF_CHECK_RTOL:g})"
+        tight = simulate(nm, q0, u0, t_end, "projection", rtol=REF_CHECK_RTOL,
+                         atol=REF_CHECK_RTOL, t_eval=grid)
+        what = f"the reference's index-1 run at the engines' rtol {ENGINE_RTOL:g}"
+        # the reference's own global error at the engines' tolerance, for the adaptive bound
+        loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL,
+                         t_eval=grid)
+    except Exception as exc:  # noqa: BLE001 - any failure of the reference is its record
+        raise _RunFailed(what, exc) from exc
+    return ref, tight, loose
+
+
+class _RunFailed(RuntimeError):
+    """A run that did not finish: what it was, and the exception."""
+
+    def __init__(self, what: str, exc: Exception):
+        super().__init__(what)
+        self.what, self.exc = what, exc
+
+
+def _reference_run(name: str, nm: NumericModel, t_end: float):
+    """The reference's run, its records and series, and the context the engines need; raises
+    _RunFailed when one of its runs does not finish."""
     model = nm.model
-    f = nm.formulation
     grid = output_grid(t_end)
     q0, u0 = nm.project(model.initial_q, model.initial_u)
-    records, series = [], []
-    ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL, t_eval=grid)
-    tight = simulate(nm, q0, u0, t_end, "projection", rtol=REF_CHECK_RTOL, atol=REF_CHECK_RTOL,
-                     t_eval=grid)
+    ref, tight, loose = _reference_runs(nm, q0, u0, t_end, grid)
     ref_acc = float(np.max(state_error(ref.q, ref.u, tight.q, tight.u)))
     # conserved at these parameters: declared so, or no load does work along the reference
     # run (a driving torque or damper whose parameter is 0) and no constraint moves
@@ -203,81 +286,113 @@ def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_E
     # the applied loads and moving constraints, integrated exactly alongside the reference run
     work = ref.work if ref.work is not None else np.zeros(len(ref.t))
     E_ref = _energy_series(nm, ref.t, ref.q, ref.u)
-    res_ref = _residual_series(nm, ref.t, ref.q, ref.u)
-    rec = lambda engine, qty, err, tol, reason="", **k: C.record(  # noqa: E731
-        name, f, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k)
-    records.append(rec("reference", "state_error", ref_acc, REFERENCE_ACCURACY,
-                       label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
-                       nfev=ref.nfev))
+    res_ref, vel_ref = _residual_series(nm, ref.t, ref.q, ref.u)
+    loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
+    E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
+    loose_E = energy_drift(E_loose) if conserved else work_energy_balance(E_loose, work)
+    ctx = _Reference(name, nm, t_end, grid, q0, u0, ref, work, conserved, loose_err, loose_E)
+    rec = ctx.rec
+    records = [rec("reference", "state_error", ref_acc, REFERENCE_ACCURACY,
+                   label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
+                   nfev=ref.nfev)]
     if nm.m:
         records.append(rec("reference", "constraint_drift", float(res_ref.max()),
-                           PROJECTED_DRIFT, label="DOP853+projection"))
+                           projected_drift(ref.q), label="DOP853+projection"))
+        records.append(rec("reference", "velocity_drift", float(vel_ref.max()),
+                           projected_velocity_drift(ref.u), label="DOP853+projection"))
     ref_energy_tol = C.Tolerance(
         1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
               "(projection does not conserve energy exactly, docs/numerics.md)")
     if conserved:
-        records.append(rec("reference", "energy_drift", _energy_drift(E_ref), ref_energy_tol))
+        records.append(rec("reference", "energy_drift", energy_drift(E_ref), ref_energy_tol))
     else:
-        records.append(rec("reference", "work_energy_balance", _balance(E_ref, work),
+        records.append(rec("reference", "work_energy_balance", work_energy_balance(E_ref, work),
                            ref_energy_tol, label="E(t) - E(0) - W(t), W integrated with the run"))
-    series.append(_series(name, "reference", f, f"DOP853+projection rtol={REF_RTOL:g}",
-                          ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref))
+    series = [_series(name, "reference", nm.formulation, f"DOP853+projection rtol={REF_RTOL:g}",
+                      ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref)]
+    return ctx, records, series
 
-    # the reference's own global error at the engines' tolerance, for Pinocchio's bound
-    loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL, t_eval=grid)
-    loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
-    E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
-    loose_E = _energy_drift(E_loose) if conserved else _balance(E_loose, work)
 
+def _engine_run(ctx: _Reference, adapter, em, variant):
+    """Records (the first rung) and series (every rung) of one engine model's trajectories."""
+    nm, ref, name = ctx.nm, ctx.ref, ctx.name
+    integrator = adapter.capabilities.integrators[0]
+    extra = {"variant": variant} if variant else {}
+    try:
+        if integrator in adapter.capabilities.adaptive_integrators:
+            runs, state_tol, drift_tol, energy_tol = _adaptive_runs(
+                em, integrator, ctx.q0, ctx.u0, ctx.grid, ctx.loose_err, ctx.loose_E)
+        else:
+            runs, state_tol, drift_tol, energy_tol = _fixed_step_runs(
+                nm, em, integrator, ctx.q0, ctx.u0, ctx.t_end, ctx.conserved, ctx.work)
+    except Exception as exc:  # noqa: BLE001 - a run that did not finish fails its record
+        return [dict(_failed(ctx.rec, adapter.name, f"{adapter.name}'s {integrator} run", exc),
+                     **extra)], []
+    velocity_tol = SOFT_VELOCITY_DRIFT if em.soft_constraints else INDEX1_VELOCITY_DRIFT
+    records, series = [], []
+    for k, (label, t, q, u, info) in enumerate(runs):
+        if len(t) != len(ref.t) or \
+                np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(ctx.t_end, 1.0):
+            raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, {len(t)} times) "
+                               f"is not on the reference's output grid ({len(ref.t)} times over "
+                               f"{ctx.t_end:g} s): a bug in output_grid / step_ladder")
+        err = state_error(q, u, ref.q, ref.u)
+        res, vel = _residual_series(nm, t, q, u)
+        E = _energy_series(nm, t, q, u)
+        series.append(_series(name, adapter.name, nm.formulation, label, t, err, res, E,
+                              variant))
+        if k:  # records for the first rung; the others feed the estimate and plots
+            continue
+        records.append(ctx.rec(adapter.name, "state_error", float(err.max()), state_tol,
+                               label=label, **info, **extra))
+        if nm.m:
+            records.append(ctx.rec(adapter.name, "constraint_drift", float(res.max()),
+                                   drift_tol, label=label, **extra))
+            records.append(ctx.rec(adapter.name, "velocity_drift", float(vel.max()),
+                                   velocity_tol, label=label, **extra))
+        if ctx.conserved:
+            records.append(ctx.rec(adapter.name, "energy_drift", energy_drift(E), energy_tol,
+                                   label=label, **extra))
+            continue
+        balance_tol = energy_tol if energy_tol is SOFT_ENERGY else C.Tolerance(
+            energy_tol.value + 10 * state_tol.value,
+            "the engine's energy change against the work done along the "
+            "reference's run: they differ by the engine's energy error plus the "
+            "work along the trajectory difference, bounded by the state tolerance "
+            "(x10 for the size of grad E)")
+        records.append(ctx.rec(adapter.name, "work_energy_balance",
+                               work_energy_balance(E, ctx.work), balance_tol, label=label,
+                               **extra))
+    return records, series
+
+
+def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
+                       engine_params: dict | None = None):
+    """Records and plot series for one model: the reference, then every engine variant. A run
+    that does not finish is a failed record with its reason; the other runs go on."""
+    try:
+        ctx, records, series = _reference_run(name, nm, t_end)
+    except _RunFailed as failed:
+        rec = lambda engine, qty, err, tol, reason="", **k: C.record(  # noqa: E731
+            name, nm.formulation, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k)
+        return [_failed(rec, "reference", failed.what, failed.exc)] + [
+            rec(a.name, "state_error", None, None, "no reference trajectory to compare with "
+                "(its run failed, see the reference's trajectory record)")
+            for a in adapters], []
     for adapter in adapters:
-        for variant in adapter.variants(name):
-            params = (engine_params or {}).get(adapter.name, nm.params)
-            integrators = adapter.capabilities.integrators
-            if not integrators:
-                records.append(rec(adapter.name, "state_error", None, None,
+        params = (engine_params or {}).get(adapter.name, nm.params)
+        if not adapter.capabilities.integrators:
+            records.append(ctx.rec(adapter.name, "state_error", None, None,
                                    f"{adapter.name} has no trajectories in this suite"))
-                break
+            continue
+        for variant in adapter.variants(name):
             try:
-                em = build(adapter, name, params, variant)
+                em = build(adapter, name, params, variant, nominal=nm.params)
             except EngineUnsupported as exc:
-                records.append(rec(adapter.name, "state_error", None, None,
-                                   f"engine cannot represent the model: {exc}"))
+                records.append(ctx.rec(adapter.name, "state_error", None, None,
+                                       f"engine cannot represent the model: {exc}"))
                 continue
-            extra = {"variant": variant} if variant else {}
-            if integrators[0] in adapter.capabilities.adaptive_integrators:
-                runs, state_tol, drift_tol, energy_tol = _adaptive_runs(
-                    em, integrators[0], q0, u0, grid, loose_err, loose_E)
-            else:
-                runs, state_tol, drift_tol, energy_tol = _fixed_step_runs(
-                    nm, em, integrators[0], q0, u0, t_end, conserved, work)
-            for k, (label, t, q, u, info) in enumerate(runs):
-                if len(t) != len(ref.t) or \
-                        np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(t_end, 1.0):
-                    raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, "
-                                       f"{len(t)} times) is not on the reference's output grid "
-                                       f"({len(ref.t)} times over {t_end:g} s): a bug in "
-                                       f"output_grid / step_ladder")
-                err = state_error(q, u, ref.q, ref.u)
-                res = _residual_series(nm, t, q, u)
-                E = _energy_series(nm, t, q, u)
-                series.append(_series(name, adapter.name, f, label, t, err, res, E, variant))
-                if k:  # records for the first rung; the others feed the estimate and plots
-                    continue
-                records.append(rec(adapter.name, "state_error", float(err.max()), state_tol,
-                                   label=label, **info, **extra))
-                if nm.m:
-                    records.append(rec(adapter.name, "constraint_drift", float(res.max()),
-                                       drift_tol, label=label, **extra))
-                if conserved:
-                    records.append(rec(adapter.name, "energy_drift", _energy_drift(E),
-                                       energy_tol, label=label, **extra))
-                else:
-                    balance_tol = energy_tol if energy_tol is SOFT_ENERGY else C.Tolerance(
-                        energy_tol.value + 10 * state_tol.value,
-                        "the engine's energy change against the work done along the "
-                        "reference's run: they differ by the engine's energy error plus the "
-                        "work along the trajectory difference, bounded by the state tolerance "
-                        "(x10 for the size of grad E)")
-                    records.append(rec(adapter.name, "work_energy_balance", _balance(E, work),
-                                       balance_tol, label=label, **extra))
+            recs, ser = _engine_run(ctx, adapter, em, variant)
+            records += recs
+            series += ser
     return records, series

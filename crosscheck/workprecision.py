@@ -2,9 +2,10 @@
 
 One record per model x engine x method x setting:
 - reference: every method of reference.integrate over a tolerance ladder (rtol = atol), DOP853;
-- pinocchio: the adapter's simulate (scipy DOP853 on Pinocchio's forward dynamics, engine
-  coordinates, no stabilization) over the same ladder;
-- mujoco: the adapter's simulate (mj_step) over a time-step ladder per integrator.
+- every engine, through its simulate() and Capabilities.integrators: an error-controlled
+  integrator over the same rtol ladder (method "index1": Pinocchio's forward dynamics under scipy's
+  DOP853 in engine coordinates, no stabilization), a fixed-step one over a time-step ladder per
+  integrator (MuJoCo's mj_step).
 Fields: model, engine, method, integrator, setting (rtol = atol, or the time step), setting_kind,
 wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state - reference|,
 the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u + a0|,
@@ -14,13 +15,13 @@ reference's kind and estimated accuracy. A run that fails keeps its row with "fa
 
 Timings are medians over repeats and meaningful only as ratios within one run (crosscheck/timing).
 What is inside each wall_s: reference: simulate() from the projected initial state to t_end
-(outputs = every accepted step); pinocchio: simulate() including the mapping of its 21 output
-states; mujoco: its own loop timer (mj_step calls plus two recorded states).
+(outputs = every accepted step); an engine: the wall time its simulate() reports (Pinocchio: the
+whole call, including the mapping of its 21 output states; MuJoCo: its own loop timer, mj_step
+calls plus two recorded states), else the call.
 """
 from __future__ import annotations
 
 import cProfile
-import io
 import math
 import os
 import pstats
@@ -36,6 +37,7 @@ from reference.integrate import METHODS, simulate
 from reference.errors import ModelInputError
 from reference.minimal import reference_final_state
 
+from .comparison import constraint_residual, energy_drift
 from .engines.base import EngineAdapter
 from .engines.registry import available_engines, engine_label, get_engine
 
@@ -64,9 +66,6 @@ REPEATS_FULL, REPEATS_QUICK = 5, 3
 REPEAT_BUDGET_S = 1.0
 RUN_BOUND_S = {True: 10.0, False: 60.0}  # max_wall_s of one reference run (quick, full)
 
-# ---- targets of issue 4 ----
-TARGET_ERROR, TARGET_RESIDUAL, TARGET_MUJOCO_ERROR = 1e-8, 1e-10, 1e-4
-TARGET_BATCH_SPEEDUP = 10.0
 
 
 def horizon(name: str) -> float:
@@ -93,20 +92,15 @@ def _finite(x) -> Optional[float]:
 
 def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool):
     """error vs the reference, max residuals and energy drift of mapped states."""
-    res, en, p = nm._scalar["residuals"], nm._scalar["energy"], nm.p
     rp = rv = 0.0
     E = []
     for t, q, u in zip(T, Q, U):
-        pos, vel = res(list(map(float, q)), list(map(float, u)), float(t), p)
-        rp = max([rp] + [abs(v) for v in pos])
-        rv = max([rv] + [abs(v) for v in vel])
+        pos, vel = constraint_residual(nm, q, u, t)
+        rp, rv = max(rp, pos), max(rv, vel)
         if energy_conserved:
-            E.append(sum(en(list(map(float, q)), list(map(float, u)), float(t), p)[0][:2]))
+            E.append(sum(nm.energy(q, u, t)))
     err = float(np.max(np.abs(np.concatenate([Q[-1], U[-1]]) - ref_state)))
-    drift = None
-    if energy_conserved and E:
-        E = np.array(E)
-        drift = float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1e-300))
+    drift = energy_drift(E) if energy_conserved and E else None
     return err, rp, rv, drift
 
 
@@ -312,203 +306,6 @@ def work_precision_records(model_names, quick: bool = False, engines=None,
         if log:
             log(f"work-precision {name}: {time.perf_counter() - t0:.1f} s")
     return out
-
-
-# ---- targets ----------------------------------------------------------------------------------
-def _best(records, **cond):
-    """The fastest record satisfying cond (callables on the record) or None."""
-    ok = [r for r in records if r.get("wall_s") is not None and all(c(r) for c in cond.values())]
-    return min(ok, key=lambda r: r["wall_s"]) if ok else None
-
-
-def _brief(r):
-    if r is None:
-        return None
-    return {k: r.get(k) for k in ("engine", "method", "integrator", "setting", "wall_s", "error",
-                                  "residual", "nfev")}
-
-
-def _profile_run(fn, top=8) -> list[str]:
-    """cProfile of fn(): the top functions by internal time (for a missed target)."""
-    pr = cProfile.Profile()
-    pr.enable()
-    fn()
-    pr.disable()
-    s = io.StringIO()
-    pstats.Stats(pr, stream=s).sort_stats("tottime").print_stats(top)
-    return [ln.rstrip() for ln in s.getvalue().splitlines() if ln.strip()][-top - 1:]
-
-
-def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
-            quick: bool = False) -> dict:
-    """Issue 4's three targets, as ratios of figures measured in this run. The forward targets
-    time the reference and Pinocchio back to back (forward_pair) on every model with a
-    Pinocchio forward record (quick: QUICK_MODELS only)."""
-    out = {}
-    # 1. reference to 1e-8 with residual 1e-10 vs MuJoCo to 1e-4
-    recs = [r for r in wp if r.get("model") == model]
-    ref_best = _best([r for r in recs if r["engine"] == "reference"],
-                     e=lambda r: r.get("error") is not None and r["error"] <= TARGET_ERROR,
-                     c=lambda r: r.get("residual") is not None and r["residual"] <= TARGET_RESIDUAL)
-    soft = _target_engine(exact=False) or "soft_engine"  # target 1's engine (MuJoCo)
-    mj = [r for r in recs if r["engine"] == soft and r.get("wall_s") is not None]
-    mj_best = _best(mj, e=lambda r: r.get("error") is not None
-                    and r["error"] <= TARGET_MUJOCO_ERROR)
-    t1 = {"model": model, "t_end": horizon(model),
-          "statement": f"reference reaches error <= {TARGET_ERROR:g} with residual <= "
-                       f"{TARGET_RESIDUAL:g} in less wall time than MuJoCo needs for error <= "
-                       f"{TARGET_MUJOCO_ERROR:g}",
-          "reference": _brief(ref_best), soft: _brief(mj_best)}
-    if ref_best is None:
-        t1.update(met=False, ratio=None,
-                  reason="no reference run on the ladder met both the error and the residual")
-    elif not mj:
-        t1.update(met=None, ratio=None, reason="no MuJoCo records in this run")
-    elif mj_best is None:
-        closest = min((r for r in mj if r.get("error") is not None), key=lambda r: r["error"],
-                      default=None)
-        t1.update(met=True, ratio=None, **{f"{soft}_closest": _brief(closest)},
-                  reason=f"MuJoCo did not reach {TARGET_MUJOCO_ERROR:g} anywhere on its "
-                         f"time-step ladder (its soft equality constraints bound the error); "
-                         f"ratio_vs_closest = MuJoCo's most accurate run's wall / reference's",
-                  ratio_vs_closest=(closest["wall_s"] / ref_best["wall_s"]) if closest else None)
-    else:
-        ratio = mj_best["wall_s"] / ref_best["wall_s"]
-        t1.update(met=ratio > 1.0, ratio=ratio)
-    out["slider_crank_work_precision"] = t1
-
-    # 2./3. forward dynamics: single state vs Pinocchio, batched vs Pinocchio
-    def us(name, engine, path):
-        for r in forward:
-            if r.get("model") == name and r.get("engine") == engine and r.get("path") == path \
-                    and r.get("us_per_state") is not None:
-                return r["us_per_state"]
-        return None
-
-    e = _target_engine(exact=True)  # the exact engine of targets 2 and 3 (Pinocchio)
-    constrained = sorted({r["model"] for r in forward if r.get("engine") == e
-                          and r.get("us_per_state") is not None
-                          and (not quick or r["model"] in QUICK_MODELS)})
-    single, batched = {}, {}
-    for name in constrained:
-        # the forward records time the adapter's forward() (engine call + mapping + the
-        # adapter's own residual checks); the fair figure is the engine call alone
-        adapter_us = us(name, e, f"engine:{e}")
-        pair = forward_pair(name, e)
-        solver = pair.get(f"{e}_solver")
-        pin_us = pair.get(f"{e}_call_us") or adapter_us
-        ref_us = pair.get("reference_us") or us(name, "reference", "single")
-        raw_us = pair.get("reference_raw_us") or us(name, "reference", "single-raw")
-        bat_us = us(name, "reference", "batched")
-        # the target is about Pinocchio's *constrained* call; where Pinocchio models the system
-        # as a minimal tree (solver aba) the row is informative and not counted
-        counted = bool(pair.get("constrained_solve"))
-        if pin_us and ref_us:
-            single[name] = {f"{e}_call_us": pin_us, f"{e}_solver": solver,
-                            f"{e}_timing": pair.get(f"{e}_timing"),
-                            f"{e}_adapter_forward_us": adapter_us,
-                            "reference_us": ref_us, "reference_raw_us": raw_us,
-                            "ratio": pin_us / ref_us,
-                            "ratio_raw": pin_us / raw_us if raw_us else None,
-                            "counted": counted, "met": pin_us / ref_us >= 1.0,
-                            "met_raw": bool(raw_us) and pin_us / raw_us >= 1.0}
-            if counted and pin_us < ref_us:
-                single[name]["what_bounds_it"] = pair.get("bound")
-        if pin_us and bat_us:
-            batched[name] = {f"{e}_call_us": pin_us, f"{e}_solver": solver,
-                             "reference_batched_us": bat_us, "ratio": pin_us / bat_us,
-                             "counted": counted, "met": pin_us / bat_us >= TARGET_BATCH_SPEEDUP}
-    out[f"forward_single_vs_{e}"] = {
-        "statement": "single-state reference forward dynamics no slower than Pinocchio's "
-                     "constrained call on the same model: ratio = pin / ref >= 1 for the checked "
-                     "call NumericModel.forward (met), ratio_raw for the unchecked forward_raw "
-                     "the integrators use (met_raw); pinocchio_call_us is the native call alone "
-                     "(for 'kkt' models J and gamma are evaluated outside it); reference and "
-                     "Pinocchio are timed back to back in interleaved rounds",
-        "models": single, "met": _all_met(single),
-        "met_raw": _all_met({k: {**v, "met": v["met_raw"]} for k, v in single.items()})}
-    out[f"forward_batched_vs_{e}"] = {
-        "statement": f"batched reference forward over 10^4 states at least "
-                     f"{TARGET_BATCH_SPEEDUP:g}x faster per state than Pinocchio's call",
-        "models": batched, "met": _all_met(batched)}
-    return out
-
-
-def _all_met(rows: dict):
-    counted = [v["met"] for v in rows.values() if v.get("counted")]
-    return all(counted) if counted else None
-
-
-def _target_engine(exact: bool) -> Optional[str]:
-    """The first available engine (registry order) whose answers are exact (or soft)."""
-    for e in available_engines():
-        if get_engine(e).capabilities.exact == exact:
-            return e
-    return None
-
-
-def forward_pair(name: str, engine: Optional[str] = None, rounds: int = 3) -> dict:
-    """Reference forward (checked and raw) and Pinocchio's engine call timed back to back, in
-    interleaved rounds (medians), at the model's initial state: a ratio from the same moment of
-    this noisy machine. Also what bounds the reference: the straight-line Python it runs."""
-    from .timing import per_call_seconds
-    engine = engine or _target_engine(exact=True)
-    a, _why = _adapter(engine) if engine else (None, "no exact engine")
-    out: dict = {}
-    try:
-        model = models.get(name)
-        nm = NumericModel(model)
-        q = np.asarray(model.initial_q, float)
-        u = np.asarray(model.initial_u, float)
-        ql, ul = q.tolist(), u.tolist()
-        em = a.build(name, None) if a is not None else None
-        # Pinocchio's native call (the adapter's timing hook: aba / forwardDynamics(J, gamma) /
-        # constraintDynamics with tau and, for 'kkt', the rows J, gamma evaluated beforehand),
-        # else the adapter's _solve (the call plus building its inputs and copying outputs)
-        call, how = None, None
-        if em is not None:
-            call, how = em.timed_forward(q, u), "native call (adapter.timed_forward)"
-        ref, raw, pin = [], [], []
-        for _ in range(rounds):
-            ref.append(per_call_seconds(lambda: nm.forward(q, u), repeats=3)["median"])
-            raw.append(per_call_seconds(lambda: nm.forward_raw(ql, ul, 0.0), repeats=3)["median"])
-            if call is not None:
-                pin.append(per_call_seconds(call, repeats=3)["median"])
-        out.update(reference_us=statistics.median(ref) * 1e6,
-                   reference_raw_us=statistics.median(raw) * 1e6,
-                   constrained_solve=em is not None and em.constrained_solve)
-        out.update({f"{engine}_call_us": statistics.median(pin) * 1e6 if pin else None,
-                    f"{engine}_timing": how, f"{engine}_solver": em.solver if em else None})
-        src = nm.source
-        body = src[src.index("def forward"):src.index("def matrices")]
-        lines = [ln for ln in body.splitlines()[1:] if ln.strip()]
-        ops = sum(ln.count("*") + ln.count("+") + ln.count("-") + ln.count("/")
-                  + ln.count("sqrt") + ln.count("sin") + ln.count("cos") for ln in lines)
-        out["bound"] = {
-            "generated_forward_lines": len(lines), "generated_forward_operations": ops,
-            "ns_per_operation": out["reference_raw_us"] * 1e3 / max(ops, 1),
-            "validation_overhead_us": out["reference_us"] - out["reference_raw_us"],
-            "explanation": "the compiled forward is straight-line Python on floats: its cost is "
-                           "the interpreter's ~20-40 ns per arithmetic operation times the "
-                           "operation count of the generated KKT solve; the checked call adds "
-                           "state validation and numpy conversion of the outputs. Pinocchio's "
-                           "call is C++ whose cost grows with the tree, not with the "
-                           "expression size."}
-    except Exception as exc:
-        out["error"] = f"{type(exc).__name__}: {exc}"
-    return out
-
-
-def profile_for_missed(tg: dict, model: str = "slider_crank") -> None:
-    """Attach a cProfile of the winning reference run where target 1 was missed."""
-    t1 = tg.get("slider_crank_work_precision", {})
-    if t1.get("met") is False and t1.get("reference"):
-        r = t1["reference"]
-        nm = NumericModel(models.get(model))
-        m = nm.model
-        t1["profile"] = _profile_run(lambda: simulate(
-            nm, m.initial_q, m.initial_u, horizon(model), r["method"], rtol=r["setting"],
-            atol=r["setting"]))
 
 
 # ---- what skipping saves -------------------------------------------------------------------

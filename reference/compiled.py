@@ -25,6 +25,7 @@ from __future__ import annotations
 import ast
 import hashlib
 import importlib.util
+import json
 import os
 import sys
 import time
@@ -43,15 +44,21 @@ def numba_available() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
-def backend() -> str:
-    """'numba' (the default where numba is installed) or 'python' (CROSSCHECK_BACKEND=python)."""
-    want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower()
-    if want not in ("", "numba", "python"):
+def setting() -> str:
+    """CROSSCHECK_BACKEND: 'auto' (unset: the kernels where numba's cache holds them, else the
+    Python path now and a compile in the background after the process ends), 'numba' (compile
+    here when needed) or 'python' (the fallback only). Without numba: always 'python'."""
+    want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower() or "auto"
+    if want not in ("auto", "numba", "python"):
         from .errors import ModelInputError
-        raise ModelInputError(f"CROSSCHECK_BACKEND={want!r}: valid values are numba, python")
-    if want == "python" or not numba_available():
-        return "python"
-    return "numba"
+        raise ModelInputError(
+            f"CROSSCHECK_BACKEND={want!r}: valid values are auto, numba, python")
+    return want if numba_available() else "python"
+
+
+def backend() -> str:
+    """'numba' where the setting allows it, else 'python' (what a model will use once warm)."""
+    return "python" if setting() == "python" else "numba"
 
 
 def threads() -> int:
@@ -116,6 +123,8 @@ def _kernel(fn: ast.FunctionDef, nq: int, n: int, npar: int,
             continue  # the unpacking of _q, _u, _p, done above by index
         else:
             lines.append("    " + ast.unparse(st))
+    if ret is None:
+        raise ValueError(f"generated function {fn.name} has no return statement")
     groups, piv = _groups(ret)
     k = 0
     for g in groups:
@@ -169,6 +178,27 @@ def _check(_qa, _ua, _t):
     return {OK}
 '''
 
+def _batch_forward(body: list[str]) -> list[str]:
+    """forward_batch with the body inside the loop: reads _Q[i, k] and writes _OUT[i, k]
+    directly, so no row views and no call per state (measured: the per-state overhead of a
+    loop calling the single-state kernel bounded the batch, docs/compiled.md)."""
+    lines = ["@njit(cache=True, error_model='numpy', nogil=True)",
+             "def forward_batch(_Q, _U, _T, _P, _DB, _OUT, _ST):",
+             "    nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1",
+             "    for _i in range(_Q.shape[0]):",
+             "        _t = _T[_i if nt else 0]",
+             "        _jp = _i if np_ else 0",
+             "        _jd = _i if nd else 0"]
+    for ln in body[2:]:
+        ln = (ln.replace("_qa[", "_Q[_i, ").replace("_ua[", "_U[_i, ")
+              .replace("_pa[", "_P[_jp, ").replace("_db[", "_DB[_jd, ")
+              .replace("_out[", "_OUT[_i, "))
+        if ln.startswith("    return "):
+            ln = "    _ST[_i] = " + ln[len("    return "):]
+        lines.append("    " + ln)
+    return lines
+
+
 _WRAPPERS = '''
 
 @njit(cache=True, error_model='numpy', nogil=True)
@@ -206,10 +236,19 @@ def numba_source(src: str, nq: int, n: int, npar: int, m: int, pmin: float) -> t
         lines, sizes[fn.name] = _kernel(fn, nq, n, npar, pmin)
         out += ["", ""] + lines
         fwd = fn.name == "forward"
+        if fwd:
+            out += ["", ""] + _batch_forward(lines)
         args = "_qa, _ua, _t, _pa, _db, _out" if fwd else "_qa, _ua, _t, _pa, _out"
         bargs = ("_Q[i], _U[i], _T[i if nt else 0], _P[i if np_ else 0], "
                  + ("_DB[i if nd else 0], " if fwd else "") + "_OUT[i]")
-        out.append(_WRAPPERS.format(name=fn.name, args=args, bargs=bargs, OK=OK))
+        wrappers = _WRAPPERS.format(name=fn.name, args=args, bargs=bargs, OK=OK)
+        if fwd:  # forward_batch is the inlined loop above
+            head = "@njit(cache=True, error_model='numpy', nogil=True)\ndef forward_batch("
+            a = wrappers.index(head)
+            wrappers = wrappers[:a] + wrappers[wrappers.index("@njit", a + 1):]
+        out.append(wrappers)
+    totals = {k: sum(g) + (1 if k == "forward" else 0) for k, g in sizes.items()}
+    out.append(f"OUT_SIZES = {totals!r}")
     return "\n".join(out) + "\n", sizes
 
 
@@ -279,33 +318,130 @@ _LOADED: dict[tuple, Kernels] = {}
 
 
 def load_kernels(src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int,
-                 pmin: float) -> Kernels:
-    """The kernels of `src`, once per process (see _load)."""
+                 pmin: float) -> Kernels | None:
+    """The kernels of `src`, once per process (see _load); None on the 'auto' setting while
+    numba's cache does not hold them yet (the caller takes the Python path; the compile is
+    queued for a background process that starts when this one exits)."""
     key = (stem, str(directory), hashlib.sha256(src.encode()).hexdigest(), pmin)
     hit = _LOADED.get(key)
     if hit is None:
-        hit = _LOADED[key] = _load(src, stem, directory, nq, n, npar, m, pmin)
+        text, sizes = numba_source(src, nq, n, npar, m, pmin)
+        path = directory / f"{stem}_numba.py"
+        written = _write_if_changed(path, text)
+        if setting() == "auto" and not _ready(path, text):
+            _queue_warm(path)
+            return None
+        hit = _LOADED[key] = _load(text, sizes, path, written, stem, (nq, n, npar, m))
     return hit
 
 
-def _load(src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int,
-          pmin: float) -> Kernels:
-    """Write (if changed) and import the numba module of `src`. Its kernels compile (or load
-    from numba's cache) on first use, Kernels.get: a run pays only for what it calls."""
-    t0 = time.perf_counter()
-    text, sizes = numba_source(src, nq, n, npar, m, pmin)
-    digest = hashlib.sha256(text.encode()).hexdigest()[:12]
-    path = directory / f"{stem}_numba.py"
-    written = _write_if_changed(path, text)
-    t1 = time.perf_counter()
-    modname = f"_crosscheck_numba_{stem.replace('-', '_')}_{digest}"
+# ---- background compilation (the 'auto' setting) ------------------------------------------
+# Compiling every kernel of every model costs minutes of CPU (numba's type inference of the
+# straight-line code, docs/compiled.md); a fresh cache must not make `crosscheck run` slower.
+# So a cold module runs on the Python path (bit-identical, tests/test_compiled.py) and one
+# detached process compiles the queued modules into numba's cache after this process exits;
+# it writes <module>.ready (the module text's digest) when every kernel is cached.
+_PENDING: list[Path] = []
+WARM_LOCK_S = 900.0  # a lock older than this is stale (a worker killed mid-compile)
+
+
+def _digest(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _ready(path: Path, text: str) -> bool:
+    marker = path.with_suffix(".ready")
+    return marker.exists() and marker.read_text() == _digest(text)
+
+
+def _queue_warm(path: Path) -> None:
+    if os.environ.get("CROSSCHECK_BACKGROUND_COMPILE", "1") == "0":
+        return
+    if not _PENDING:
+        import atexit
+        atexit.register(_spawn_warm)
+    if path not in _PENDING:
+        _PENDING.append(path)
+
+
+def _spawn_warm() -> None:
+    """Start one detached worker for the queued modules nobody else is compiling."""
+    import subprocess
+    todo = []
+    for path in _PENDING:
+        lock = path.with_suffix(".warming")
+        try:
+            if lock.exists() and time.time() - lock.stat().st_mtime > WARM_LOCK_S:
+                lock.unlink()
+            os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+            todo.append(str(path))
+        except OSError:  # another process is compiling it
+            continue
+    if not todo:
+        return
+    env = dict(os.environ)
+    root = str(Path(__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+    subprocess.Popen([sys.executable, "-m", "reference.compiled", *todo], env=env,
+                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                     stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+def warm(path: Path) -> dict:
+    """Compile every kernel of a written module into numba's cache; mark it ready."""
+    import numpy as np
+    text = path.read_text()
+    mod = _import(path, text)
+    times = {}
+    try:
+        nq, n, npar, m = mod.NQ, mod.NU, mod.NP, mod.M
+        q, u, p, db = np.zeros(nq), np.zeros(n), np.ones(npar + m), np.zeros(max(m, 1))
+        for name, total in mod.OUT_SIZES.items():
+            t0 = time.perf_counter()
+            out = np.empty(total)
+            f = getattr(mod, name)
+            f(q, u, 0.0, p, db, out) if name == "forward" else f(q, u, 0.0, p, out)
+            times[name] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        mod.forward_batch(q[None], u[None], np.zeros(1), p[None], db[None],
+                          np.empty((1, mod.OUT_SIZES["forward"])), np.empty(1, np.int64))
+        times["forward_batch"] = time.perf_counter() - t0
+        path.with_suffix(".times.json").write_text(json.dumps(times))
+        path.with_suffix(".ready").write_text(_digest(text))
+    finally:
+        path.with_suffix(".warming").unlink(missing_ok=True)
+    return times
+
+
+def worker_times(stem: str, directory: Path) -> dict | None:
+    """Seconds the background worker spent compiling each kernel of a module (None: no
+    worker has compiled it)."""
+    f = directory / f"{stem}_numba.times.json"
+    return json.loads(f.read_text()) if f.exists() else None
+
+
+def _import(path: Path, text: str):
+    modname = f"_crosscheck_numba_{path.stem.replace('-', '_')}_{_digest(text)[:12]}"
     mod = sys.modules.get(modname)
     if mod is None:
         spec = importlib.util.spec_from_file_location(modname, path)
+        if spec is None or spec.loader is None:
+            raise ImportError(f"cannot load the kernel module {path}")
         mod = importlib.util.module_from_spec(spec)
         sys.modules[modname] = mod
         spec.loader.exec_module(mod)
-    t2 = time.perf_counter()
-    TIMINGS.setdefault(stem, {}).update(
-        {"generate_s": t1 - t0, "written": written, "import_s": t2 - t1})
-    return Kernels(mod, sizes, stem, nq, n, npar, m)
+    return mod
+
+
+def _load(text, sizes, path, written, stem, dims) -> Kernels:
+    """Import the numba module. Its kernels compile (or load from numba's cache) on first
+    use, Kernels.get: a process pays only for what it calls."""
+    t0 = time.perf_counter()
+    mod = _import(path, text)
+    TIMINGS.setdefault(stem, {}).update({"written": written, "import_s": time.perf_counter() - t0})
+    return Kernels(mod, sizes, stem, *dims)
+
+
+if __name__ == "__main__":  # the background worker: python -m reference.compiled MODULE...
+    for arg in sys.argv[1:]:
+        warm(Path(arg))

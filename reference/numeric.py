@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import copy
 import math
+from typing import Any, Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from . import codegen, compiled, redundant
 from .constraints import check_independent
@@ -22,6 +24,8 @@ from .system import Model
 # means the KKT matrix is singular to working precision: 1e-12 leaves 4 digits of a double's 16
 # for the answer, the least a validation suite can call a number.
 PIVOT_RATIO_MIN = 1e-12
+
+_ND = np.ndarray
 
 # A consistent state satisfies its constraints to round-off of the expressions (entries of size
 # ~1 in SI): 1e-9 absolute (scaled by the state size) separates "consistent" from "off manifold"
@@ -57,7 +61,7 @@ def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str,
     return values
 
 
-def _floats(x) -> list[float]:
+def _floats(x: Any) -> list[float]:
     """Values as a list of Python floats (the compiled code is fastest on plain floats)."""
     if type(x) is np.ndarray:
         if x.ndim == 1 and x.dtype == np.float64:  # the common case, kept cheap
@@ -66,7 +70,7 @@ def _floats(x) -> list[float]:
     return [float(v) for v in x]
 
 
-@dataclass
+@dataclass(slots=True)  # slots: a cheaper construction on the checked call's hot path
 class Forward:
     accelerations: np.ndarray  # u'
     multipliers: np.ndarray  # lambda, constraint order (minimum norm when rows are dependent)
@@ -96,13 +100,15 @@ class NumericModel:
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
         self._k = self._kernels()
-        # the forward kernel (every use of a model calls it): compiled or loaded here, the
-        # other functions on first use
-        self._kf = self._k.get("forward") if self._k is not None else None
+        # every single-state kernel compiled or loaded here (the batch kernels on first use)
+        self._kf: Any = self._k.get("forward") if self._k is not None else None
+        if self._k is not None:  # the other single-state kernels too: a first-use compile
+            for name in compiled.FUNCTIONS:  # must not land inside a timed or wall-bounded
+                self._k.get(name)  # call (simulate's max_wall_s, a benchmark loop)
         self._nlam = self.n + self.m
         self._pack()
 
-    def _kernels(self):
+    def _kernels(self) -> Any:
         """The numba kernels of this model's code (None on the pure-Python backend)."""
         if compiled.backend() != "numba":
             return None
@@ -115,7 +121,7 @@ class NumericModel:
             # this model stays on the pure-Python path, the same numbers, only slower
             return None
 
-    def _pack(self):
+    def _pack(self) -> None:
         """Parameters and Schur references as one array (the kernels' _pa), zero b offsets."""
         self._pa = np.array(self.p + self.sref, float)
         self._db0 = np.zeros(max(self.m, 1))
@@ -162,7 +168,7 @@ class NumericModel:
         return tuple(float(x) for x in d)
 
     # ---- validation --------------------------------------------------------------------
-    def _state(self, q, u, t):
+    def _state(self, q: ArrayLike, u: ArrayLike, t: float) -> tuple[list, list, float]:
         """Validated state as Python float lists (cheap: this runs on every public call)."""
         try:
             ql, ul, t = _floats(q), _floats(u), float(t)
@@ -181,7 +187,7 @@ class NumericModel:
             raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
         return ql, ul, t
 
-    def _arrays(self, q, u, t):
+    def _arrays(self, q: ArrayLike, u: ArrayLike, t: float) -> tuple[np.ndarray, np.ndarray, float]:
         """(q, u, t) as the kernels take them: writable contiguous float64 vectors and a float
         (the slow path: the kernels accept only that signature, anything else is converted
         here). Sizes and finiteness are checked inside the kernel (compiled.STATUS)."""
@@ -192,7 +198,7 @@ class NumericModel:
             raise ModelInputError(
                 f"{self.model.name}: state values must be numbers ({exc})") from None
 
-    def _fail(self, status: int, q, u, out=None):
+    def _fail(self, status: int, q: ArrayLike, u: ArrayLike, out: Any = None) -> None:
         """The error of a kernel's nonzero status, worded as on the pure-Python path."""
         if status in (compiled.BAD_Q_SIZE, compiled.BAD_U_SIZE, compiled.NOT_FINITE):
             self._state(q, u, 0.0)  # raises the size or finiteness error
@@ -201,10 +207,12 @@ class NumericModel:
             raise SingularSystemError(self._singular_message(q, float(out[-1])))
         raise RuntimeError(f"{self.model.name}: compiled kernel returned status {status}")
 
-    def _call(self, name: str, q, u, t):
+    def _call(self, name: str, q: ArrayLike, u: ArrayLike, t: float) -> Any:
         """Run the checked kernel `name` at one state: its flat output array."""
         out = np.empty(self._k.total[name])
         f = self._k.get(name)
+        if type(q) is not _ND or type(u) is not _ND:
+            q, u, t = self._arrays(q, u, t)
         try:
             st = f(q, u, t, self._pa, out)
         except TypeError:  # not float64 vectors and a float: convert, then call
@@ -215,11 +223,13 @@ class NumericModel:
         return out
 
     # ---- single state ------------------------------------------------------------------
-    def forward(self, q, u, t: float = 0.0) -> Forward:
+    def forward(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
         kf = None if self.redundant else self._kf  # dependent rows: the rank-revealing solve
         if kf is not None:
             out = np.empty(self._nf)
+            if type(q) is not _ND or type(u) is not _ND:  # lists: convert first (a failed
+                q, u, t = self._arrays(q, u, t)  # dispatch costs numba ~1 ms to explain)
             try:
                 st = kf(q, u, t, self._pa, self._db0, out)
             except TypeError:  # not float64 vectors and a float: convert, then call
@@ -244,7 +254,7 @@ class NumericModel:
             raise SingularSystemError(self._singular_message(q, piv))
         return Forward(np.array(ud, dtype=float), np.array(lam, dtype=float), float(piv))
 
-    def forward_raw(self, q, u, t: float, db=None):
+    def forward_raw(self, q: ArrayLike, u: ArrayLike, t: float, db: Any = None) -> Any:
         """Fast path for integrators: (u', lambda, pivot ratio) without raising on a singular
         KKT matrix (the caller tests the ratio). Sizes are still checked (an unchecked compiled
         read past an array's end would return garbage). `db` offsets the constraint rows'
@@ -257,6 +267,8 @@ class NumericModel:
                                            self._no_db if db is None else db)
         out = np.empty(self._nf)
         db = self._db0 if db is None else np.asarray(db, float)
+        if type(q) is not _ND or type(u) is not _ND:
+            q, u, t = self._arrays(q, u, t)
         try:
             st = self._kf(q, u, t, self._pa, db, out)
         except TypeError:  # lists (the Python path's inputs): convert, then call
@@ -269,7 +281,14 @@ class NumericModel:
         n, nm = self.n, self._nlam
         return out[:n], out[n:nm], float(out[nm])
 
-    def raw_function(self, name: str):
+    def forward_into(self, q: ArrayLike, u: ArrayLike, t: float, out: np.ndarray) -> int:
+        """The bare compiled forward: u', lambda and the pivot ratio written into `out`
+        (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
+        status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
+        checked in the kernel). q, u: float64 vectors. The compiled backend only."""
+        return self._kf(q, u, t, self._pa, self._db0, out)
+
+    def raw_function(self, name: str) -> Callable[..., Any]:
         """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
         kinematics, energy, matrices, position_jacobian): the integrators' unchecked calls.
         On the compiled backend the groups are views of one output array and `p` must be
@@ -280,8 +299,10 @@ class NumericModel:
             self._pa
         arrays = self._arrays
 
-        def call(q, u, t, p=None):
+        def call(q: Any, u: Any, t: float, p: Any = None) -> tuple:
             out = np.empty(total)
+            if type(q) is not _ND or type(u) is not _ND:
+                q, u, t = arrays(q, u, t)
             try:
                 st = f(q, u, t, pa, out)
             except TypeError:  # lists: convert, then call
@@ -293,7 +314,7 @@ class NumericModel:
 
         return call
 
-    def _forward_redundant(self, q, u, t, db=None):
+    def _forward_redundant(self, q: Any, u: Any, t: float, db: Any = None) -> Any:
         """forward_raw for models with dependent rows (reference.redundant): lists out."""
         M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
         n, m = self.n, self.m
@@ -304,14 +325,14 @@ class NumericModel:
             augment=self._scalar["META"]["augmented"], where=self.model.name)
         return ud.tolist(), lam.tolist(), piv
 
-    def _singular_message(self, q, piv) -> str:
-        return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(q, 6).tolist()} "
+    def _singular_message(self, q: ArrayLike, piv: float) -> str:
+        return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(np.asarray(q, float), 6).tolist()} "
                 f"(pivot ratio {piv:.1e} <= {PIVOT_RATIO_MIN:.0e}): the constraint rows are "
                 f"dependent there (a kinematic singularity or redundant constraints) or M is not "
                 f"definite on their null space. Move the state away from this pose or remove "
                 f"the redundant constraints.")
 
-    def matrices(self, q, u, t: float = 0.0):
+    def matrices(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[np.ndarray, ...]:
         """M (n x n), f (n), A (m x n), b (m) at a state: the EquationsOfMotion contract."""
         n, m = self.n, self.m
         if self._k is not None:
@@ -323,13 +344,13 @@ class NumericModel:
         return (np.array(M, float).reshape(n, n), np.array(f, float),
                 np.array(A, float).reshape(m, n), np.array(b, float))
 
-    def kinematics(self, q, u, t: float = 0.0) -> np.ndarray:
+    def kinematics(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> np.ndarray:
         if self._k is not None:
             return self._call("kinematics", q, u, t)
         q, u, t = self._state(q, u, t)
         return np.array(self._scalar["kinematics"](q, u, t, self.p)[0], float)
 
-    def residuals(self, q, u, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def residuals(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Position residuals f(q, t) and velocity residuals A u + a0."""
         if self._k is not None:
             out = self._call("residuals", q, u, t)
@@ -339,7 +360,7 @@ class NumericModel:
         pos, vel = self._scalar["residuals"](q, u, t, self.p)
         return np.array(pos, float), np.array(vel, float)
 
-    def energy(self, q, u, t: float = 0.0) -> tuple[float, float]:
+    def energy(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[float, float]:
         """Kinetic and potential energy (gravity from the bodies plus the model's springs)."""
         if self._k is not None:
             out = self._call("energy", q, u, t)
@@ -348,7 +369,7 @@ class NumericModel:
         (K, V, _P), *_ = self._scalar["energy"](q, u, t, self.p)
         return float(K), float(V)
 
-    def power_balance(self, q, u, t: float = 0.0) -> dict[str, float]:
+    def power_balance(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> dict[str, float]:
         """Work-energy terms at a state: dE/dt (exact gradient of E = K + V along the motion),
         the power of the applied loads, and the power of the constraint forces
         u . A^T lambda = -lambda . a0 on the manifold (zero for scleronomic constraints)."""
@@ -363,7 +384,8 @@ class NumericModel:
         return {"dE_dt": dE, "load_power": float(P), "constraint_power": P_c,
                 "energy": float(K + V)}
 
-    def check_consistent(self, q, u, t: float = 0.0, tol: float = MANIFOLD_TOL) -> None:
+    def check_consistent(self, q: ArrayLike, u: ArrayLike, t: float = 0.0,
+                         tol: float = MANIFOLD_TOL) -> None:
         """Refuse a state off the constraint manifold, saying by how much."""
         pos, vel = self.residuals(q, u, t)
         worst_p = float(np.max(np.abs(pos))) if pos.size else 0.0
@@ -376,7 +398,8 @@ class NumericModel:
                 f"Give a consistent state or pass --project to project it onto the manifold.")
 
     # ---- projection onto the manifold ----------------------------------------------------
-    def project(self, q, u, t: float = 0.0, tol: float = 1e-13, max_iter: int = 50):
+    def project(self, q: ArrayLike, u: ArrayLike, t: float = 0.0, tol: float = 1e-13,
+                max_iter: int = 50) -> tuple[np.ndarray, np.ndarray]:
         """Closest consistent state: Gauss-Newton on f(q, t) = 0 (minimum-norm steps in q),
         then the velocity projection u <- u - A^+ (A u + a0). Raises when it cannot converge."""
         q, u, t = self._state(q, u, t)
@@ -401,15 +424,16 @@ class NumericModel:
         if A.shape[0]:  # minimum-norm correction: u <- u - A^+ (A u + a0)
             du, *_ = np.linalg.lstsq(A, -vel, rcond=None)
             u = u + du
-        return q, u
+        return np.asarray(q, float), np.asarray(u, float)
 
-    def _position_jacobian(self, q, t):
+    def _position_jacobian(self, q: ArrayLike, t: float) -> np.ndarray:
         """df/dq (Eq. 4's a_jk of the configuration constraints), for the projection."""
-        (Aq,) = self._scalar["position_jacobian"](list(q), [0.0] * self.n, t, self.p)
+        (Aq,) = self._scalar["position_jacobian"](list(np.asarray(q, float)), [0.0] * self.n,
+                                                 t, self.p)
         return np.array(Aq, float).reshape(-1, self.nq)
 
     # ---- batched -----------------------------------------------------------------------
-    def forward_batch(self, Q, U, t=0.0):
+    def forward_batch(self, Q: ArrayLike, U: ArrayLike, t: Any = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """u' and lambda for N states at once: Q (N x nq), U (N x n). Returns (UD, LAM, piv)."""
         Q = np.asarray(Q, dtype=float)
         U = np.asarray(U, dtype=float)
@@ -434,13 +458,13 @@ class NumericModel:
                 + self._singular_message(Q[i], float(piv[i])))
         return UD, LAM, piv
 
-    def _forward_batch_redundant(self, Q, U, t):
+    def _forward_batch_redundant(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
         rows = [self._forward_redundant(Q[i].tolist(), U[i].tolist(), t) for i in range(len(Q))]
         UD = np.array([r[0] for r in rows], float).reshape(len(Q), self.n)
         LAM = np.array([r[1] for r in rows], float).reshape(len(Q), self.m)
         return UD, LAM, np.array([r[2] for r in rows], float)
 
-    def _forward_batch_python(self, Q, U, t):
+    def _forward_batch_python(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
         N = Q.shape[0]
         with np.errstate(invalid="ignore", divide="ignore"):
             ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref, self._no_db)
@@ -452,7 +476,7 @@ class NumericModel:
             LAM[:, i] = c
         return UD, LAM, np.broadcast_to(np.asarray(piv, float), (N,))
 
-    def _forward_batch_compiled(self, Q, U, t):
+    def _forward_batch_compiled(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
         """The serial (or, with CROSSCHECK_THREADS > 1, prange) batch kernel. The parameters,
         Schur references and t may be per-state arrays (crosscheck.sweep.reference_batch)."""
         N = Q.shape[0]
@@ -469,7 +493,8 @@ class NumericModel:
         name = "forward_batch" if compiled.threads() == 1 else "forward_batch_parallel"
         if name != "forward_batch":
             import numba
-            numba.set_num_threads(min(compiled.threads(), numba.config.NUMBA_NUM_THREADS))
+            numba.set_num_threads(min(compiled.threads(),
+                                      numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]  # set at import, not in numba's stubs
         self._k.get(name)(np.ascontiguousarray(Q), np.ascontiguousarray(U), T, P,
                           self._db0[None], out, st)
         bad = (st != compiled.OK) & (st != compiled.SINGULAR)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Literal, Optional
+from typing import Any, Callable, Literal, Optional
 
 import sympy as sp
 
@@ -142,7 +142,7 @@ class Model:
             sp.simplify(k - u) == 0 for k, u in zip(self.kinematics, self.speeds)
         )
 
-    def time_derivative(self, expr, accelerations=None):
+    def time_derivative(self, expr: Any, accelerations: Any = None) -> Any:
         """Total time derivative, substituting q' = N(q, u, t) and u' = `accelerations` symbols.
 
         With accelerations None the u' terms are dropped (useful for bias terms).
@@ -229,7 +229,7 @@ class Model:
             raise ModelDefinitionError(self.name, problems)
 
 
-def vec(*components) -> sp.Matrix:
+def vec(*components: Any) -> sp.Matrix:
     """A 3x1 component column."""
     return sp.Matrix(components)
 
@@ -240,13 +240,13 @@ def symbols(names: str) -> tuple[sp.Symbol, ...]:
     return out if isinstance(out, tuple) else (out,)
 
 
-def rot_z(a) -> sp.Matrix:
+def rot_z(a: Any) -> sp.Matrix:
     """Rotation body -> inertial about the z axis by angle a."""
     c, s = sp.cos(a), sp.sin(a)
     return sp.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def rot_x(a) -> sp.Matrix:
+def rot_x(a: Any) -> sp.Matrix:
     c, s = sp.cos(a), sp.sin(a)
     return sp.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]])
 
@@ -259,7 +259,7 @@ def unskew(S: sp.Matrix) -> sp.Matrix:
     return sp.Matrix([S[2, 1], S[0, 2], S[1, 0]])
 
 
-def rate(expr, coordinates, kinematics, t=None):
+def rate(expr: Any, coordinates: Any, kinematics: Any, t: Any = None) -> Any:
     """Time derivative of an expression of (q, t) given q' = kinematics (before a Model exists)."""
     if isinstance(expr, sp.MatrixBase):
         return expr.applyfunc(lambda e: rate(e, coordinates, kinematics, t))

@@ -15,6 +15,10 @@ settings.register_profile("dev", max_examples=25, deadline=None,
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
 
 
+# Tests start no detached compile workers (reference.compiled, 'auto' setting): a cold module
+# runs on the Python path, which tests/test_compiled.py holds equal to the kernels.
+os.environ.setdefault("CROSSCHECK_BACKGROUND_COMPILE", "0")
+
 
 @pytest.fixture(autouse=True)
 def _in_own_tmp_path(tmp_path, monkeypatch):

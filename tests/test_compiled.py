@@ -58,6 +58,9 @@ def test_compiled_equals_fallback(monkeypatch, name):
             _same(x, y, what)
         _same(fast.energy(q, u), slow.energy(q, u), "energy")
         _same(fast.kinematics(q, u), slow.kinematics(q, u), "q'")
+        buf = np.empty(fast.n + fast.m + 1)
+        assert fast.forward_into(np.asarray(q, float), np.asarray(u, float), 0.0, buf) == 0
+        _same(buf[:fast.n], b.accelerations, "u' written into a preallocated array")
         raw = fast.forward_raw(q, u, 0.3, db=np.full(max(fast.m, 1), 0.1))
         ref = slow.forward_raw(list(q), list(u), 0.3, db=[0.1] * max(slow.m, 1))
         _same(raw[0], ref[0], "raw u' with a b offset")
@@ -124,3 +127,20 @@ def test_backend_setting(monkeypatch):
     monkeypatch.setenv("CROSSCHECK_BACKEND", "fortran")
     with pytest.raises(ModelInputError, match="CROSSCHECK_BACKEND"):
         NumericModel(models.get("pendulum_angle"))
+
+
+def test_auto_setting_uses_the_python_path_until_a_worker_has_compiled(monkeypatch, tmp_path):
+    """'auto' on a cold numba cache: the Python path now (no compile in the process), and the
+    background worker's compile makes the next model use the kernels, with the same answer."""
+    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("CROSSCHECK_BACKEND", raising=False)
+    monkeypatch.setenv("CROSSCHECK_BACKGROUND_COMPILE", "0")
+    cold = NumericModel(models.get("pendulum_xy"))
+    assert cold.backend == "python"
+    path = cold._scalar["__cache_path__"]
+    compiled.warm(path.parent / f"{path.stem}_numba.py")  # what the worker runs
+    assert (path.parent / f"{path.stem}_numba.ready").exists()
+    warm = NumericModel(models.get("pendulum_xy"))
+    assert warm.backend == "numba"
+    q, u = cold.model.initial_q, cold.model.initial_u
+    _same(warm.forward(q, u).accelerations, cold.forward(q, u).accelerations, "u'")

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from crosscheck import stress, workprecision
+from crosscheck import stress, targets, workprecision
 
 
 def _statuses(rec):
@@ -86,7 +86,7 @@ def test_work_precision_records_have_the_promised_fields(monkeypatch):
         assert r["error"] is not None and r["wall_s"] > 0
     skipped = [r for r in recs if r["engine"] == "nope"]
     assert skipped and skipped[0]["skipped"] is True and "unknown engine" in skipped[0]["reason"]
-    tg = workprecision.targets([], recs)
+    tg = targets.targets([], recs)
     t1 = tg["slider_crank_work_precision"]
     assert t1["reference"]["engine"] == "reference"
     assert t1["reference"]["error"] <= 1e-8 and t1["reference"]["residual"] <= 1e-10

@@ -256,8 +256,10 @@ def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monk
             raise OffManifoldError("projection did not converge (injected)")
         return real_draw(base, seed, index)
 
-    monkeypatch.setattr(S, "_adapter", adapter)
-    monkeypatch.setattr(S, "draw_sample", draw)
+    from crosscheck import sweep_campaign, sweep_worker
+    for mod in (S, sweep_worker, sweep_campaign):  # the worker draws and builds; the plan builds
+        monkeypatch.setattr(mod, "_adapter", adapter)
+    monkeypatch.setattr(sweep_worker, "draw_sample", draw)
     cfg = S.Campaign(["pendulum_xy"], samples=10, seed=1)
     res = S.campaign(cfg, workers=1, chunk=4)
     st = res["status"]
@@ -309,7 +311,8 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
 
 
 def test_drawn_inertias_stay_physical():
-    """The generator scales all inertias by one factor, so MuJoCo accepts every draw."""
+    """The generator draws each inertia on its own but keeps every body physical (second
+    moments, rejection for shared parameters), so MuJoCo accepts every draw."""
     res = S.campaign(S.Campaign(["double_pendulum_3d", "frame_bar"], samples=6, seed=0,
                                 engines=("mujoco",)), workers=1)
     assert not res["faults"]["groups"], res["faults"]["groups"]

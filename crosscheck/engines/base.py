@@ -98,7 +98,8 @@ class EngineForward:
     @property
     def soft(self) -> bool:
         """The answer is regularized here: compare its rigid recovery, predict the raw one."""
-        return self.rigid_accelerations is not None and self.predicted_acceleration_error is not None
+        return (self.rigid_accelerations is not None
+                and self.predicted_acceleration_error is not None)
 
 
 @dataclass
@@ -178,6 +179,17 @@ class EngineModel(ABC):
         """A callable making only the engine's native forward call at a state already mapped
         (what `crosscheck bench` times); the default times the whole forward()."""
         return lambda: self.forward(q, u)
+
+    # the parameter values the adapter's maps (state, acceleration and multiplier maps, raw
+    # figures) read: the nominal (unperturbed) set, given by crosscheck.comparison.build, so
+    # that a perturbation (crosscheck.perturb) changes only the engine's physics; None: the
+    # build's own values
+    nominal: Optional[dict[str, float]] = None
+
+    @property
+    def map_params(self) -> dict[str, float]:
+        """The values the maps use: ``nominal`` when given, else the build's own."""
+        return self.nominal if self.nominal is not None else self.params  # type: ignore
 
     def fingerprint(self) -> str:
         """A digest of the built engine model's physics (masses, inertias, geometry, gravity,

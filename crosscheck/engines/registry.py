@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import metadata
-from typing import Optional
+from typing import Any, Optional
 
 from reference.errors import ModelInputError
 
@@ -49,7 +49,8 @@ def engine_names() -> tuple[str, ...]:
 def _adapter_class(name: str) -> type[EngineAdapter]:
     eps = _entry_points()
     if name not in eps:
-        raise UnknownEngineError(f"unknown engine {name!r}; registered: {', '.join(engine_names())}")
+        raise UnknownEngineError(f"unknown engine {name!r}; registered: "
+                                 f"{', '.join(engine_names())}")
     try:
         cls = eps[name].load()
     except ImportError as exc:
@@ -61,7 +62,7 @@ def _adapter_class(name: str) -> type[EngineAdapter]:
     return cls
 
 
-def get_engine(name: str, **options) -> EngineAdapter:
+def get_engine(name: str, **options: Any) -> EngineAdapter:
     """A fresh adapter of a registered engine (options go to its constructor)."""
     return _adapter_class(name)(**options)
 

@@ -56,8 +56,8 @@ VELOCITY_STEP = 1e-6  # Exudyn's default relativeEpsilon (the "plain" answer in 
 # Exudyn's implicit solvers accepted by simulate() (fixed step: pass ``timestep``):
 # generalized-alpha on the index-3 constraints (spectral radius 0.9, Exudyn's default) and the
 # trapezoidal rule on index-2 (velocity-level) constraints.
-INTEGRATORS = {"generalized-alpha": exu.DynamicSolverType.GeneralizedAlpha,
-               "trapezoidal-index2": exu.DynamicSolverType.TrapezoidalIndex2}
+from .trajectory import INTEGRATORS  # noqa: E402 - its own module, imported by both
+
 
 
 def _settings() -> exu.SimulationSettings:

@@ -18,7 +18,10 @@ import exudyn as exu
 from exudyn.itemInterface import SensorNode
 
 from ..base import EngineTrajectory, EngineUnsupported
-from .base import INTEGRATORS
+
+# Exudyn's own integrators for simulate() (the first is the one `crosscheck run` uses)
+INTEGRATORS = {"generalized-alpha": exu.DynamicSolverType.GeneralizedAlpha,
+               "trapezoidal-index2": exu.DynamicSolverType.TrapezoidalIndex2}
 
 __all__ = ["ExudynIntegrationError", "simulate"]
 

@@ -6,7 +6,7 @@ speeds are the coordinate rates, which equal MuJoCo's qvel on hinges and slides 
 local angular velocity on ball and free joints (reference.mjcf.rates_from_qvel /
 qvel_from_rates). The answer is MuJoCo's own soft one from mj_forward, with the rigid answer
 recovered from it and the impedance prediction, exactly as for the built-in models
-(adapter._MjModel.forward). The file's physics is not touched (solref, solimp, timestep,
+(machinery.MjEngineModel.forward). The file's physics is not touched (solref, solimp, timestep,
 gravity, armature, springs); two numerical settings are: the constraint solver's tolerance
 (1e-15, 1000 iterations, so the soft solve the recovery starts from is converged, as in the
 built-in files) and the energy flag (d.energy for the energy check).
@@ -27,10 +27,10 @@ import mujoco
 import numpy as np
 
 from ..base import EngineUnsupported
-from .adapter import SOLIMP, SOLREF, _dense_efc_J, _MjModel
+from .machinery import SOLIMP, SOLREF, MjEngineModel, dense_efc_J
 
 JNT = mujoco.mjtJoint
-# MuJoCo's constraint solver on a user's file: the built-in files' setting (adapter._document),
+# MuJoCo's constraint solver on a user's file: the built-in files' setting (machinery.document),
 # so the soft solve the rigid recovery starts from is converged to round-off
 SOLVER_TOLERANCE = 1e-15
 SOLVER_ITERATIONS = 1000
@@ -78,7 +78,7 @@ def rate_derivatives(joints, qpos, qvel, qacc) -> np.ndarray:
     return out
 
 
-class UserFileModel(_MjModel):
+class UserFileModel(MjEngineModel):
     """MuJoCo's compiled model of a user's MJCF file, identity state maps (see the module)."""
 
     def __init__(self, model_name: str, params: Optional[dict] = None,
@@ -130,7 +130,7 @@ class UserFileModel(_MjModel):
     def _multipliers(self, qe, ve, ae, f):
         f = np.asarray(f, float)
         if f.size:
-            J = _dense_efc_J(self.m, self.d)
+            J = dense_efc_J(self.m, self.d)
             # the minimum-norm forces with MuJoCo's J^T f: unique where rows are dependent
             f = np.linalg.pinv(J.T, rcond=1e-12) @ (J.T @ f)
         # the quaternion norm rows (last in the reference) have no MuJoCo force: zeros here,

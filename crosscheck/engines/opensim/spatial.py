@@ -254,14 +254,25 @@ class _Top(OsimModel):
         self.model.addJoint(joint)
         self.top = top
 
+    # The engine's rotation does not know the sign of eps (eps and -eps are one rotation): the
+    # maps return the branch of the last eps seen, the one mapped into the engine or the
+    # previous output of a trajectory, so a round trip gives back the given eps and a
+    # trajectory stays continuous (eps'' is odd in eps for a given motion, so the
+    # accelerations follow the same branch).
+    _branch: np.ndarray | None = None
+
     def _engine(self, eps, eps_dot):
         R = _R_eps(eps)
+        self._branch = np.array(eps, float)
         return _xyz(R), R @ (2.0 * _E(eps) @ eps_dot)
 
     def _reference(self, qe, ve):
-        """(eps, eps', omega_body, R) of an engine state (eps4 >= 0)."""
+        """(eps, eps', omega_body, R) of an engine state, on the current branch."""
         R = _Rxyz(*qe[0:3])
         eps = _eps_of(R)
+        if self._branch is not None and eps @ self._branch < 0:
+            eps = -eps
+        self._branch = eps.copy()
         w = R.T @ ve
         return eps, 0.5 * _E(eps).T @ w, w, R
 
@@ -272,16 +283,6 @@ class _Top(OsimModel):
         acc = self.top.getAccelerationInGround(self.state)  # held while read
         alpha = _np(acc.get(0))
         return 0.5 * (_E(eps_dot).T @ w + _E(eps).T @ (R.T @ alpha))
-
-    def forward(self, q, u, t: float = 0.0):
-        """The engine's rotation does not know the sign of eps (eps and -eps are one rotation):
-        the maps return the branch eps4 >= 0, and the Euler-parameter accelerations are turned
-        to the branch of the given q (eps'' is odd in eps for a given motion)."""
-        out = super().forward(q, u, t)
-        eps = np.asarray(q, float)[-4:]
-        if eps @ _eps_of(_R_eps(eps)) < 0:
-            out.accelerations[-4:] *= -1.0
-        return out
 
     def _socket_force(self) -> np.ndarray:
         return reaction(self.joint("O"), self.state)[1]

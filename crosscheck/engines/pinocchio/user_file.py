@@ -343,10 +343,10 @@ class UserFilePinModel(EngineModel):
                  timestep: Optional[float] = None) -> EngineTrajectory:
         """solve_ivp (method `integrator`, rtol = atol) on Pinocchio's forward dynamics in the
         reference's coordinates (qpos and coordinate rates: q' = u, u' = forward()), no
-        constraint stabilization (as the built-in models, adapter._PinModel.simulate)."""
+        constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
         from scipy.integrate import solve_ivp
 
-        from .adapter import INTEGRATORS
+        from .machinery import INTEGRATORS
         if integrator not in INTEGRATORS:
             raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
         if rtol is None or not rtol > 0:

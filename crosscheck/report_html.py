@@ -1,0 +1,399 @@
+"""The report as one self-contained HTML page (index.html); see crosscheck.report."""
+from __future__ import annotations
+
+import base64
+import html
+import json
+
+from . import report_sensitivity  # the section of sensitivity.json beside results.json
+from .report_content import (Content, details, engine_anchors, engine_label, fmt, fmt_ratio,
+                             fmt_time, fmt_tol, machine_text, model_info, named_items,
+                             ratio_to_tolerance, record_id, ReportInputError, series_stats, status,
+                             sweep_label, sweep_models, sweep_rows, sweep_verdict, version_keys,
+                             versions_of, wp_row)
+
+# ---- HTML ------------------------------------------------------------------------------------
+CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,"DejaVu Sans",sans-serif;color:#1d1d1d;
+margin:0;background:#fafafa;line-height:1.4}
+main{max-width:1180px;margin:0 auto;padding:18px 26px 40px;background:#fff}
+h1{font-size:1.6em;margin:.2em 0}h2{font-size:1.3em;margin-top:2em;border-bottom:2px solid #ddd;
+padding-bottom:.2em}h3{font-size:1.05em;margin:1.4em 0 .5em}
+.sub{color:#555;font-size:.9em}
+.banner{padding:10px 14px;border-radius:6px;font-weight:600;margin:14px 0}
+.banner.ok{background:#e6f4ea;color:#145c2c;border:1px solid #9ccfaa}
+.banner.bad{background:#fde8e8;color:#8a1111;border:1px solid #f0a0a0}
+table{border-collapse:collapse;font-size:.84em;margin:.4em 0 .8em}
+th,td{border:1px solid #d8d8d8;padding:3px 7px;text-align:left;vertical-align:top}
+th{background:#f0f0f0;font-weight:600}
+td.num{text-align:right;font-family:ui-monospace,"DejaVu Sans Mono",monospace;white-space:nowrap}
+tr.fail td{background:#fde8e8}tr.skip td{color:#666;background:#f7f7f7}
+.badge{display:inline-block;padding:0 6px;border-radius:3px;font-weight:700;font-size:.85em}
+.badge.pass{background:#d7f0dd;color:#145c2c}.badge.fail{background:#d62728;color:#fff}
+.badge.skip{background:#e4e4e4;color:#555}.badge.flag{background:#f5c542;color:#4a3500}
+details pre{max-height:24em;overflow:auto;font-size:.85em}
+.note{color:#555;font-size:.88em}.reason{color:#444;font-size:.92em}
+ol.notes{font-size:.8em;color:#444;margin-top:0}ol.notes li{margin:.15em 0}
+figure{margin:.6em 0 1.2em}figure img{max-width:100%;height:auto;border:1px solid #eee}
+figcaption{font-size:.82em;color:#555;max-width:60em}
+nav{display:flex;flex-wrap:wrap;gap:.25em 1em;margin:.4em 0}
+footer{margin-top:3em;border-top:2px solid #ddd;padding-top:.6em;font-size:.85em;color:#333}
+pre{background:#f5f5f5;padding:8px 10px;overflow-x:auto;font-size:.92em}
+code{font-family:ui-monospace,"DejaVu Sans Mono",monospace}
+"""
+
+
+def _e(x) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _anchor(model: str) -> str:
+    return "model-" + "".join(c if c.isalnum() or c in "-_" else "-" for c in model)
+
+
+def _img(svg: str | None, alt: str, caption: str) -> str:
+    if not svg:
+        return ""
+    data = base64.b64encode(svg.encode("utf-8")).decode("ascii")
+    return (f'<figure><img src="data:image/svg+xml;base64,{data}" alt="{_e(alt)}">'
+            f"<figcaption>{caption}</figcaption></figure>")
+
+
+def _table(headers: list[str], rows: list[list[str]], classes: list[str] | None = None,
+           num_cols: set[int] = frozenset()) -> str:
+    out = ["<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in headers) + "</tr></thead>",
+           "<tbody>"]
+    for i, row in enumerate(rows):
+        cls = f' class="{classes[i]}"' if classes and classes[i] else ""
+        cells = "".join(f'<td class="num">{c}</td>' if j in num_cols else f"<td>{c}</td>"
+                        for j, c in enumerate(row))
+        out.append(f"<tr{cls}>{cells}</tr>")
+    out.append("</tbody></table>")
+    return "\n".join(out)
+
+
+def _named_items_html(section) -> str:
+    rows, classes = [], []
+    for name, st, cls, desc, crit, notes, rest in named_items(section):
+        rest_html = (f"<details><summary>details</summary><pre>"
+                     f"{_e(json.dumps(rest, indent=1, allow_nan=True))}</pre></details>"
+                     if rest else "")
+        rows.append([f"<b>{_e(name)}</b>", f'<span class="badge {cls}">{_e(st)}</span>' if st
+                     else "", _e(desc) + (f'<br><span class="note">criterion: {_e(crit)}</span>'
+                                          if crit else ""),
+                     "<br>".join(_e(n) for n in notes), rest_html])
+        classes.append("fail" if cls == "fail" else "")
+    if not rows:
+        return '<p class="note">(empty)</p>'
+    return _table(["name", "status", "what", "notes", "figures"], rows, classes)
+
+
+def _checks_html(c: Content, model: str, recs: list[dict]) -> str:
+    notes: list[str] = []
+    rows, classes = [], []
+    for r in recs:
+        st = status(r)
+        reason = str(r.get("reason") or "")
+        if st == "skip":
+            why = f'<span class="reason">skipped: {_e(reason or "no reason given")}</span>'
+        else:
+            if reason and reason not in notes:
+                notes.append(reason)
+            why = (f'<a href="#{_anchor(model)}-n{notes.index(reason) + 1}">'
+                   f"[{notes.index(reason) + 1}]</a>" if reason else "")
+        extra = details(r)
+        label = {"pass": "PASS", "fail": "FAIL", "skip": "SKIP"}[st]
+        rows.append([f'<span class="badge {st}">{label}</span>', _e(r.get("formulation", "")),
+                     _e(engine_label(r)), _e(r.get("check", "")), _e(r.get("quantity", "")),
+                     _e(fmt(r.get("error"))), _e(fmt_tol(r.get("tolerance"))),
+                     _e(fmt(ratio_to_tolerance(r), 1)) if st != "skip" else "—",
+                     why + (("<br>" if why else "") + f'<span class="note">{_e(extra)}</span>'
+                            if extra else "")])
+        classes.append(st)
+    table = _table(["status", "formulation", "engine", "check", "quantity", "error", "tolerance",
+                    "error / tolerance", "reason and details"], rows, classes, {5, 6, 7})
+    if notes:
+        table += ('<p class="note" style="margin-bottom:0">Tolerances and their reasons:</p>'
+                  '<ol class="notes">' + "".join(
+                      f'<li id="{_anchor(model)}-n{i + 1}">{_e(n)}</li>'
+                      for i, n in enumerate(notes)) + "</ol>")
+    return table
+
+
+def _timing_html(c: Content, model: str) -> str:
+    rows, anchors = c.timing_rows(model)
+    if not rows:
+        return ""
+    headers = ["engine", "path", "batch", "µs / state (median)", "µs / state (min)"]
+    headers += [f"× {label}" for _, (label, _) in anchors.items()]
+    body, classes = [], []
+    for r, ratios in rows:
+        skipped = r.get("skipped")
+        line = [_e(r.get("engine", "")), _e(r.get("path", "")), _e(r.get("batch", "")),
+                _e(fmt_time(r.get("us_per_state"))) if not skipped else
+                f'<span class="reason">skipped: {_e(skipped)}</span>',
+                _e(fmt_time(r.get("us_per_state_min")))]
+        line += [_e(fmt_ratio(ratios[k])) for k in anchors]
+        body.append(line)
+        classes.append("skip" if skipped else "")
+    num = set(range(2, len(headers)))
+    out = _table(headers, body, classes, num)
+    if anchors:
+        names = " and ".join(label for label, _ in anchors.values())
+        out += (f'<p class="note">× {names}: this path\'s median time per state divided by the '
+                f"engine's constrained forward call at the same state, both measured in the same "
+                f"bench run (so the ratio, not the absolute time, is what carries over between "
+                f"machines; &lt; 1× means faster than the engine).</p>")
+    else:
+        out += ('<p class="note">No engine was timed in this bench run, so there are no ratios '
+                f"against {' or '.join(label for _, label in engine_anchors())} (run "
+                f"<code>crosscheck bench --engines "
+                f"{','.join(e for e, _ in engine_anchors())}</code>).</p>")
+    return out
+
+
+def _work_precision_html(c: Content, model: str) -> str:
+    from . import plots
+    rows = c.work_precision_of(model)
+    if not rows:
+        if c.bench is None:
+            return ""
+        return ('<p class="note">No work-precision data for this model in bench.json '
+                '("work_precision" has no rows for it).</p>')
+    out = [_img(plots.work_precision_svg(rows), f"work-precision diagram for {model}",
+                "Wall time against the error at the end of the run (and the largest constraint "
+                "residual and energy drift where recorded), log-log; one line per method and "
+                "engine, points along the tolerance or step-size ladder. Lower left is better.")]
+    keys = ["method", "engine", "setting", "wall [s]", "error", "residual", "energy drift",
+            "nfev"]
+    body = [[_e(v) for v in wp_row(r)] for r in rows]
+    table = _table(keys, body, None, {3, 4, 5, 6, 7})
+    if len(rows) > 12:  # long ladders fold away under the diagram (no script: <details>)
+        table = f"<details><summary>table of the {len(rows)} points</summary>{table}</details>"
+    out.append(table)
+    return "\n".join(out)
+
+
+def _trajectory_html(c: Content, model: str) -> str:
+    from . import plots
+    note = c.series_note(model)
+    if note:
+        return f'<p class="note">{_e(note)}</p>'
+    ss = c.series_of(model)
+    out = [_img(plots.trajectory_svg(ss), f"trajectories of {model}",
+                "Against time, log scale: the state's difference from the reference trajectory, "
+                "the largest constraint violation, and the energy drift |E − E(0)| / "
+                f"max(|E(0)|, 1). A line that is exactly 0 throughout is named in its panel; "
+                f"other zeros are drawn at {plots.ZERO_AT:.0e}.")]
+    body = []
+    for s in ss:
+        st = series_stats(s)
+        body.append([_e(plots.series_label(s)), _e(st["points"]), _e(f"{st['t_end']:g}"),
+                     _e(fmt(st["state_error"])), _e(fmt(st["residual"])),
+                     _e(fmt(st["energy"]))])
+    out.append(_table(["series", "points", "t end [s]", "max state error", "max residual",
+                       "max energy drift"], body, None, {1, 2, 3, 4, 5}))
+    return "\n".join(out)
+
+
+def _model_html(c: Content, model: str) -> str:
+    from . import plots
+    source, title = model_info(model)
+    recs = c.records_of(model)
+    head = f'<h2 id="{_anchor(model)}">{_e(model)}'
+    if title or source:
+        src = f" ({_e(source)})" if source else ""
+        head += f' <span class="sub">— {_e(title)}{src}</span>'
+    head += "</h2>"
+    out = [head]
+    n = {k: sum(1 for r in recs if status(r) == k) for k in ("pass", "fail", "skip")}
+    if recs:
+        out.append(f'<p class="sub">{n["pass"]} passed, {n["fail"]} failed, {n["skip"]} '
+                   f"skipped</p>")
+        out.append("<h3>Checks</h3>")
+        out.append(_checks_html(c, model, recs))
+        out.append("<h3>Agreement</h3>")
+        out.append(_img(plots.agreement_svg(recs), f"agreement plot for {model}",
+                        "Each executed check's error (dot, one colour per engine) beside its "
+                        "tolerance (black bar), log scale: a dot left of its bar passes. Failing "
+                        "checks are ringed in red; skipped checks are named in grey."))
+    else:
+        out.append('<p class="note">No cross-check records for this model in results.json.</p>')
+    out.append("<h3>Trajectories</h3>")
+    out.append(_trajectory_html(c, model))
+    if c.bench is not None:
+        out.append("<h3>Work-precision</h3>")
+        out.append(_work_precision_html(c, model))
+        timing = _timing_html(c, model)
+        out.append("<h3>Forward dynamics timings</h3>")
+        out.append(timing or '<p class="note">This model was not timed in bench.json.</p>')
+    return "\n".join(out)
+
+
+def _footer_html(c: Content) -> str:
+    out = ['<footer id="footer"><h3>Regenerate</h3><pre><code>'
+           + _e("\n".join(c.regenerate())) + "</code></pre>"]
+    metas = c.meta_rows()
+    if metas:
+        headers = [""] + [label for label, _ in metas]
+        rows = [["command"] + [f"<code>{_e(m.get('command', 'not recorded'))}</code>"
+                               for _, m in metas],
+                ["date (UTC)"] + [_e(m.get("date", "not recorded")) for _, m in metas],
+                ["machine"] + [_e(machine_text(m)) for _, m in metas]]
+        for k in version_keys():
+            rows.append([k] + [_e(versions_of(m)[k]) for _, m in metas])
+        out.append("<h3>Machine and versions</h3>")
+        out.append(_table(headers, rows))
+    out.append('<p class="note">Generated by <code>crosscheck report</code> from the files above; '
+               "do not edit by hand.</p></footer>")
+    return "\n".join(out)
+
+
+def render_html(c: Content) -> str:
+    try:  # fail before writing anything, with one line, if the plotting library is missing
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise ReportInputError("the report's plots need matplotlib (a dependency of this "
+                               "package: pip install -e .)")
+    n = c.counts
+    executed = n["pass"] + n["fail"]
+    if c.records:
+        if n["fail"]:
+            banner = (f'<div class="banner bad">{n["fail"]} of {executed} executed checks FAIL '
+                      f'({n["pass"]} passed, {n["skip"]} skipped)</div>')
+        else:
+            banner = (f'<div class="banner ok">All {executed} executed checks pass '
+                      f'({n["skip"]} skipped)</div>')
+    elif c.sweep is not None and c.bench is None:
+        banner = '<div class="banner ok">No cross-check results given: sweep only</div>'
+    else:
+        banner = '<div class="banner ok">No cross-check results given: benchmarks only</div>'
+    sources = []
+    if c.results_path is not None:
+        sources.append(f"results <code>{_e(c.results_path)}</code> "
+                       f"({_e((c.results.get('meta') or {}).get('date', 'undated'))})")
+    if c.bench_path is not None:
+        sources.append(f"bench <code>{_e(c.bench_path)}</code> "
+                       f"({_e((c.bench.get('meta') or {}).get('date', 'undated'))})")
+    if c.sweep_path is not None:
+        sources.append(f"sweep <code>{_e(c.sweep_path)}</code> "
+                       f"({_e((c.sweep.get('meta') or {}).get('date', 'undated'))})")
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             '<meta name="viewport" content="width=device-width, initial-scale=1">',
+             "<title>multibody-crosscheck report</title>", f"<style>{CSS}</style></head>",
+             "<body><main>", "<h1>multibody-crosscheck report</h1>",
+             f'<p class="sub">{" · ".join(sources)}</p>', banner]
+    if c.models:
+        parts.append("<nav>" + "".join(f'<a href="#{_anchor(m)}">{_e(m)}</a>'
+                                       for m in c.models)
+                     + ('<a href="#bench-more">more from bench.json</a>' if c.other_bench else "")
+                     + ('<a href="#sweep">sweep</a>' if c.sweep is not None else "")
+                     + '<a href="#footer">versions</a></nav>')
+    headers = ["model", "passed", "failed", "skipped", "engines"]
+    headers += ["trajectories"] if c.series is not None else []
+    headers += ["forward timings", "work-precision points"] if c.bench is not None else []
+    overview = []
+    for m in c.models:
+        recs = c.records_of(m)
+        k = {s: sum(1 for r in recs if status(r) == s) for s in ("pass", "fail", "skip")}
+        engines = ", ".join(dict.fromkeys(r.get("engine", "?") for r in recs))
+        row = [f'<a href="#{_anchor(m)}">{_e(m)}</a>', str(k["pass"]),
+               f'<b>{k["fail"]}</b>' if k["fail"] else "0", str(k["skip"]), _e(engines)]
+        row += [str(len(c.series_of(m)))] if c.series is not None else []
+        row += ([str(len(c.forward_of(m))), str(len(c.work_precision_of(m)))]
+                if c.bench is not None else [])
+        overview.append(row)
+    if overview:
+        parts.append("<h3>Overview</h3>")
+        parts.append(_table(headers, overview,
+                            ["fail" if "<b>" in row[2] else "" for row in overview],
+                            {1, 2, 3} | set(range(5, len(headers)))))
+    if c.failing:
+        parts.append("<h3>Failing checks</h3><ul>")
+        for r in c.failing:
+            parts.append(f'<li><a href="#{_anchor(r.get("model", "?"))}">{_e(record_id(r))}</a>: '
+                         f'error {_e(fmt(r.get("error")))} &gt; tolerance '
+                         f'{_e(fmt_tol(r.get("tolerance")))}</li>')
+        parts.append("</ul>")
+    for m in c.models:
+        parts.append(_model_html(c, m))
+    if c.other_bench:
+        parts.append('<h2 id="bench-more">More from bench.json</h2>')
+        for key, section in c.other_bench.items():
+            parts.append(f"<h3>{_e(key)}</h3>")
+            parts.append(_named_items_html(section))
+    if c.sweep is not None:
+        parts.append(_sweep_html(c))
+    parts.append(report_sensitivity.html(c))
+    parts.append(_footer_html(c))
+    parts.append("</main></body></html>")
+    return "\n".join(p for p in parts if p) + "\n"
+
+
+def _sweep_html(c: Content) -> str:
+    from . import plots
+    sw = c.sweep
+    meta = sw.get("meta") or {}
+    ok, verdict = sweep_verdict(sw)
+    out = ['<h2 id="sweep">Sweep</h2>',
+           f'<p class="sub">seed {_e(meta.get("seed", "?"))}, {_e(meta.get("samples", "?"))} '
+           f'samples per model from index {_e(meta.get("index", 0))}; sampler: '
+           f'{_e(meta.get("sampler", "not recorded"))}</p>',
+           f'<div class="banner {"ok" if ok else "bad"}">{_e(verdict)}</div>']
+    headers = ["engine", "quantity", "samples", "max", "median", "q0.99", "tolerance",
+               "outside", "worst sample", "status"]
+    for m in sweep_models(sw):
+        out.append(f'<h3 id="sweep-{_anchor(m)}">{_e(m)}</h3>')
+        for s in sw.get("series", []):
+            if s.get("model") == m and s.get("unsupported"):
+                out.append(f'<p class="note">{_e(sweep_label(s))}: not run, the engine cannot '
+                           f'represent the model: {_e(s["unsupported"])}</p>')
+        rows = sweep_rows(sw, m)
+        if rows:
+            body, classes = [], []
+            for r in rows:
+                status_cell = r[9]
+                cls = "fail" if status_cell == "fail" else ("skip" if status_cell.startswith(
+                    "skip") else "")
+                body.append([_e(r[0]), _e(r[1]), _e(r[2]), _e(fmt(r[3])), _e(fmt(r[4])),
+                             _e(fmt(r[5])), _e(fmt_tol(r[6])), _e("—" if r[7] is None else r[7]),
+                             _e("—" if r[8] is None else r[8]),
+                             f'<span class="reason">{_e(status_cell)}</span>'])
+                classes.append(cls)
+            out.append(_table(headers, body, classes, {2, 3, 4, 5, 6, 7, 8}))
+        recs = [r for r in sw.get("results", []) if r.get("model") == m]
+        out.append(_img(plots.sweep_histogram_svg(recs), f"sweep error histograms for {m}",
+                        "Distribution of each quantity's error over the sweep's samples "
+                        "(log-spaced bins, one line per engine; dashed: that engine's "
+                        "tolerance). Exact zeros and values outside the binned range are "
+                        "counted in the legend."))
+        worst = [(r, w) for r in recs for w in (r.get("worst") or [])[:1]
+                 if r.get("outside_tolerance")]
+        if worst:
+            out.append("<details><summary>reproduce the worst samples outside tolerance"
+                       "</summary><pre>" + _e("\n".join(
+                           f"# {sweep_label(r)} {r.get('quantity')}: error {fmt(w.get('error'))}"
+                           f"\n{(w.get('reproduce') or {}).get('sweep', '')}"
+                           f"\n{(w.get('reproduce') or {}).get('eval', '')}"
+                           for r, w in worst)) + "</pre></details>")
+    faults = sw.get("faults") or {}
+    groups = faults.get("groups") or []
+    if groups or faults.get("chunks"):
+        out.append("<h3>Faults</h3>")
+        body = [[_e(g.get("model")), _e(sweep_label(g)), _e(g.get("stage")), _e(g.get("type")),
+                 _e(g.get("count")), _e(g.get("first_reason"))] for g in groups]
+        body += [[_e(ch.get("model")), "—", "chunk", _e(ch.get("type")),
+                  _e(f"[{ch.get('start')}, {ch.get('stop')})"), _e(ch.get("reason"))]
+                 for ch in faults.get("chunks") or []]
+        out.append(_table(["model", "engine", "stage", "type", "samples", "first reason"],
+                          body, ["fail"] * len(body), {4}))
+        cmds = [f"# {f.get('model')} {sweep_label(f)} {f.get('stage')} sample "
+                f"{f.get('index')}: {f.get('reason', '')[:120]}\n{f.get('reproduce', '')}"
+                for f in faults.get("records") or []]
+        if cmds:
+            out.append("<details><summary>reproduce faulty samples (the first "
+                       f"{_e(faults.get('kept_per_group', ''))} per group)</summary><pre>"
+                       + _e("\n".join(cmds)) + "</pre></details>")
+    return "\n".join(out)
+
+

@@ -1,0 +1,143 @@
+"""`crosscheck sweep --bench`: the sweep's throughput per stage and the machine's own scaling."""
+from __future__ import annotations
+
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from reference import models
+
+from .engines.registry import available_engines
+from .sampling import draw_sample
+from .sweep_campaign import campaign
+from .sweep_config import LOCAL_CHUNK_MAX, REFERENCE, Campaign
+from .sweep_exec import _mp_context, default_workers
+from .sweep_worker import base_model
+
+
+# ---- throughput benchmark -------------------------------------------------------------------
+def _spin(n: int) -> int:
+    """Pure-Python work for the machine's own scaling baseline."""
+    x = 0
+    for i in range(n):
+        x += i * i
+    return x
+
+
+def _machine_scaling(workers=(1, 2), tasks: int = 8, n: int = 2_000_000) -> list[dict]:
+    """How this machine scales pure-Python work over local processes (the same pool type):
+    the ceiling for any Python-bound campaign here (cores may be shared or throttled)."""
+    out = []
+    for w in workers:
+        with ProcessPoolExecutor(max_workers=w, mp_context=_mp_context()) as ex:
+            list(ex.map(_spin, [1000] * w))  # start the workers before timing
+            t0 = time.perf_counter()
+            list(ex.map(_spin, [n] * tasks))
+            out.append({"workers": w, "wall_s": time.perf_counter() - t0})
+    for r in out:
+        r["speedup_vs_1"] = out[0]["wall_s"] / r["wall_s"]
+    return out
+
+
+def bench(model_names=None, samples: int = 200, seed: int = 0, engines=None,
+          scaling_workers=(1, 2), log=None) -> dict:
+    """Throughput of campaigns, measured (not asserted). For `crosscheck sweep --bench` and for
+    crosscheck.bench to call.
+
+    - per model and engine: a one-engine campaign in this process (one core), after a warm-up
+      campaign (imports, compiled code); samples per second end to end (draw + reference +
+      engine build + evaluation + aggregation), with the CPU time per sample of each stage and
+      the reference's scalar forward per sample beside its batched one;
+    - scaling: the whole campaign (all models, all engines) with 1 worker (in this process,
+      as --workers 1 runs) and 2 local worker processes (pool start and transfer included, so
+      the speedup is conservative), samples per second and speedup, beside the machine's own
+      scaling of pure-Python work over the same kind of pool.
+    """
+    names = list(model_names or models.names())
+    engines = tuple(available_engines() if engines is None else engines)
+    log = log or (lambda msg: None)
+    rows = []
+    for name in names:
+        campaign(Campaign([name], 2, seed + 1, engines=tuple(engines)), workers=1)  # warm-up
+        for e in engines:
+            cfg = Campaign([name], samples, seed, engines=(e,))
+            t0 = time.perf_counter()
+            res = campaign(cfg, workers=1, chunk=LOCAL_CHUNK_MAX)
+            wall = time.perf_counter() - t0
+            ref = next(r for r in res["timing"]["per_series"] if r["engine"] == REFERENCE)
+            base = base_model(name)
+            scalar = []
+            for i in range(min(samples, 20)):
+                try:
+                    _, nmi, t, q, u = draw_sample(base, seed, i)
+                except Exception:  # noqa: BLE001 - a faulty draw is not timed
+                    continue
+                t1 = time.perf_counter()
+                for _ in range(20):
+                    nmi.forward(q, u, t)
+                scalar.append((time.perf_counter() - t1) / 20)
+            for s in res["series"]:
+                if s["engine"] != e:
+                    continue
+                tim = next((r for r in res["timing"]["per_series"]
+                            if r["engine"] == e and r["variant"] == s["variant"]), None)
+                rows.append({
+                    "model": name, "engine": e, "variant": s["variant"],
+                    "unsupported": s["unsupported"], "samples": samples, "wall_s": wall,
+                    "samples_per_s_per_core": None if s["unsupported"] else samples / wall,
+                    "draw_us": ref["draw_us_per_sample"],
+                    "reference_batched_us": ref["reference_batched_us_per_sample"],
+                    "reference_scalar_us": 1e6 * float(np.median(scalar)) if scalar else None,
+                    "reference_mass_matrix_energy_us":
+                        ref["reference_mass_matrix_energy_us_per_sample"],
+                    "build_us": tim and tim["build_us_per_sample"],
+                    "evaluate_us": tim and tim["evaluate_us_per_sample"],
+                    "build_fraction": tim and tim["build_fraction"],
+                    "faults": s["faults"]})
+            log(f"{name} {e}: {samples / wall:.0f} samples/s")
+    campaign(Campaign(names[:1], 4, seed + 1, engines=tuple(engines)), workers=2)  # forkserver
+    scaling = []
+    for w in scaling_workers:
+        cfg = Campaign(names, samples, seed, engines=tuple(engines))
+        t0 = time.perf_counter()
+        res = campaign(cfg, workers=w, chunk=LOCAL_CHUNK_MAX)
+        wall = time.perf_counter() - t0
+        total = samples * len(names)
+        scaling.append({"workers": w, "executor": res["meta"]["executor"], "samples": total,
+                        "wall_s": wall, "samples_per_s": total / wall})
+        log(f"{w} worker(s): {total / wall:.0f} samples/s")
+    for s in scaling:
+        s["speedup_vs_1"] = s["samples_per_s"] / scaling[0]["samples_per_s"]
+    from .provenance import meta
+    return {"meta": {**meta(sys.argv[1:]), "samples_per_model": samples, "seed": seed,
+                     "cores": default_workers(),
+                     "note": "samples_per_s_per_core: one-engine campaign in one process after "
+                             "a warm-up; stage columns are CPU microseconds per sample"},
+            "per_model_engine": rows, "scaling": scaling,
+            "machine_scaling": _machine_scaling(scaling_workers)}
+
+
+def _print_bench(b: dict) -> None:
+    print(f"{'model':24s} {'engine':10s} {'variant':8s} {'samples/s':>9s} {'draw':>6s} "
+          f"{'ref batch':>9s} {'ref scalar':>10s} {'ref M,E':>7s} {'build':>7s} "
+          f"{'evaluate':>8s} {'build %':>7s}   (us per sample)")
+    for r in b["per_model_engine"]:
+        if r["unsupported"]:
+            print(f"{r['model']:24s} {r['engine']:10s} {str(r['variant'] or '-'):8s} "
+                  f"unsupported: {r['unsupported'][:60]}")
+            continue
+        f = lambda x, w=7: f"{x:{w}.0f}" if x is not None else f"{'-':>{w}s}"  # noqa: E731
+        print(f"{r['model']:24s} {r['engine']:10s} {str(r['variant'] or '-'):8s} "
+              f"{r['samples_per_s_per_core']:9.1f} {f(r['draw_us'], 6)} "
+              f"{f(r['reference_batched_us'], 9)} {f(r['reference_scalar_us'], 10)} "
+              f"{f(r['reference_mass_matrix_energy_us'])} {f(r['build_us'])} "
+              f"{f(r['evaluate_us'], 8)} {100 * (r['build_fraction'] or 0):6.0f}%"
+              + (f"  ({r['faults']} faults)" if r["faults"] else ""))
+    for s in b["scaling"]:
+        print(f"{s['workers']} worker(s): {s['samples']} samples in {s['wall_s']:.2f} s = "
+              f"{s['samples_per_s']:.1f} samples/s, speedup {s['speedup_vs_1']:.2f}")
+    print("machine baseline (pure-Python work, same pool): " + ", ".join(
+        f"{m['workers']} worker(s) speedup {m['speedup_vs_1']:.2f}"
+        for m in b["machine_scaling"]))
