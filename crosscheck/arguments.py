@@ -112,13 +112,14 @@ def unique(names: list[str], what: str) -> list[str]:
     return list(names)
 
 
-def resolve_models(names: list[str]) -> list[str]:
-    """The models to run: all registered ones when none is named; unknown names and repeats
-    are refused before any work (the registry's error lists the valid names)."""
+def resolve_models(names: list[str], files: list[str] | None = None) -> list[str]:
+    """The models to run: when none is named, the --model-file models (``files``) if any were
+    loaded, else all built-in ones; unknown names and repeats are refused before any work (the
+    registry's error lists the valid names)."""
     from reference import models
 
     if not names:
-        return list(models.names())
+        return list(files) if files else list(models.names())
     for name in unique(names, "model"):
         models.get(name)
     return list(names)
@@ -137,8 +138,38 @@ def resolve_engines(names: list[str] | None) -> list[str]:
 
 
 def add_models(parser: argparse.ArgumentParser) -> None:
-    """Positional model names (checked by resolve_models before any work)."""
-    parser.add_argument("models", nargs="*", help="models (default: all)")
+    """Positional model names (checked by resolve_models before any work) and --model-file."""
+    parser.add_argument("models", nargs="*",
+                        help="models (default: all, or the --model-file models when given)")
+    add_model_files(parser)
+
+
+def add_model_files(parser: argparse.ArgumentParser) -> None:
+    """--model-file PATH (repeatable): an MJCF (.xml) or Python (.py) file of user models."""
+    parser.add_argument("--model-file", action="append", default=[], metavar="PATH",
+                        help="load models from an MJCF (.xml) or Python (.py, a models() "
+                             "function) file; repeatable (docs/user_models.md)")
+
+
+def load_model_files(args: argparse.Namespace) -> list[str]:
+    """Register the models of every --model-file and of the entry-point group
+    `crosscheck.models` (a name clash or a bad file is one line, exit 2), before any model
+    name is resolved; returns the files' model names in order. A command given files and no
+    model names then runs just those (``args.user_models``, read by resolve_models)."""
+    from importlib import metadata
+
+    files = list(getattr(args, "model_file", None) or [])
+    args.user_models = []
+    if not files and not metadata.entry_points(group="crosscheck.models"):
+        return []  # nothing to load: the commands stay as light as before (no MuJoCo import)
+    from reference import models
+
+    from .user_models import load_all, register_all
+
+    found = load_all(files, builtin_names=models.names())
+    names = register_all(found)
+    args.user_models = [um.name for um in found if um.kind != "entry-point"]
+    return names
 
 
 def add_engines(parser: argparse.ArgumentParser) -> None:

@@ -51,7 +51,10 @@ def _baseline(model, formulation, params):
         K[:n, :n] = M
         K[:n, n:] = -A.T
         K[n:, :n] = A
-        return np.linalg.solve(K, np.concatenate([f.ravel(), b.ravel()]))
+        rhs = np.concatenate([f.ravel(), b.ravel()])
+        if model.redundant_constraints:  # dependent rows: K is singular, u' still unique
+            return np.linalg.lstsq(K, rhs, rcond=None)[0]
+        return np.linalg.solve(K, rhs)
 
     def batched(Q, U, t=0.0):
         N = Q.shape[0]
@@ -67,6 +70,8 @@ def _baseline(model, formulation, params):
             K[:, :n, n:] = -np.transpose(A, (0, 2, 1))
             K[:, n:, :n] = A
             rhs[:, n:] = np.stack(vals[n * n + n + m * n:], -1)
+        if model.redundant_constraints:  # dependent rows (user models): minimum-norm solve
+            return (np.linalg.pinv(K) @ rhs[..., None])[..., 0]
         return np.linalg.solve(K, rhs[..., None])[..., 0]
 
     return single, batched
@@ -180,7 +185,8 @@ def cmd_bench(args) -> int:
     # 'auto' default would time the Python path until a background worker has compiled them)
     import os
     os.environ.setdefault("CROSSCHECK_BACKEND", "numba")
-    names = resolve_models(args.models)  # the same rules as `run`: bad names exit 2 up front
+    # the same rules as `run`: bad names exit 2 up front
+    names = resolve_models(args.models, getattr(args, "user_models", None))
     requested = resolve_engines(args.engines)  # unknown or unimportable: exit 2
     engines = _engines(requested)
     output_dir(args.out)  # an unusable --out fails now, not after the benchmark

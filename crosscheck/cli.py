@@ -16,7 +16,7 @@ import sys
 
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
-from .arguments import OneLineParser, finite_float
+from .arguments import OneLineParser, add_model_files, finite_float
 from . import jsonio  # standard library only
 
 EXIT_USAGE = 2
@@ -87,13 +87,14 @@ def describe_model(model) -> dict:
 
 def cmd_models(args) -> int:
     from reference import models
-    described = [describe_model(models.get(n)) for n in models.names()]
+    described = [{**describe_model(models.get(n)), "origin": models.origin(n)}
+                 for n in [*models.names(), *models.user_names()]]
     if args.json:
         print(dump_json(described))
         return 0
-    rows = [("name", "source", "q", "u", "constraints", "formulations")]
+    rows = [("name", "origin", "source", "q", "u", "constraints", "formulations")]
     for d in described:
-        rows.append((d["name"], d["source"], ",".join(d["coordinates"]),
+        rows.append((d["name"], d["origin"], d["source"], ",".join(d["coordinates"]),
                      str(len(d["speeds"])), str(len(d["constraints"])),
                      ",".join(d["formulations"])))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -159,6 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     m = sub.add_parser("models", help="list the models of the unit")
     m.add_argument("--json", action="store_true", help="machine-readable list")
+    add_model_files(m)
     m.set_defaults(func=cmd_models)
 
     e = sub.add_parser("eval", help="accelerations and multipliers of a model at a state")
@@ -172,10 +174,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--project", action="store_true",
                    help="project the state onto the constraint manifold instead of refusing it")
     e.add_argument("--json", action="store_true")
+    add_model_files(e)
     e.set_defaults(func=cmd_eval)
 
     for register in _optional_commands():
         register(sub)
+    add_model_files(sub.choices["report"])  # report's own module is being split; added here
     return p
 
 
@@ -251,6 +255,9 @@ def _main(argv) -> int:
         argv = list(sys.argv[1:] if argv is None else argv)
         args = parser.parse_args(_attach_negative_values(parser, argv))
         try:
+            if hasattr(args, "model_file"):  # before any model name is resolved
+                from .arguments import load_model_files
+                load_model_files(args)
             return int(args.func(args) or 0)
         except ModelInputError as exc:
             print(f"crosscheck: error: {exc}", file=sys.stderr)

@@ -122,6 +122,18 @@ def _print_summary(res: dict, path: Path) -> None:
           + (f", stopped: {st['stopped']}" if st["stopped"] else "") + f" -> {path}")
 
 
+def _user_models_here(args, names) -> None:
+    """User models (--model-file) are registered in this process only: their samples run
+    here (--workers 1); Dask workers elsewhere could not load the files."""
+    from reference import models
+    if not set(names) & set(models.user_names()):
+        return
+    if args.dask is not None:
+        raise ModelInputError("--model-file models run in this process only; leave out --dask "
+                              "(the workers would not have the file's models)")
+    args.workers = 1
+
+
 def cmd_sweep(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .output import write_atomic
@@ -131,8 +143,9 @@ def cmd_sweep(args) -> int:
     if args.resume is not None:
         cfg, out = _resumed_campaign(args)
     else:
-        names = resolve_models(args.models)
+        names = resolve_models(args.models, getattr(args, "user_models", None))
         engines = tuple(resolve_engines(args.engines))
+        _user_models_here(args, names)
         out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
         if args.bench:
             return _cmd_bench(args, names, engines, out)

@@ -125,6 +125,11 @@ _UNSUPPORTED = {
 }
 
 
+def _is_user_model(model_name: str) -> bool:
+    from reference.models import user_names
+    return model_name in user_names()
+
+
 def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
     from reference.models import get
     from reference.numeric import resolve_parameters
@@ -174,7 +179,8 @@ class MujocoAdapter(EngineAdapter):
         self.solref, self.solimp = tuple(solref), tuple(solimp)
 
     def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
+        from reference.models import user_names
+        return (*_MODELS, *user_names())
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return MUJOCO_EXACT
@@ -190,6 +196,11 @@ class MujocoAdapter(EngineAdapter):
               variant: Optional[str] = None):
         if model_name in _UNSUPPORTED:
             raise EngineUnsupported(_UNSUPPORTED[model_name])
+        if model_name not in _MODELS and _is_user_model(model_name):
+            from .user_file import UserFileModel
+            if variant is not None:
+                raise EngineUnsupported(f"{model_name}: a user's file has a single variant")
+            return UserFileModel(model_name, params)
         if model_name not in _MODELS:
             raise EngineUnsupported(
                 f"mujoco adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")

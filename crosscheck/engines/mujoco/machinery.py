@@ -208,6 +208,10 @@ class MjEngineModel(EngineModel):
     def _post_build(self) -> None:
         pass
 
+    def _fresh_model(self):
+        """A new MjModel of the same model (trajectories run on their own copy)."""
+        return mujoco.MjModel.from_xml_string(self.xml)
+
     def _applied(self) -> np.ndarray:
         """qfrc_applied: the reference's constant loads as engine generalized forces."""
         return np.zeros(self.m.nv)
@@ -483,7 +487,7 @@ class MjEngineModel(EngineModel):
         marks = np.rint(t_eval / timestep).astype(int)
         if np.max(np.abs(marks * timestep - t_eval)) > 1e-9 * max(1.0, float(t_eval[-1])):
             raise ValueError(f"t_eval is not on the {timestep:g} s step grid")
-        m = mujoco.MjModel.from_xml_string(self.xml)
+        m = self._fresh_model()
         m.opt.timestep = float(timestep)
         m.opt.integrator = INTEGRATORS[integrator]
         d = mujoco.MjData(m)

@@ -93,7 +93,7 @@ def predict_for(em, q, u, reference_accelerations) -> tuple[np.ndarray, np.ndarr
     """Predicted soft (accelerations, multipliers) of a built MuJoCo model at a reference
     state, in reference coordinates. Reads only model quantities at the state (M, J, smooth
     forces, aref, solimp, invweights) after mj_forward, never its constraint solution."""
-    from .adapter import _dense_efc_J, _full_M  # the adapter's dense views of MuJoCo's data
+    from .machinery import dense_efc_J, full_M  # dense views of MuJoCo's data
 
     m, d = em.m, em.d
     qe, ve = em.to_engine_state(q, u)
@@ -102,7 +102,7 @@ def predict_for(em, q, u, reference_accelerations) -> tuple[np.ndarray, np.ndarr
     qe, ve = d.qpos.copy(), d.qvel.copy()
     if d.nefc == 0:
         raise EngineUnsupported("no equality rows: MuJoCo's answer is not soft here")
-    J, M = _dense_efc_J(m, d), _full_M(m, d)
+    J, M = dense_efc_J(m, d), full_M(m, d)
     G = em._affine_gain(lambda z: em._acc_to_reference(qe, ve, z), np.zeros(m.nv))
     c = np.asarray(em._acc_to_reference(qe, ve, np.zeros(m.nv)), float)
     soft = predict(M, J, d.qfrc_smooth.copy(), d.efc_aref[:d.nefc].copy(), documented_R(m, d),

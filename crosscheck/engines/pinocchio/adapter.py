@@ -120,6 +120,11 @@ def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
     return resolve_parameters(get(model_name), params)
 
 
+def _user_names() -> list[str]:
+    from reference.models import user_names
+    return user_names()
+
+
 class PinocchioAdapter(EngineAdapter):
     """EngineAdapter for Pinocchio 4.1 (models built in code; see the module docstring)."""
 
@@ -132,7 +137,8 @@ class PinocchioAdapter(EngineAdapter):
                                 adaptive_integrators=INTEGRATORS)
 
     def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
+        from reference.models import user_names
+        return (*_MODELS, *user_names())
 
     def unsupported(self) -> dict[str, str]:
         return dict(_UNSUPPORTED)
@@ -146,6 +152,11 @@ class PinocchioAdapter(EngineAdapter):
               variant: Optional[str] = None):
         if model_name in _UNSUPPORTED:
             raise EngineUnsupported(_UNSUPPORTED[model_name])
+        if model_name not in _MODELS and model_name in _user_names():
+            from .user_file import UserFilePinModel
+            if variant is not None:
+                raise EngineUnsupported(f"{model_name}: a user's file has a single variant")
+            return UserFilePinModel(model_name, params)
         if model_name not in _MODELS:
             raise EngineUnsupported(
                 f"pinocchio adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")

@@ -1,0 +1,389 @@
+"""Pinocchio's model of a user's MJCF file, built from MuJoCo's compiled model (issue 11 item 3).
+
+Pinocchio's own MJCF parser loses dynamics on real files (it ignores <option gravity>, does
+not parse joint stiffness, leaves damping unapplied, drops `joint` equalities; what it kept on
+a given file is ``parser_findings``), so the model whose dynamics are compared is built from
+MuJoCo's compiled numbers instead, element by element, and solved by Pinocchio's algorithms:
+
+- bodies in MuJoCo's order; a body's frame is body_pos/body_quat in its parent's; each hinge or
+  slide is a RevoluteUnaligned / PrismaticUnaligned joint about jnt_axis through jnt_pos (a
+  second joint on the same body is placed relative to the first, T(p2 - p1), as
+  mj_kinematics composes them); ball -> Spherical, free -> FreeFlyer; a body without joints is
+  appended to its parent's joint;
+- inertia: body_mass at body_ipos with body_inertia rotated by body_iquat; gravity from
+  opt.gravity; armature in model.armature;
+- passive forces as tau: -dof_damping qvel - stiffness (qpos - springref) on hinges and slides;
+- equality rows from Pinocchio's kinematics: connect p1 - p2 at the compiled anchors (frame
+  Jacobians, LOCAL_WORLD_ALIGNED; J-dot v the anchors' classical accelerations at a = 0), weld
+  the same plus the rotation rows torquescale/2 R2^T (omega1 - omega2) (the reference's rows on
+  the manifold, reference.mjcf), joint q1 - poly(q2);
+- the solve: pin.forwardDynamics(model, data, q, v, tau, J, gamma), Pinocchio's exact KKT, on
+  an independent subset of the rows (pivoted QR of J^T; a planar loop closed by a 3-D connect
+  has a dependent row that makes the Delassus matrix singular), the forces then expressed as
+  the minimum-norm multipliers of all rows with the same J^T lambda (reference.redundant).
+
+State: Pinocchio's q is MuJoCo's qpos with hinge/slide offsets removed (q - qpos0: Pinocchio's
+joints are at zero in the compiled pose) and quaternions as (x, y, z, w); v is qvel (a free
+joint's linear part in the body frame, MuJoCo's in the world frame).
+"""
+from __future__ import annotations
+
+import time
+from typing import Optional
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import scipy.linalg
+
+from ..base import EngineForward, EngineModel, EngineTrajectory
+from ..mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
+
+JNT = mujoco.mjtJoint
+EQ = mujoco.mjtEq
+# the pivoted QR's rank cut on J^T: rows whose residual pivot is below this times the largest
+# are dependent (the four-bar's out-of-plane row is ~1e-17 of the others; independent rows of
+# the test files are above 1e-3)
+RANK_RTOL = 1e-10
+BUILT_FROM = "Pinocchio model built from MuJoCo's compiled model (not pin's MJCF parser)"
+
+
+def _se3(quat_wxyz, pos) -> pin.SE3:
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, np.asarray(quat_wxyz, float))
+    return pin.SE3(R.reshape(3, 3), np.asarray(pos, float))
+
+
+def _body_inertia(m, b) -> pin.Inertia:
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, np.asarray(m.body_iquat[b], float))
+    R = R.reshape(3, 3)
+    return pin.Inertia(float(m.body_mass[b]), np.array(m.body_ipos[b], float),
+                       R @ np.diag(m.body_inertia[b]) @ R.T)
+
+
+def build_pin_model(m):
+    """(pin.Model, body -> (joint id, body frame in that joint's frame), MuJoCo joint -> pin
+    joint id) from MuJoCo's compiled model m."""
+    model = pin.Model()
+    place: dict[int, tuple[int, pin.SE3]] = {0: (0, pin.SE3.Identity())}
+    jmap: dict[int, int] = {}
+    for b in range(1, m.nbody):
+        parent_joint, parent_in_joint = place[int(m.body_parentid[b])]
+        frame = parent_in_joint * _se3(m.body_quat[b], m.body_pos[b])  # body in parent joint
+        joint, prev = parent_joint, np.zeros(3)
+        for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
+            t, pos = int(m.jnt_type[j]), np.array(m.jnt_pos[j], float)
+            axis = np.array(m.jnt_axis[j], float)
+            if t == int(JNT.mjJNT_HINGE):
+                jm = pin.JointModelRevoluteUnaligned(axis)
+            elif t == int(JNT.mjJNT_SLIDE):
+                jm = pin.JointModelPrismaticUnaligned(axis)
+            elif t == int(JNT.mjJNT_BALL):
+                jm = pin.JointModelSpherical()
+            else:  # MuJoCo's free joint: qpos is the body's world pose (a top-level body)
+                jm, pos, frame = pin.JointModelFreeFlyer(), np.zeros(3), pin.SE3.Identity()
+            placement = frame * pin.SE3(np.eye(3), pos - prev)
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
+            joint = model.addJoint(joint, jm, placement, name)
+            jmap[j] = joint
+            model.armature[model.idx_vs[joint]:model.idx_vs[joint] + model.nvs[joint]] = \
+                m.dof_armature[m.jnt_dofadr[j]:m.jnt_dofadr[j] + model.nvs[joint]]
+            frame, prev = pin.SE3.Identity(), pos
+        body_in_joint = frame * pin.SE3(np.eye(3), -prev)
+        model.appendBodyToJoint(joint, body_in_joint.act(_body_inertia(m, b)), pin.SE3.Identity())
+        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}"
+        model.addFrame(pin.Frame(name, joint, body_in_joint, pin.FrameType.BODY))
+        place[b] = (joint, body_in_joint)
+    from reference.mjcf_checks import disabled
+    model.gravity.linear = np.zeros(3) if disabled(m, "mjDSBL_GRAVITY") else np.array(
+        m.opt.gravity, float)
+    return model, place, jmap
+
+
+class UserFilePinModel(EngineModel):
+    """Pinocchio on a user's MJCF file (see the module docstring)."""
+
+    engine = "pinocchio"
+    solver = "pin.forwardDynamics (KKT on the independent rows)"
+
+    def __init__(self, model_name: str, params: Optional[dict] = None):
+        self.model_name = model_name
+        self.imp = user_import(model_name)
+        m = self.mj = self.imp.mj
+        self.model, place, self.jmap = build_pin_model(m)
+        self.data = self.model.createData()
+        self.mass_matrix_note = None
+        self._quat = any(ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE))
+                         for ji in self.imp.joints)
+        self._norm_rows = sum(ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE))
+                              for ji in self.imp.joints)
+        if self._quat:
+            self.mass_matrix_note = ("quaternion coordinates: Pinocchio's speeds (angular "
+                                     "velocities) are not a constant linear map of the rates")
+        self._eq = self._equalities(place)
+        self.constrained_solve = bool(self._eq)
+
+    # ---- state maps ------------------------------------------------------------------------
+    def _pin_state(self, qpos, qvel):
+        m, q, v = self.mj, np.zeros(self.model.nq), np.array(qvel, float)
+        for j, jid in self.jmap.items():
+            a, iq, iv = m.jnt_qposadr[j], self.model.idx_qs[jid], self.model.idx_vs[jid]
+            t = int(m.jnt_type[j])
+            if t in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
+                q[iq] = qpos[a] - m.qpos0[a]
+                continue
+            if t == int(JNT.mjJNT_FREE):
+                q[iq:iq + 3] = qpos[a:a + 3]
+                R = _se3(qpos[a + 3:a + 7], np.zeros(3)).rotation
+                v[iv:iv + 3] = R.T @ np.asarray(qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3])
+                a, iq = a + 3, iq + 3
+            w, x, y, z = qpos[a:a + 4]
+            q[iq:iq + 4] = (x, y, z, w)
+        return q, v
+
+    def _mj_state(self, q, v):
+        m, qpos, qvel = self.mj, np.zeros(self.mj.nq), np.array(v, float)
+        for j, jid in self.jmap.items():
+            a, iq, iv = m.jnt_qposadr[j], self.model.idx_qs[jid], self.model.idx_vs[jid]
+            t = int(m.jnt_type[j])
+            if t in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
+                qpos[a] = q[iq] + m.qpos0[a]
+                continue
+            if t == int(JNT.mjJNT_FREE):
+                qpos[a:a + 3] = q[iq:iq + 3]
+                x, y, z, w = q[iq + 3:iq + 7]
+                R = _se3((w, x, y, z), np.zeros(3)).rotation
+                qvel[iv:iv + 3] = R @ np.asarray(v[iv:iv + 3])
+                a, iq = a + 3, iq + 3
+            x, y, z, w = q[iq:iq + 4]
+            qpos[a:a + 4] = (w, x, y, z)
+        return qpos, qvel
+
+    def to_engine_state(self, q, u):
+        from reference.mjcf import qvel_from_rates
+        q = np.asarray(q, float)
+        return self._pin_state(q, qvel_from_rates(self.imp.joints, q, np.asarray(u, float),
+                                                  self.mj.nv))
+
+    def from_engine_state(self, qe, ve):
+        from reference.mjcf import rates_from_qvel
+        qpos, qvel = self._mj_state(qe, ve)
+        return qpos, rates_from_qvel(self.imp.joints, qpos, qvel)
+
+    def _qacc(self, qe, ve, ae):
+        """MuJoCo's qacc from Pinocchio's a (a free joint's linear part: the world derivative
+        of R v_local is R (a_local + omega x v_local))."""
+        qacc = np.array(ae, float)
+        for j, jid in self.jmap.items():
+            if int(self.mj.jnt_type[j]) != int(JNT.mjJNT_FREE):
+                continue
+            iq, iv = self.model.idx_qs[jid], self.model.idx_vs[jid]
+            x, y, z, w = qe[iq + 3:iq + 7]
+            R = _se3((w, x, y, z), np.zeros(3)).rotation
+            vl, om = np.asarray(ve[iv:iv + 3]), np.asarray(ve[iv + 3:iv + 6])
+            qacc[iv:iv + 3] = R @ (np.asarray(ae[iv:iv + 3]) + np.cross(om, vl))
+        return qacc
+
+    # ---- forces and rows ---------------------------------------------------------------------
+    def _tau(self, qe, ve) -> np.ndarray:
+        qpos, qvel = self._mj_state(qe, ve)
+        m = self.mj
+        tau = -np.asarray(m.dof_damping) * qvel
+        for j, jid in self.jmap.items():
+            if int(m.jnt_type[j]) in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
+                a = m.jnt_qposadr[j]
+                tau[self.model.idx_vs[jid]] -= m.jnt_stiffness[j] * (qpos[a] - m.qpos_spring[a])
+        # tau is in Pinocchio's v; damping on a free joint's linear dofs is refused by the import
+        return tau
+
+    def _equalities(self, place):
+        """One entry per active equality: (kind, frame ids..., data) for the rows."""
+        m, out = self.mj, []
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        for e in range(m.neq):
+            if not m.eq_active0[e]:
+                continue
+            t = int(m.eq_type[e])
+            if t in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD)):
+                weld = t == int(EQ.mjEQ_WELD)
+                frames = []
+                for side in (0, 1):
+                    obj = (m.eq_obj1id, m.eq_obj2id)[side][e]
+                    if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
+                        body = int(m.site_bodyid[obj])
+                        local = _se3(m.site_quat[obj], m.site_pos[obj])
+                    else:
+                        body, k = int(obj), (1 - side) if weld else side
+                        local = pin.SE3(np.eye(3), np.array(m.eq_data[e, 3 * k:3 * k + 3]))
+                    joint, body_in_joint = place[body]
+                    frames.append(self.model.addFrame(pin.Frame(
+                        f"eq{e}_{side}", joint, body_in_joint * local, pin.FrameType.OP_FRAME)))
+                ts = float(m.eq_data[e, 10]) if weld else 0.0
+                out.append(("weld" if weld else "connect", frames, ts))
+            elif t == int(EQ.mjEQ_JOINT):
+                j1, j2 = int(m.eq_obj1id[e]), int(m.eq_obj2id[e])
+                out.append(("joint", (j1, j2), np.array(m.eq_data[e, :5], float)))
+        self.data = self.model.createData()
+        return out
+
+    def _rows(self, qe, ve):
+        """J (rows, nv) and gamma = J-dot v of the equality rows (J a + gamma = 0)."""
+        model, data, m = self.model, self.data, self.mj
+        pin.forwardKinematics(model, data, qe, ve, np.zeros(model.nv))
+        pin.computeJointJacobians(model, data, qe)
+        pin.updateFramePlacements(model, data)
+        LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        Js, gs = [], []
+        for kind, objs, extra in self._eq:
+            if kind == "joint":
+                j1, j2 = objs
+                row = np.zeros(model.nv)
+                row[model.idx_vs[self.jmap[j1]]] = 1.0
+                g = 0.0
+                if j2 >= 0:
+                    c = extra
+                    x = qe[model.idx_qs[self.jmap[j2]]]  # MuJoCo's qpos - qpos0
+                    v2 = ve[model.idx_vs[self.jmap[j2]]]
+                    row[model.idx_vs[self.jmap[j2]]] = -(c[1] + 2 * c[2] * x + 3 * c[3] * x**2
+                                                         + 4 * c[4] * x**3)
+                    g = -(2 * c[2] + 6 * c[3] * x + 12 * c[4] * x**2) * v2**2
+                Js.append(row[None])
+                gs.append(np.array([g]))
+                continue
+            J = [pin.getFrameJacobian(model, data, f, LWA) for f in objs]
+            acc = [pin.getFrameClassicalAcceleration(model, data, f, LWA) for f in objs]
+            Js.append(J[0][:3] - J[1][:3])
+            gs.append(acc[0].linear - acc[1].linear)
+            if kind == "weld":
+                R2 = data.oMf[objs[1]].rotation
+                Js.append(0.5 * extra * R2.T @ (J[0][3:] - J[1][3:]))
+                gs.append(0.5 * extra * R2.T @ (acc[0].angular - acc[1].angular))
+        if not Js:
+            return np.zeros((0, model.nv)), np.zeros(0)
+        return np.vstack(Js), np.concatenate(gs)
+
+    # ---- answers -----------------------------------------------------------------------------
+    def _solve(self, qe, ve):
+        model, data = self.model, self.data
+        tau = self._tau(qe, ve)
+        J, gamma = self._rows(qe, ve)
+        if J.shape[0] == 0:
+            return pin.aba(model, data, qe, ve, tau), np.zeros(0), 0
+        _Q, Rq, piv = scipy.linalg.qr(J.T, mode="economic", pivoting=True)
+        diag = np.abs(np.diag(Rq))
+        rank = int(np.sum(diag > RANK_RTOL * diag[0]))
+        keep = np.sort(piv[:rank])
+        a = pin.forwardDynamics(model, data, qe, ve, tau, J[keep], gamma[keep])
+        lam_keep = np.array(data.lambda_c, float)
+        lam = np.linalg.pinv(J.T, rcond=1e-12) @ (J[keep].T @ lam_keep)
+        return np.array(a, float), lam, rank
+
+    def forward(self, q, u, t: float = 0.0) -> EngineForward:
+        qe, ve = self.to_engine_state(q, u)
+        a, lam, rank = self._solve(qe, ve)
+        qpos, qvel = self._mj_state(qe, ve)
+        acc = rate_derivatives(self.imp.joints, qpos, qvel, self._qacc(qe, ve, a))
+        raw = {"engine_accelerations": a, "rank": rank, "rows": len(lam),
+               "model_source": BUILT_FROM}
+        if self._quat:
+            return EngineForward(acc, None, raw, multipliers_note=QUATERNION_NOTE, iterations=1)
+        return EngineForward(acc, np.concatenate([lam, np.zeros(self._norm_rows)]), raw,
+                             iterations=1 if len(lam) else 0)
+
+    def energy(self, q, u) -> tuple[float, float]:
+        qe, ve = self.to_engine_state(q, u)
+        model, data, m = self.model, self.data, self.mj
+        K = pin.computeKineticEnergy(model, data, qe, ve)
+        K += 0.5 * float(np.asarray(model.armature) @ (ve * ve)) if not self._armature_in_K() \
+            else 0.0
+        # pin sums joints 1.., so bodies welded to the world (inertias[0]) are added here:
+        # MuJoCo's d.energy and the reference count them (a constant)
+        I0 = model.inertias[0]
+        V = pin.computePotentialEnergy(model, data, qe) - I0.mass * float(
+            model.gravity.linear @ I0.lever)
+        qpos, _ = self._mj_state(qe, ve)
+        for j in self.jmap:
+            if int(m.jnt_type[j]) in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
+                a = m.jnt_qposadr[j]
+                V += 0.5 * m.jnt_stiffness[j] * (qpos[a] - m.qpos_spring[a]) ** 2
+        return float(K), float(V)
+
+    def _armature_in_K(self) -> bool:
+        """Whether pin's kinetic energy already counts model.armature (checked once)."""
+        if not hasattr(self, "_arm_k"):
+            model = self.model
+            data = model.createData()
+            q, v = pin.neutral(model), np.ones(model.nv)
+            K = pin.computeKineticEnergy(model, data, q, v)
+            M = pin.crba(model, data, q)
+            M = np.triu(M) + np.triu(M, 1).T
+            self._arm_k = abs(K - 0.5 * v @ M @ v) <= 1e-12 * max(1.0, abs(K))
+        return self._arm_k
+
+    def violation(self, qe, ve) -> tuple[float, float]:
+        """Position and velocity residuals of the equality rows (max abs) at an engine state:
+        connect/weld points p1 - p2 (the weld's rotation rows by their rate only), joint
+        q1 - poly(q2)."""
+        J, _g = self._rows(qe, ve)  # also updates the frame placements at qe
+        pos = [0.0]
+        for kind, objs, extra in self._eq:
+            if kind == "joint":
+                j1, j2 = objs
+                x1 = qe[self.model.idx_qs[self.jmap[j1]]]
+                x2 = qe[self.model.idx_qs[self.jmap[j2]]] if j2 >= 0 else 0.0
+                pos.append(abs(x1 - sum(c * x2**k for k, c in enumerate(extra))))
+            else:
+                dp = self.data.oMf[objs[0]].translation - self.data.oMf[objs[1]].translation
+                pos.append(float(np.max(np.abs(dp))))
+        return max(pos), float(np.max(np.abs(J @ ve), initial=0.0))
+
+    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
+                 timestep: Optional[float] = None) -> EngineTrajectory:
+        """solve_ivp (method `integrator`, rtol = atol) on Pinocchio's forward dynamics in the
+        reference's coordinates (qpos and coordinate rates: q' = u, u' = forward()), no
+        constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
+        from scipy.integrate import solve_ivp
+
+        from .machinery import INTEGRATORS
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+        if rtol is None or not rtol > 0:
+            raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+        t_start = time.perf_counter()
+        t_eval = np.asarray(t_eval, dtype=float)
+        n = len(q0)
+
+        def rhs(t, y):
+            return np.concatenate([y[n:], self.forward(y[:n], y[n:]).accelerations])
+
+        sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), np.concatenate([q0, u0]),
+                        method=integrator, rtol=rtol, atol=rtol, t_eval=t_eval)
+        Q, U, viol, vviol, E = [], [], [], [], []
+        for y in sol.y.T:
+            q, u = y[:n], y[n:]
+            Q.append(q)
+            U.append(u)
+            p, v = self.violation(*self.to_engine_state(q, u))
+            viol.append(p)
+            vviol.append(v)
+            E.append(sum(self.energy(q, u)))
+        return EngineTrajectory(
+            t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
+            velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
+            setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
+            steps=int(sol.nfev), failure=None if sol.success else str(sol.message),
+            raw={"stabilization": "none", "coordinates": "reference (qpos, rates)"})
+
+    def mass_matrix(self, q) -> Optional[np.ndarray]:
+        if self._quat:
+            return None
+        qe, _ = self.to_engine_state(q, np.zeros(len(q)))
+        M = pin.crba(self.model, self.data, qe)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def fingerprint(self) -> str:
+        import hashlib
+        from pathlib import Path
+        return hashlib.sha256(Path(self.imp.path).read_bytes()).hexdigest()
