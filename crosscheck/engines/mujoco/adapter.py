@@ -21,7 +21,7 @@ Every MJCF written here (``mjcf(model_name, params)``; defaults also under
   Newton solver, tolerance 1e-15 (one Newton step is exact for equality rows).
 - a single top-level body ("frame", static, at the origin) holding every moving body, so that
   Pinocchio's MJCF parser, which reads only the first subtree of <worldbody>, sees them all
-  (ENGINES.md 2.5) -- except the free bodies, which MuJoCo 4.0 accepts only at the top level.
+  (docs/engines/pinocchio.md) -- except the free bodies, which MuJoCo 4.0 accepts only at the top level.
 - light bodies that the reference does not have (the pendulum rods, Example 3's frame F,
   Exercise 6.1's end slider A) get a
   mass and inertia of 1e-12 (relative: times m and m L^2), above mjMINVAL = 1e-15 (MuJoCo rejects

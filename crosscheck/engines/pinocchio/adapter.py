@@ -39,7 +39,7 @@ Engine frames and coordinates (the maps are written out in each class's docstrin
   evaluated per state (``_applied``), and the springs' potential is added to V. Only the moving
   support is rheonomic: its explicit time terms enter the constraint row; t is unused elsewhere.
 
-Solvers (ENGINES.md section 2.3, re-verified in the tests):
+Solvers (docs/engines/pinocchio.md, re-verified in the tests):
 - no constraints, or a minimal-coordinate tree (joint reactions from rnea): ``pin.aba``;
 - rows that are not point coincidences (x^2 + y^2 = L^2, the rheonomic moving support, the
   nonholonomic knife edge): ``pin.forwardDynamics(model, data, q, v, tau, J, gamma)`` with the

@@ -126,7 +126,7 @@ class PinEngineModel(EngineModel):
         """Engine coordinate rates from engine velocities: identity for hinges and slides;
         for the quaternion (x, y, z, w) of a spherical or free-flyer joint, whose velocity is
         the LOCAL angular velocity, q' = q (x) (omega, 0) / 2; the free flyer's position rate
-        is R v_linear (its linear velocity is in the local frame, ENGINES.md 2.2)."""
+        is R v_linear (its linear velocity is in the local frame, docs/engines/pinocchio.md)."""
         if self.model.nq == self.model.nv:
             return ve
         out = np.empty(self.model.nq)

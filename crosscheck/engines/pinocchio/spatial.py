@@ -24,7 +24,7 @@ class _DoublePendulumBase(PinEngineModel):
 
     Reference speeds u = (w1, w2, v_G1, v_G2); multipliers
     lambda = (F_O - F_A, F_A), F_O the ground's force on link 1 at O, F_A the force of link 1
-    on link 2 at A (both N components; see the reference docstring and EQUATIONS.md)."""
+    on link 2 at A (both N components; see the reference docstring and docs/textbook.md)."""
 
     nq_ref, n_ref = 6, 12
 
