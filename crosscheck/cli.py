@@ -11,13 +11,12 @@ import argparse
 import math
 import os
 import re
-import signal
 import sys
 
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
 from .arguments import OneLineParser, add_model_files, finite_float
-from . import jsonio  # standard library only
+from . import interrupts, jsonio  # standard library only
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
@@ -221,21 +220,10 @@ def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) ->
     return out
 
 
-# set by the command-line entry's SIGINT handler: a Ctrl-C that lands inside a C extension's
-# import surfaces as that import's error ("ImportError: initialization failed" from MuJoCo),
-# not as KeyboardInterrupt, and must still be reported as an interrupt
-_SIGINT_SEEN = []
-
-
-def _on_sigint(signum, frame):
-    _SIGINT_SEEN.append(signum)
-    raise KeyboardInterrupt
-
-
 def main(argv=None) -> int:
     entry = argv is None  # the `crosscheck` program itself, not a caller in this process
     if entry:
-        signal.signal(signal.SIGINT, _on_sigint)
+        interrupts.install()
     code = _main(argv)
     if entry and code == EXIT_INTERRUPTED:
         # CPython kills itself with SIGINT at exit (status -2, not 130) when the interrupt
@@ -258,7 +246,9 @@ def _main(argv) -> int:
             if hasattr(args, "model_file"):  # before any model name is resolved
                 from .arguments import load_model_files
                 load_model_files(args)
-            return int(args.func(args) or 0)
+            code = int(args.func(args) or 0)
+            interrupts.check()  # an interrupt an engine swallowed is not a finished command
+            return code
         except ModelInputError as exc:
             print(f"crosscheck: error: {exc}", file=sys.stderr)
             return EXIT_USAGE
@@ -267,7 +257,9 @@ def _main(argv) -> int:
     except BrokenPipeError:  # pragma: no cover - `crosscheck models | head`
         return 0
     except Exception:  # noqa: BLE001 - a bug: exit 1 is reserved for "a check failed"
-        if _SIGINT_SEEN:  # the interrupt, disguised as the error of what it interrupted
+        # a Ctrl-C inside a C extension's import surfaces as that import's error
+        # ("ImportError: initialization failed" from MuJoCo): still an interrupt
+        if interrupts.seen():
             return _interrupted(args)
         import traceback
         traceback.print_exc()

@@ -13,6 +13,8 @@ import signal
 import threading
 from pathlib import Path
 
+from . import interrupts
+
 TMP_PREFIX = ".crosscheck-tmp-"
 
 
@@ -37,9 +39,14 @@ class Outputs:
     def path(self, name: str) -> Path:
         return self.dir / name
 
-    def commit(self, stale: tuple[str, ...] = ()) -> dict[str, Path]:
+    def commit(self, stale: tuple[str, ...] = (), *, after_interrupt: bool = False
+               ) -> dict[str, Path]:
         """Rename every staged file into place and remove `stale` files this command did not
-        write (an old report beside new results would look current); returns final paths."""
+        write (an old report beside new results would look current); returns final paths.
+        After a Ctrl-C only files that say so (`after_interrupt`: a campaign's stop status, its
+        finished chunks) are committed."""
+        if not after_interrupt:
+            interrupts.check()  # an interrupt an engine swallowed: this command's files never land
         with _sigint_held():
             for name in stale:
                 if name not in self._staged:
@@ -76,9 +83,9 @@ class _sigint_held:
             signal.pthread_sigmask(signal.SIG_SETMASK, self._old)
 
 
-def write_atomic(path: str | Path, text: str) -> Path:
+def write_atomic(path: str | Path, text: str, *, after_interrupt: bool = False) -> Path:
     """One file, atomically: the old content or the new, never a part."""
     path = Path(path)
     with Outputs(path.parent) as o:
         o.stage(path.name, text)
-        return o.commit()[path.name]
+        return o.commit(after_interrupt=after_interrupt)[path.name]

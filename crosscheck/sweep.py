@@ -164,8 +164,8 @@ def cmd_sweep(args) -> int:
     finally:
         if bar:
             bar.close()
-    path = write_atomic(out / "sweep.json",
-                        jsonio.dumps(res))
+    # written after a Ctrl-C too: its status says "interrupted" and what was completed
+    path = write_atomic(out / "sweep.json", jsonio.dumps(res), after_interrupt=True)
     _print_summary(res, path)
     if res["status"]["complete"]:
         store.remove()  # after sweep.json is in place: nothing left to resume

@@ -7,6 +7,7 @@ import time
 
 from reference.errors import ModelInputError
 
+from . import interrupts
 from .comparison import build
 from .engines.base import EngineUnsupported
 from .sweep_aggregate import _campaign_meta, _ModelAgg, _ranges, _summarize, _timing
@@ -142,6 +143,8 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
         if cluster is not None:
             client.close()
             cluster.close()
+    if stopped is None and interrupts.seen():  # a Ctrl-C an engine swallowed in this process
+        stopped = "interrupted"
     done = {n: int(a.completed.sum()) for n, a in aggs.items()}
     if stopped is None and any(d < cfg.samples for d in done.values()):
         if deadline is not None and time.time() > deadline:

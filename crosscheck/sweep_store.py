@@ -49,8 +49,9 @@ class ChunkStore:
 
     def save(self, res: dict) -> None:
         if res["completed"] > 0:
+            # a finished chunk stays valid after a Ctrl-C (kept for --resume)
             write_atomic(self.dir / f"{res['model']}-{res['start']}.json",
-                         json.dumps(encode(res), allow_nan=True))
+                         json.dumps(encode(res), allow_nan=True), after_interrupt=True)
 
     def load(self) -> list[dict]:
         """The stored chunk results, in a fixed order (model, start)."""

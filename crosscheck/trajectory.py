@@ -27,6 +27,7 @@ from reference import NumericModel
 from reference.integrate import PROJECTION_TOL, simulate
 
 from . import compare as C
+from . import interrupts
 from .comparison import build, constraint_residual, energy_drift, work_energy_balance
 from .engines.base import EngineUnsupported
 from .engines.registry import engine_label
@@ -269,6 +270,7 @@ def _reference_runs(nm: NumericModel, q0, u0, t_end: float, grid):
         loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL,
                          t_eval=grid)
     except Exception as exc:  # noqa: BLE001 - any failure of the reference is its record
+        interrupts.check()
         raise _RunFailed(what, exc) from exc
     return ref, tight, loose
 
@@ -339,6 +341,7 @@ def _engine_run(ctx: _Reference, adapter, em, variant):
             runs, state_tol, drift_tol, energy_tol, velocity_tol = _fixed_step_runs(
                 nm, em, integrator, ctx.q0, ctx.u0, ctx.t_end, ctx.conserved, ctx.work)
     except Exception as exc:  # noqa: BLE001 - a run that did not finish fails its record
+        interrupts.check()  # unless Ctrl-C stopped it (the engine may report that as a failure)
         return [dict(_failed(ctx.rec, adapter.name, f"{adapter.name}'s {integrator} run", exc),
                      **extra)], []
     records, series = [], []

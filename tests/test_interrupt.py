@@ -115,3 +115,30 @@ def test_sigint_on_a_real_sweep(tmp_path):
     # the finished chunks stay for `--resume` (tests/test_sweep_faults.py), nothing else
     assert sorted(p.name for p in out.iterdir()) == ["sweep.chunks", "sweep.json"]
     assert f"crosscheck sweep --resume {out}" in stdout
+
+
+def test_an_interrupt_the_engine_swallowed_still_interrupts(previous_run, monkeypatch, capsys):
+    """An engine that catches the KeyboardInterrupt raised inside its solve (Exudyn: the solve
+    reports failure, or the interrupt vanishes) must not turn Ctrl-C into a failed record or a
+    finished run: the remembered signal stops the command before its files are committed."""
+    from crosscheck import interrupts
+    before = _snapshot(previous_run)
+    monkeypatch.setattr(interrupts, "_seen", [signal.SIGINT])  # as if swallowed mid-run
+    code = main(["run", "slider_crank", "--instantaneous", "--out", str(previous_run)])
+    err = capsys.readouterr().err
+    assert code == 130 and "interrupted" in err
+    assert _snapshot(previous_run) == before
+
+
+@pytest.mark.parametrize("delay", [3.0, 4.0, 5.0])
+def test_sigint_during_exudyn_solves(previous_run, delay):
+    """The measured case: Exudyn's solver caught Ctrl-C at 3-4 s into this run (exit 0 with
+    every record, or exit 1 with a failed trajectory record)."""
+    before = _snapshot(previous_run)
+    proc = _start(["run", "slider_crank", "--engines", "exudyn", "--out", str(previous_run)])
+    time.sleep(delay)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert _snapshot(previous_run) == before
