@@ -31,8 +31,10 @@ import sys
 import time
 from pathlib import Path
 
-# status codes returned by every kernel (0: ok)
-OK, BAD_Q_SIZE, BAD_U_SIZE, NOT_FINITE, SINGULAR = 0, 1, 2, 3, 4
+# status codes returned by every kernel (0: ok); NOT_DEFINED: finite input, non-finite output
+# (a division by zero in the derived expressions, e.g. gimbal lock of Euler angles: numba's
+# numpy error model returns inf or NaN there where Python raises ZeroDivisionError)
+OK, BAD_Q_SIZE, BAD_U_SIZE, NOT_FINITE, SINGULAR, NOT_DEFINED = 0, 1, 2, 3, 4, 5
 
 FUNCTIONS = ("forward", "matrices", "kinematics", "residuals", "position_jacobian", "energy")
 
@@ -131,12 +133,15 @@ def _kernel(fn: ast.FunctionDef, nq: int, n: int, npar: int,
         for e in g:
             lines.append(f"    _out[{k}] = {ast.unparse(e)}")
             k += 1
+    lines.append("    _fin = True")  # one test per output: a NaN never passes silently
+    lines += [f"    _fin = _fin and isfinite(_out[{j}])" for j in range(k)]
     if forward:
         lines.append(f"    _piv = {_pivot_code(piv)}" if piv is not None else "    _piv = 1.0")
         lines.append(f"    _out[{k}] = _piv")
-        lines.append(f"    return {OK} if _piv > {pmin!r} else {SINGULAR}")
+        lines.append(f"    return ({OK} if _fin else {NOT_DEFINED}) if _piv > {pmin!r} "
+                     f"else {SINGULAR}")
     else:
-        lines.append(f"    return {OK}")
+        lines.append(f"    return {OK} if _fin else {NOT_DEFINED}")
     return lines, [len(g) for g in groups]
 
 

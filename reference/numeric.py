@@ -205,6 +205,8 @@ class NumericModel:
             raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
         if status == compiled.SINGULAR:
             raise SingularSystemError(self._singular_message(q, float(out[-1])))
+        if status == compiled.NOT_DEFINED:
+            raise self._undefined(q)
         raise RuntimeError(f"{self.model.name}: compiled kernel returned status {status}")
 
     def _call(self, name: str, q: ArrayLike, u: ArrayLike, t: float) -> Any:
@@ -248,7 +250,10 @@ class NumericModel:
                            self._last_rank)
         try:
             ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
-        except (ValueError, ZeroDivisionError):  # sqrt of a negative pivot, or a zero pivot
+        except ValueError:  # sqrt of a negative pivot
+            piv = -1.0
+        except ZeroDivisionError:  # a zero pivot, or a coordinate singularity in M, f, A, b
+            self.matrices(q, u, t)  # raises the latter's error
             piv = -1.0
         if not piv > PIVOT_RATIO_MIN:
             raise SingularSystemError(self._singular_message(q, piv))
@@ -316,7 +321,7 @@ class NumericModel:
 
     def _forward_redundant(self, q: Any, u: Any, t: float, db: Any = None) -> Any:
         """forward_raw for models with dependent rows (reference.redundant): lists out."""
-        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
+        M, f, A, b = self._scalar_call("matrices", q, u, t)
         n, m = self.n, self.m
         b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
         ud, lam, piv, self._last_rank = redundant.solve(
@@ -324,6 +329,22 @@ class NumericModel:
             np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
             augment=self._scalar["META"]["augmented"], where=self.model.name)
         return ud.tolist(), lam.tolist(), piv
+
+    def _undefined(self, q: ArrayLike) -> SingularSystemError:
+        return SingularSystemError(
+            f"{self.model.name}: the derived equations are not defined at q = "
+            f"{np.round(np.asarray(q, float), 6).tolist()} (a division by zero: a coordinate "
+            f"singularity such as gimbal lock of Euler angles, where these coordinates cannot "
+            f"express the motion). Move the state away from this pose, or describe the body "
+            f"with singularity-free coordinates (Euler parameters).")
+
+    def _scalar_call(self, name: str, q: list, u: list, t: float, *extra: Any) -> Any:
+        """A pure-Python generated function; its ZeroDivisionError is the coordinate
+        singularity the compiled kernels report as NOT_DEFINED."""
+        try:
+            return self._scalar[name](q, u, t, self.p, *extra)
+        except ZeroDivisionError:
+            raise self._undefined(q) from None
 
     def _singular_message(self, q: ArrayLike, piv: float) -> str:
         return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(np.asarray(q, float), 6).tolist()} "
@@ -340,7 +361,7 @@ class NumericModel:
             nn, nf, na = n * n, n * n + n, n * n + n + m * n
             return (out[:nn].reshape(n, n), out[nn:nf], out[nf:na].reshape(m, n), out[na:])
         q, u, t = self._state(q, u, t)
-        M, f, A, b = self._scalar["matrices"](q, u, t, self.p)
+        M, f, A, b = self._scalar_call("matrices", q, u, t)
         return (np.array(M, float).reshape(n, n), np.array(f, float),
                 np.array(A, float).reshape(m, n), np.array(b, float))
 
@@ -348,7 +369,7 @@ class NumericModel:
         if self._k is not None:
             return self._call("kinematics", q, u, t)
         q, u, t = self._state(q, u, t)
-        return np.array(self._scalar["kinematics"](q, u, t, self.p)[0], float)
+        return np.array(self._scalar_call("kinematics", q, u, t)[0], float)
 
     def residuals(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Position residuals f(q, t) and velocity residuals A u + a0."""
@@ -357,7 +378,7 @@ class NumericModel:
             k = self._k.sizes["residuals"][0]
             return out[:k], out[k:]
         q, u, t = self._state(q, u, t)
-        pos, vel = self._scalar["residuals"](q, u, t, self.p)
+        pos, vel = self._scalar_call("residuals", q, u, t)
         return np.array(pos, float), np.array(vel, float)
 
     def energy(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[float, float]:
@@ -366,7 +387,7 @@ class NumericModel:
             out = self._call("energy", q, u, t)
             return float(out[0]), float(out[1])
         q, u, t = self._state(q, u, t)
-        (K, V, _P), *_ = self._scalar["energy"](q, u, t, self.p)
+        (K, V, _P), *_ = self._scalar_call("energy", q, u, t)
         return float(K), float(V)
 
     def power_balance(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> dict[str, float]:

@@ -119,6 +119,22 @@ def test_example_4_dynamics_near_the_gimbal_pose(instance):
     assert_kkt_properties(nm, q, u, t, rel=max(KKT_REL, 4 * np.finfo(float).eps / s))
 
 
+@pytest.mark.parametrize("backend", ["numba", "python"])
+@pytest.mark.parametrize("rate", [0.0, 0.7])
+def test_example_4_at_the_exact_gimbal_pose_is_refused(monkeypatch, backend, rate):
+    """At sin(theta12) = 0 exactly, the terms of size |u|^2 / sin(theta2) above are 0/0 or x/0:
+    the compiled kernels (numpy error model) would return NaN or inf, the Python path raises
+    ZeroDivisionError. Both must refuse the state with the singularity named, never answer."""
+    monkeypatch.setenv("CROSSCHECK_BACKEND", backend)
+    nm = NumericModel(_DP)
+    assert nm.backend == backend
+    q = np.array([0.1, 0.0, 0.2, 0.3, 0.1, 0.2])
+    u = np.full(nm.n, rate)
+    for call in (nm.forward, nm.matrices):
+        with pytest.raises(SingularSystemError, match="not defined .* gimbal lock"):
+            call(q, u, 0.0)
+
+
 # Slider-crank with l1 = l2: on the branch theta2 = -theta1 its one row A = (l1 C1, l2 C2)
 # vanishes at theta1 = +-pi/2 (the rank-loss pose of the stress scene).
 _EQUAL = {"l1": 0.3, "l2": 0.3, "r2": 0.15, "I_G2": 2.0 * 0.09 / 12}
