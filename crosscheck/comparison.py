@@ -61,17 +61,23 @@ def energy_error(engine_kv, reference_kv) -> float:
     return abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0)
 
 
+def energy_error_series(E, W=None) -> np.ndarray:
+    """|E(t) - E(0)| / max(max |E|, 1) at every time, or where energy is not conserved the
+    work-energy balance |E(t) - E(0) - W(t)| / max(max |E|, 1), W the work of loads and moving
+    constraints. The one definition: records take its maximum, the report plots it."""
+    E = np.asarray(E, float)
+    change = E - E[0] if W is None else E - E[0] - np.asarray(W, float)
+    return np.abs(change) / max(float(np.max(np.abs(E))), 1.0)
+
+
 def energy_drift(E) -> float:
     """Drift of a total-energy series: max |E(t) - E(0)| / max(max |E|, 1)."""
-    E = np.asarray(E, float)
-    return float(np.max(np.abs(E - E[0])) / max(float(np.max(np.abs(E))), 1.0))
+    return float(np.max(energy_error_series(E)))
 
 
 def work_energy_balance(E, W) -> float:
     """max |E(t) - E(0) - W(t)| / max(max |E|, 1), W the work of loads and moving constraints."""
-    E = np.asarray(E, float)
-    return float(np.max(np.abs(E - E[0] - np.asarray(W, float)))
-                 / max(float(np.max(np.abs(E))), 1.0))
+    return float(np.max(energy_error_series(E, W)))
 
 
 def constraint_residual(nm, q, u, t: float = 0.0) -> tuple[float, float]:

@@ -200,8 +200,22 @@ def _row_label(key: tuple) -> str:
 TRAJECTORY_PANELS = (
     ("state_error", "state error vs reference"),
     ("residual", "constraint residual (max |violation|)"),
-    ("energy", "energy drift |E − E(0)| / max(|E(0)|, 1)"),
+    ("energy", "energy drift |E − E(0)| / max(max |E|, 1)"),
 )
+BALANCE_PANEL = "work-energy balance |E − E(0) − W| / max(max |E|, 1)"
+
+
+def trajectory_panels(series: list[dict]) -> list[tuple[str, str]]:
+    """The panels trajectory_svg draws for these series, (key, axis label): a panel where every
+    line is exactly 0 has nothing to draw on a log axis and is left out (captions name these)."""
+    lines = [s for s in series if s.get("t")]
+
+    def drawable(key):
+        return any(s.get(key) and any(_num(x) != 0 for x in s[key]) for s in lines) or (
+            key == "energy" and any(len(set(s.get(key) or [])) > 1 for s in lines))
+    balance = any(s.get("work") is not None for s in lines)
+    return [(k, BALANCE_PANEL if k == "energy" and balance else t)
+            for k, t in TRAJECTORY_PANELS if drawable(k)]
 
 
 def trajectory_svg(series: list[dict], title: str = "") -> str | None:
@@ -212,10 +226,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     lines = [s for s in series if s.get("t")]
     if not lines:
         return None
-    def drawable(key):  # a panel where every line is exactly 0 has nothing to draw on log y
-        return any(s.get(key) and any(_num(x) != 0 for x in s[key]) for s in lines) or (
-            key == "energy" and any(len(set(s.get(key) or [])) > 1 for s in lines))
-    panels = [(k, t) for k, t in TRAJECTORY_PANELS if drawable(k)]
+    panels = trajectory_panels(lines)
     if not panels:
         return None
     styles = line_styles([_series_key(s) for s in lines])
@@ -234,9 +245,11 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
             v = np.array([_num(x) for x in vals])
             n = min(len(t), len(v))
             t, v = t[:n], v[:n]
-            if key == "energy":
-                e0 = v[0] if n and np.isfinite(v[0]) else np.nan
-                v = np.abs(v - e0) / max(abs(e0), 1.0)
+            if key == "energy":  # as the records judge it: drift, or work-energy balance
+                from .report_content import energy_series
+                v = energy_series(s)
+                n = min(len(t), len(v))
+                t, v = t[:n], v[:n]
             if n and np.all(v == 0):  # exact zero throughout (e.g. the reference vs itself)
                 zeros.append(series_label(s))
                 continue

@@ -7,6 +7,9 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+
+from .comparison import energy_error_series
 from .results_io import (ReportInputError, check_bench, check_results, check_sweep,  # noqa: F401
                          load_json)
 
@@ -64,10 +67,11 @@ def fmt(x, digits: int = 2) -> str:
 
 
 def fmt_tol(x) -> str:
-    """A tolerance as written where it is named: 1e-11, 3."""
+    """A tolerance as written where it is named (1e-11, 3); a derived one to three digits
+    (1.00155e-14 reads 1e-14: the record keeps the exact value)."""
     if x is None or isinstance(x, bool) or not isinstance(x, (int, float)):
         return "—" if x is None else str(x)
-    return f"{x:g}"
+    return f"{x:.3g}"
 
 
 def fmt_time(us) -> str:
@@ -186,13 +190,32 @@ def series_stats(s: dict) -> dict:
     for key in ("state_error", "residual"):
         v = [abs(x) for x in col(key) if not math.isnan(x)]
         out[key] = max(v) if v else math.nan
-    e = col("energy")
-    if e and math.isfinite(e[0]):
-        drift = [abs(x - e[0]) / max(abs(e[0]), 1.0) for x in e if not math.isnan(x)]
-        out["energy"] = max(drift) if drift else math.nan
-    else:
-        out["energy"] = math.nan
+    e = energy_series(s)
+    out["energy"] = float(np.nanmax(e)) if e.size and not np.all(np.isnan(e)) else math.nan
     return out
+
+
+def energy_series(s: dict) -> np.ndarray:
+    """The series' energy error at every time, as its records judge it: the drift, or the
+    work-energy balance where the series carries the work W(t) (energy not conserved)."""
+    e = np.array([to_float(v) for v in (s.get("energy") or [])])
+    if not e.size or not math.isfinite(e[0]):
+        return np.full(e.size, math.nan)
+    w = s.get("work")
+    if w is not None:
+        w = np.array([to_float(v) for v in w])[:e.size]
+        e = e[:w.size]
+    return energy_error_series(e, w)
+
+
+def conserves_energy(series: list[dict]) -> bool:
+    return not any(s.get("work") is not None for s in series)
+
+
+def energy_heading(series: list[dict]) -> str:
+    """The energy column's and panel's name for one model's series."""
+    return ("max energy drift" if conserves_energy(series)
+            else "max work-energy balance error (energy not conserved)")
 
 
 # ---- the report's content, shared by the HTML and the Markdown -------------------------------

@@ -6,7 +6,8 @@ import html
 import json
 
 from . import report_sensitivity  # the section of sensitivity.json beside results.json
-from .report_content import (Content, details, engine_anchors, engine_label, fmt, fmt_ratio,
+from .report_content import (Content, conserves_energy, details, energy_heading, engine_anchors,
+                             engine_label, fmt, fmt_ratio,
                              fmt_time, fmt_tol, machine_text, model_info, named_items,
                              ratio_to_tolerance, record_id, ReportInputError, series_stats, status,
                              sweep_label, sweep_models, sweep_rows, sweep_verdict, version_keys,
@@ -32,6 +33,9 @@ tr.fail td{background:#fde8e8}tr.skip td{color:#666;background:#f7f7f7}
 .badge.pass{background:#d7f0dd;color:#145c2c}.badge.fail{background:#d62728;color:#fff}
 .badge.skip{background:#e4e4e4;color:#555}.badge.flag{background:#f5c542;color:#4a3500}
 details pre{max-height:24em;overflow:auto;font-size:.85em}
+details.model>summary{cursor:pointer;list-style-position:outside;margin-top:2em}
+details.model>summary h2{display:inline;margin:0;border:0}
+details.model{border-bottom:2px solid #ddd;padding-bottom:.4em}
 .note{color:#555;font-size:.88em}.reason{color:#444;font-size:.92em}
 ol.notes{font-size:.8em;color:#444;margin-top:0}ol.notes li{margin:.15em 0}
 figure{margin:.6em 0 1.2em}figure img{max-width:100%;height:auto;border:1px solid #eee}
@@ -41,6 +45,15 @@ footer{margin-top:3em;border-top:2px solid #ddd;padding-top:.6em;font-size:.85em
 pre{background:#f5f5f5;padding:8px 10px;overflow-x:auto;font-size:.92em}
 code{font-family:ui-monospace,"DejaVu Sans Mono",monospace}
 """
+
+
+# a link to a folded model (the overview, the failing checks) opens its section; without
+# script the section's summary line is still where the link lands
+_UNFOLD_ON_LINK = """<script>
+function unfold(){var t=location.hash&&document.getElementById(location.hash.slice(1));
+var d=t&&t.closest("details");if(d){d.open=true;t.scrollIntoView();}}
+addEventListener("hashchange",unfold);unfold();
+</script>"""
 
 
 def _e(x) -> str:
@@ -180,11 +193,7 @@ def _trajectory_html(c: Content, model: str) -> str:
     if note:
         return f'<p class="note">{_e(note)}</p>'
     ss = c.series_of(model)
-    out = [_img(plots.trajectory_svg(ss), f"trajectories of {model}",
-                "Against time, log scale: the state's difference from the reference trajectory, "
-                "the largest constraint violation, and the energy drift |E − E(0)| / "
-                f"max(|E(0)|, 1). A line that is exactly 0 throughout is named in its panel; "
-                f"other zeros are drawn at {plots.ZERO_AT:.0e}.")]
+    out = [_img(plots.trajectory_svg(ss), f"trajectories of {model}", _trajectory_caption(ss))]
     body = []
     for s in ss:
         st = series_stats(s)
@@ -192,24 +201,55 @@ def _trajectory_html(c: Content, model: str) -> str:
                      _e(fmt(st["state_error"])), _e(fmt(st["residual"])),
                      _e(fmt(st["energy"]))])
     out.append(_table(["series", "points", "t end [s]", "max state error", "max residual",
-                       "max energy drift"], body, None, {1, 2, 3, 4, 5}))
+                       energy_heading(ss)], body, None, {1, 2, 3, 4, 5}))
     return "\n".join(out)
 
 
+# a page with more models than this shows each passing model folded (its summary line stays);
+# a model with a failing check is always unfolded
+UNFOLDED_MODELS = 3
+
+
+_PANEL_TEXT = {
+    "state_error": "the state's difference from the reference trajectory",
+    "residual": "the largest position-constraint violation |f(q, t)|",
+    "energy": "the energy drift |E − E(0)| / max(max |E|, 1)",
+}
+_BALANCE_TEXT = ("the work-energy balance |E − E(0) − W| / max(max |E|, 1) (energy is not "
+                 "conserved here: W is the work of loads and moving constraints)")
+
+
+def _trajectory_caption(series: list[dict]) -> str:
+    """Names exactly the panels drawn; a quantity exactly 0 in every line has no panel."""
+    from . import plots
+    drawn = [k for k, _ in plots.trajectory_panels(series)]
+    texts = [(_BALANCE_TEXT if k == "energy" and not conserves_energy(series)
+              else _PANEL_TEXT[k]) for k in drawn]
+    listed = ", ".join(texts[:-1]) + (" and " if len(texts) > 1 else "") + texts[-1]
+    absent = [_PANEL_TEXT[k].removeprefix("the ") for k in _PANEL_TEXT if k not in drawn]
+    note = (f" No panel for {' or '.join(absent)}: exactly 0 in every line." if absent else "")
+    return (f"Against time, log scale: {listed}. A line that is exactly 0 throughout is named "
+            f"in its panel; other zeros are drawn at {plots.ZERO_AT:.0e}.{note}")
+
+
 def _model_html(c: Content, model: str) -> str:
+    """One model's section: a <details> whose summary is its heading and verdict, folded on a
+    long page unless a check failed (no script needed; one opens it on a link, below)."""
     from . import plots
     source, title = model_info(model)
     recs = c.records_of(model)
+    n = {k: sum(1 for r in recs if status(r) == k) for k in ("pass", "fail", "skip")}
     head = f'<h2 id="{_anchor(model)}">{_e(model)}'
     if title or source:
         src = f" ({_e(source)})" if source else ""
         head += f' <span class="sub">— {_e(title)}{src}</span>'
     head += "</h2>"
-    out = [head]
-    n = {k: sum(1 for r in recs if status(r) == k) for k in ("pass", "fail", "skip")}
+    verdict = (f'<span class="sub"> · {n["pass"]} passed, {n["fail"]} failed, {n["skip"]} '
+               f"skipped</span>" if recs else "")
+    unfold = n["fail"] > 0 or len(c.models) <= UNFOLDED_MODELS
+    out = [f'<details class="model"{" open" if unfold else ""}><summary>{head}{verdict}'
+           f"</summary>"]
     if recs:
-        out.append(f'<p class="sub">{n["pass"]} passed, {n["fail"]} failed, {n["skip"]} '
-                   f"skipped</p>")
         out.append("<h3>Checks</h3>")
         out.append(_checks_html(c, model, recs))
         out.append("<h3>Agreement</h3>")
@@ -227,6 +267,7 @@ def _model_html(c: Content, model: str) -> str:
         timing = _timing_html(c, model)
         out.append("<h3>Forward dynamics timings</h3>")
         out.append(timing or '<p class="note">This model was not timed in bench.json.</p>')
+    out.append("</details>")
     return "\n".join(out)
 
 
@@ -326,6 +367,7 @@ def render_html(c: Content) -> str:
         parts.append(_sweep_html(c))
     parts.append(report_sensitivity.html(c))
     parts.append(_footer_html(c))
+    parts.append(_UNFOLD_ON_LINK)
     parts.append("</main></body></html>")
     return "\n".join(p for p in parts if p) + "\n"
 

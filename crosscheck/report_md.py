@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from . import report_sensitivity  # the section of sensitivity.json beside results.json
-from .report_content import (Content, details, engine_label, fmt, fmt_ratio, fmt_time, fmt_tol,
+from .report_content import (Content, details, energy_heading, engine_label, fmt, fmt_ratio, fmt_time, fmt_tol,
                              machine_text, model_info, named_items, ratio_to_tolerance, record_id,
                              series_stats, status, sweep_label, sweep_models, sweep_rows,
                              sweep_verdict, version_keys, versions_of, wp_row)
@@ -100,7 +100,7 @@ def render_md(c: Content) -> str:
                 rows.append([series_label(s), st["points"], f"{st['t_end']:g}",
                              fmt(st["state_error"]), fmt(st["residual"]), fmt(st["energy"])])
             out += _md_table(["series", "points", "t end [s]", "max state error",
-                              "max residual", "max energy drift"], rows)
+                              "max residual", energy_heading(c.series_of(m))], rows)
         if c.bench is not None:
             wp = c.work_precision_of(m)
             if wp:

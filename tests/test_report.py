@@ -182,7 +182,8 @@ def test_every_record_is_a_row_and_failing_rows_stay_marked(full_report):
 
 def test_html_is_self_contained_and_every_figure_is_an_svg(full_report):
     page = parse_page(full_report["dir"] / "index.html")
-    assert page.scripts == 0
+    # one inline script, and only it: a link to a folded model section unfolds it
+    assert page.scripts == 1 and "<script src" not in (full_report["dir"] / "index.html").read_text()
     external = [u for u in page.urls if not (u.startswith("data:") or u.startswith("#"))]
     assert external == [], external
     assert "http://" not in (full_report["dir"] / "index.html").read_text().split("<svg")[0]
@@ -403,3 +404,57 @@ def test_report_renders_in_headless_chromium(tmp_path):
     for i in data["images"]:
         assert i["complete"] and i["w"] > 200 and i["h"] > 100, i
     assert _console_lines(p.stderr) == []
+
+
+def _details_open(html: str) -> dict[str, bool]:
+    import re
+    return {m: "open" in attrs for attrs, m in re.findall(
+        r'<details class="model"([^>]*)><summary><h2 id="model-([^"]+)"', html)}
+
+
+def test_long_pages_fold_passing_models_and_never_a_failing_one(runs, tmp_path):
+    """More than UNFOLDED_MODELS models: a passing model's section is folded to its summary
+    line (name, verdict), a model with a failing check stays open."""
+    from crosscheck.report_html import UNFOLDED_MODELS
+    faulty = json.loads(runs["faulty"].read_text())
+    clean = json.loads(runs["clean"].read_text())["records"]
+    others = ["pendulum_xy", "knife_edge", "frame_bar", "exercise_6_1"][:UNFOLDED_MODELS]
+    for name in others:  # test data: the clean records filed under other models' names
+        faulty["records"] += [dict(r, model=name) for r in clean]
+    (tmp_path / "results.json").write_text(json.dumps(faulty))
+    p = crosscheck("report", "--results", tmp_path / "results.json", "--out", tmp_path / "site")
+    assert p.returncode == 0, p.stderr
+    opened = _details_open((tmp_path / "site" / "index.html").read_text())
+    assert opened == {"slider_crank": True, **{m: False for m in others}}
+
+
+def test_trajectory_caption_names_only_the_panels_drawn_and_the_balance_where_not_conserved():
+    from crosscheck import plots
+    from crosscheck.report_content import energy_heading
+    from crosscheck.report_html import _trajectory_caption
+    ss = synthetic_series("pendulum_angle")
+    for s in ss:
+        s["residual"] = [0.0] * len(s["t"])  # no constraints: nothing to draw
+    assert [k for k, _ in plots.trajectory_panels(ss)] == ["state_error", "energy"]
+    cap = _trajectory_caption(ss)
+    assert "No panel for largest position-constraint violation" in cap
+    assert "energy drift" in cap and "work-energy" not in cap
+    assert energy_heading(ss) == "max energy drift"
+    moving = synthetic_series("pendulum_moving_support")
+    for s in moving:  # energy changes by the work done: the balance is what is checked
+        s["work"] = [e - s["energy"][0] for e in s["energy"]]
+    panels = dict(plots.trajectory_panels(moving))
+    assert panels["energy"] == plots.BALANCE_PANEL
+    cap = _trajectory_caption(moving)
+    assert "work-energy balance" in cap and "energy drift" not in cap
+    assert energy_heading(moving).startswith("max work-energy balance error")
+
+
+def test_series_energy_error_is_the_records_definition():
+    """The report's energy column and the records use one definition (comparison.py)."""
+    from crosscheck.comparison import energy_drift, work_energy_balance
+    from crosscheck.report_content import series_stats
+    s = synthetic_series("slider_crank")[1]
+    assert series_stats(s)["energy"] == energy_drift(s["energy"])
+    s["work"] = [0.5 * (e - s["energy"][0]) for e in s["energy"]]
+    assert series_stats(s)["energy"] == work_energy_balance(s["energy"], s["work"])
