@@ -1,4 +1,5 @@
 """`python -m crosscheck`: the same as the `crosscheck` command."""
+
 import sys
 
 from .cli import main

@@ -8,13 +8,13 @@ The records are the same dicts `crosscheck run` writes to results.json (crossche
 .record): model, engine, check, quantity, error, tolerance, passed (None: reported or skipped,
 with the reason).
 """
+
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable, Optional, Union
 
-DEFAULT_ENGINES = ("pinocchio", "mujoco")  # the CLI's default --engines
 API_ORIGIN = "Python API (crosscheck.check)"
 
 
@@ -34,42 +34,57 @@ def _names(model) -> list[str]:
             return register_all(load_model_file(text))
         models.get(text)  # an unknown name: the registry's error lists the valid ones
         return [text]
-    raise TypeError(f"check() takes a model name, a file path or a reference Model, not "
-                    f"{type(model).__name__}")
+    raise TypeError(
+        f"check() takes a model name, a file path or a reference Model, not {type(model).__name__}"
+    )
 
 
-def check(model: Union[str, os.PathLike, object], engines: Optional[Iterable[str]] = None, *,
-          states: int = 6, trajectories: bool = False, t_end: float = 5.0) -> list[dict]:
+def check(
+    model: str | os.PathLike | object,
+    engines: Iterable[str] | None = None,
+    *,
+    states: int = 6,
+    trajectories: bool = False,
+    t_end: float = 5.0,
+) -> list[dict]:
     """Cross-check a model (a built-in or registered name, an MJCF/Python file, or a Model)
-    against the engines (default: Pinocchio and MuJoCo) at `states` consistent states, and,
-    with trajectories=True, over t_end seconds; returns the records."""
+    against the engines (default: every registered engine that imports here) at `states`
+    consistent states, and, with trajectories=True, over t_end seconds; returns the records."""
     from .arguments import resolve_engines
     from .run import run
 
     names = _names(model)
-    engine_names = resolve_engines(list(engines) if engines is not None
-                                   else list(DEFAULT_ENGINES))
-    records, _series = run(names, engine_names, states, trajectories=trajectories,
-                           t_end=t_end)
+    # as the CLI: every registered engine that imports here unless some are named
+    engine_names = resolve_engines(list(engines) if engines is not None else None)
+    records, _series = run(names, engine_names, states, trajectories=trajectories, t_end=t_end)
     return records
 
 
 def failures(records: list[dict]) -> list[dict]:
     """The failed records, worst first (error over tolerance)."""
     failed = [r for r in records if r["passed"] is False]
-    return sorted(failed, key=lambda r: -(r["error"] / r["tolerance"]
-                                          if r["error"] is not None and r["tolerance"]
-                                          else float("inf")))
+    return sorted(
+        failed,
+        key=lambda r: (
+            -(
+                r["error"] / r["tolerance"]
+                if r["error"] is not None and r["tolerance"]
+                else float("inf")
+            )
+        ),
+    )
 
 
 def message(r: dict) -> str:
     """One record as a line: what failed, by how much, against which bound and why."""
     err = "non-finite" if r["error"] is None else f"{r['error']:.3e}"
-    return (f"{r['model']} {r['engine']} {r['check']} {r['quantity']}: error {err} > "
-            f"{r['tolerance']:.1e} ({r['reason']})")
+    return (
+        f"{r['model']} {r['engine']} {r['check']} {r['quantity']}: error {err} > "
+        f"{r['tolerance']:.1e} ({r['reason']})"
+    )
 
 
-def assert_passes(model, engines: Optional[Iterable[str]] = None, **kw) -> list[dict]:
+def assert_passes(model, engines: Iterable[str] | None = None, **kw) -> list[dict]:
     """check(), then raise AssertionError with the worst failed record's message (and the
     count of the others); returns the records when nothing failed."""
     records = check(model, engines, **kw)

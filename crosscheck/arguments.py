@@ -6,6 +6,7 @@ one-line message (exit 2) before doing any work. Argument values are checked at 
 (argparse `type=`); what needs the registries (model and engine names) is checked by
 `resolve_models` / `resolve_engines` before the first computation.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -72,15 +73,18 @@ def horizon(text: str) -> float:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
     if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text} s is not a finite horizon; give a length "
-                                         f"in seconds, at most {MAX_T_END:g}")
+        raise argparse.ArgumentTypeError(
+            f"{text} s is not a finite horizon; give a length in seconds, at most {MAX_T_END:g}"
+        )
     if value <= 0:
-        raise argparse.ArgumentTypeError(f"{value:g} s: the horizon must be > 0 "
-                                         "(use --instantaneous for no trajectory)")
+        raise argparse.ArgumentTypeError(
+            f"{value:g} s: the horizon must be > 0 (use --instantaneous for no trajectory)"
+        )
     if value > MAX_T_END:
         raise argparse.ArgumentTypeError(
             f"{value:g} s is longer than the {MAX_T_END:g} s the trajectory stage is sized for; "
-            "long-horizon drift is what `crosscheck bench` (stress scenes) measures")
+            "long-horizon drift is what `crosscheck bench` (stress scenes) measures"
+        )
     return value
 
 
@@ -101,6 +105,7 @@ def _refuse(message: str) -> Exception:
     """A ModelInputError (one line, exit 2), imported on use: this module loads with the CLI
     before the models, so that a Ctrl-C during their import is answered with one line."""
     from reference.errors import ModelInputError
+
     return ModelInputError(message)
 
 
@@ -139,16 +144,22 @@ def resolve_engines(names: list[str] | None) -> list[str]:
 
 def add_models(parser: argparse.ArgumentParser) -> None:
     """Positional model names (checked by resolve_models before any work) and --model-file."""
-    parser.add_argument("models", nargs="*",
-                        help="models (default: all, or the --model-file models when given)")
+    parser.add_argument(
+        "models", nargs="*", help="models (default: all, or the --model-file models when given)"
+    )
     add_model_files(parser)
 
 
 def add_model_files(parser: argparse.ArgumentParser) -> None:
     """--model-file PATH (repeatable): an MJCF (.xml) or Python (.py) file of user models."""
-    parser.add_argument("--model-file", action="append", default=[], metavar="PATH",
-                        help="load models from an MJCF (.xml) or Python (.py, a models() "
-                             "function) file; repeatable (docs/user_models.md)")
+    parser.add_argument(
+        "--model-file",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="load models from an MJCF (.xml) or Python (.py, a models() "
+        "function) file; repeatable (docs/user_models.md)",
+    )
 
 
 def load_model_files(args: argparse.Namespace) -> list[str]:
@@ -174,9 +185,14 @@ def load_model_files(args: argparse.Namespace) -> list[str]:
 
 def add_engines(parser: argparse.ArgumentParser) -> None:
     """--engines a,b (checked by resolve_engines before any work)."""
-    parser.add_argument("--engines", type=name_list, default=None, metavar="E1,E2",
-                        help="engines, comma-separated (default: every registered engine that "
-                             "imports here, see `crosscheck engines`)")
+    parser.add_argument(
+        "--engines",
+        type=name_list,
+        default=None,
+        metavar="E1,E2",
+        help="engines, comma-separated (default: every registered engine that "
+        "imports here, see `crosscheck engines`)",
+    )
 
 
 def output_dir(path: str, option: str = "--out") -> Path:
@@ -188,15 +204,19 @@ def output_dir(path: str, option: str = "--out") -> Path:
     where = f"{option} {shown!r}"
     longest = max((len(os.fsencode(part)) for part in p.parts), default=0)
     if longest > 255:  # NAME_MAX of every common file system
-        raise _refuse(f"{where}: a name in it is {longest} bytes long, more "
-                              "than the 255 a file system allows; give a shorter directory name")
+        raise _refuse(
+            f"{where}: a name in it is {longest} bytes long, more "
+            "than the 255 a file system allows; give a shorter directory name"
+        )
     try:
         a_file = p.exists() and not p.is_dir()
     except OSError:  # a whole path over PATH_MAX: the probe below says so
         a_file = False
     if a_file:
-        raise _refuse(f"{where} is an existing file, not a directory; give a directory "
-                              "(the command writes its files inside it)")
+        raise _refuse(
+            f"{where} is an existing file, not a directory; give a directory "
+            "(the command writes its files inside it)"
+        )
     created: list[Path] = []
     try:
         for d in reversed([p, *p.parents]):
@@ -210,8 +230,9 @@ def output_dir(path: str, option: str = "--out") -> Path:
         why = exc.strerror or str(exc)
         if exc.errno == errno.ENAMETOOLONG:
             why += "; give a shorter path"
-        raise _refuse(f"{where}: cannot write there ({why}); give a directory you "
-                              "can write to") from None
+        raise _refuse(
+            f"{where}: cannot write there ({why}); give a directory you can write to"
+        ) from None
     finally:
         for d in reversed(created):
             try:

@@ -5,6 +5,7 @@ Exit 1 means only "a check failed"; Ctrl-C prints one line and exits 130; an une
 exception (a bug) prints its traceback and exits 3; a sweep stopped by its time budget with
 nothing failed exits 4 (incomplete, not passed).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -13,10 +14,11 @@ import os
 import re
 import sys
 
+from . import interrupts, jsonio  # standard library only
+
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
 from .arguments import OneLineParser, add_model_files, finite_float
-from . import interrupts, jsonio  # standard library only
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
@@ -24,9 +26,10 @@ EXIT_INCOMPLETE = 4  # a campaign stopped by its time budget: nothing failed, no
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 
-def UsageError(message: str) -> Exception:  # noqa: N802 - used as `raise UsageError(...)`
+def UsageError(message: str) -> Exception:
     """Bad command-line input: a ModelInputError, printed as one line with exit status 2."""
     from reference.errors import ModelInputError
+
     return ModelInputError(message)
 
 
@@ -41,7 +44,9 @@ def _floats(text: str | None, what: str) -> list[float] | None:
         try:
             out.append(float(item))
         except ValueError:
-            raise UsageError(f"{what}: {item!r} is not a number (give comma-separated values)")
+            raise UsageError(
+                f"{what}: {item!r} is not a number (give comma-separated values)"
+            ) from None
     return out
 
 
@@ -54,7 +59,7 @@ def _assignments(pairs: list[str]) -> dict[str, float]:
         try:
             out[name.strip()] = float(value)
         except ValueError:
-            raise UsageError(f"--set {pair!r}: {value!r} is not a number")
+            raise UsageError(f"--set {pair!r}: {value!r} is not a number") from None
     return out
 
 
@@ -68,6 +73,7 @@ def dump_json(obj) -> str:
 # ---- models ------------------------------------------------------------------------------
 def describe_model(model) -> dict:
     from reference.constraints import classify
+
     return {
         "name": model.name,
         "source": model.source,
@@ -86,19 +92,30 @@ def describe_model(model) -> dict:
 
 def cmd_models(args) -> int:
     from reference import models
-    described = [{**describe_model(models.get(n)), "origin": models.origin(n)}
-                 for n in [*models.names(), *models.user_names()]]
+
+    described = [
+        {**describe_model(models.get(n)), "origin": models.origin(n)}
+        for n in [*models.names(), *models.user_names()]
+    ]
     if args.json:
         print(dump_json(described))
         return 0
     rows = [("name", "origin", "source", "q", "u", "constraints", "formulations")]
     for d in described:
-        rows.append((d["name"], d["origin"], d["source"], ",".join(d["coordinates"]),
-                     str(len(d["speeds"])), str(len(d["constraints"])),
-                     ",".join(d["formulations"])))
+        rows.append(
+            (
+                d["name"],
+                d["origin"],
+                d["source"],
+                ",".join(d["coordinates"]),
+                str(len(d["speeds"])),
+                str(len(d["constraints"])),
+                ",".join(d["formulations"]),
+            )
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip())
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=False)).rstrip())
     return 0
 
 
@@ -107,6 +124,7 @@ def cmd_eval(args) -> int:
     import numpy as np
 
     from reference import NumericModel, models
+
     model = models.get(args.name)
     nm = NumericModel(model, args.formulation, _assignments(args.set))
     q = _floats(args.q, "--q")
@@ -123,9 +141,13 @@ def cmd_eval(args) -> int:
     pos, vel = nm.residuals(q, u, args.t)
     K, V = nm.energy(q, u, args.t)
     out = {
-        "model": model.name, "source": model.source, "formulation": nm.formulation,
-        "parameters": nm.params, "t": args.t,
-        "q": np.asarray(q, float), "u": np.asarray(u, float),
+        "model": model.name,
+        "source": model.source,
+        "formulation": nm.formulation,
+        "parameters": nm.params,
+        "t": args.t,
+        "q": np.asarray(q, float),
+        "u": np.asarray(u, float),
         "coordinates": [s.name for s in model.coordinates],
         "speeds": [s.name for s in model.speeds],
         "accelerations": res.accelerations,
@@ -141,12 +163,14 @@ def cmd_eval(args) -> int:
         print(dump_json(out))
     else:
         print(f"{model.name} ({model.source}), {nm.formulation}, t = {args.t}")
-        for s, a in zip(out["speeds"], res.accelerations):
+        for s, a in zip(out["speeds"], res.accelerations, strict=False):
             print(f"  d({s})/dt = {a:.12g}")
-        for name, lam in zip(model.constraint_names or [], res.multipliers):
+        for name, lam in zip(model.constraint_names or [], res.multipliers, strict=False):
             print(f"  lambda[{name}] = {lam:.12g}")
-        print(f"  residuals: position {np.abs(pos).max() if pos.size else 0:.2e}, "
-              f"velocity {np.abs(vel).max() if vel.size else 0:.2e}")
+        print(
+            f"  residuals: position {np.abs(pos).max() if pos.size else 0:.2e}, "
+            f"velocity {np.abs(vel).max() if vel.size else 0:.2e}"
+        )
     return 0
 
 
@@ -154,7 +178,8 @@ def cmd_eval(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="crosscheck",
-        description="Textbook multiplier formulations cross-checked against Pinocchio and MuJoCo")
+        description="Textbook multiplier formulations cross-checked against Pinocchio and MuJoCo",
+    )
     sub = p.add_subparsers(dest="command", required=True)
 
     m = sub.add_parser("models", help="list the models of the unit")
@@ -165,13 +190,21 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("eval", help="accelerations and multipliers of a model at a state")
     e.add_argument("name", help="model name (see `crosscheck models`)")
     e.add_argument("--formulation", default=None, help="lagrange | dalembert | kane")
-    e.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a parameter (repeatable)")
+    e.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a parameter (repeatable)",
+    )
     e.add_argument("--q", help="coordinates, comma-separated (default: the model's initial state)")
     e.add_argument("--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)")
     e.add_argument("--t", type=finite_float, default=0.0, help="time (rheonomic constraints)")
-    e.add_argument("--project", action="store_true",
-                   help="project the state onto the constraint manifold instead of refusing it")
+    e.add_argument(
+        "--project",
+        action="store_true",
+        help="project the state onto the constraint manifold instead of refusing it",
+    )
     e.add_argument("--json", action="store_true")
     add_model_files(e)
     e.set_defaults(func=cmd_eval)
@@ -185,8 +218,19 @@ def build_parser() -> argparse.ArgumentParser:
 def _optional_commands():
     """Subcommands that live in their own modules: each has a register(subparsers)."""
     from importlib import import_module
-    return [import_module(f"crosscheck.{name}").register
-            for name in ("run", "bench", "report", "gate", "sweep", "engines_command", "sensitivity_command")]
+
+    return [
+        import_module(f"crosscheck.{name}").register
+        for name in (
+            "run",
+            "bench",
+            "report",
+            "gate",
+            "sweep",
+            "engines_command",
+            "sensitivity_command",
+        )
+    ]
 
 
 # A value that starts with a minus sign: a number or a comma-separated list of numbers
@@ -239,12 +283,14 @@ def _main(argv) -> int:
     args = None
     try:
         from reference.errors import ModelInputError
+
         parser = build_parser()
         argv = list(sys.argv[1:] if argv is None else argv)
         args = parser.parse_args(_attach_negative_values(parser, argv))
         try:
             if hasattr(args, "model_file"):  # before any model name is resolved
                 from .arguments import load_model_files
+
                 load_model_files(args)
             code = int(args.func(args) or 0)
             interrupts.check()  # an interrupt an engine swallowed is not a finished command
@@ -256,21 +302,28 @@ def _main(argv) -> int:
         return _interrupted(args)
     except BrokenPipeError:  # pragma: no cover - `crosscheck models | head`
         return 0
-    except Exception:  # noqa: BLE001 - a bug: exit 1 is reserved for "a check failed"
+    except Exception:
         # a Ctrl-C inside a C extension's import surfaces as that import's error
         # ("ImportError: initialization failed" from MuJoCo): still an interrupt
         if interrupts.seen():
             return _interrupted(args)
         import traceback
+
         traceback.print_exc()
-        print("crosscheck: internal error (a bug, not a failed check; the traceback above "
-              "says where)", file=sys.stderr)
+        print(
+            "crosscheck: internal error (a bug, not a failed check; the traceback above "
+            "says where)",
+            file=sys.stderr,
+        )
         return EXIT_INTERNAL
 
 
 def _interrupted(args) -> int:
-    print(f"crosscheck: interrupted; no new output written (a command's files are renamed "
-          f"into place only once all are complete){_out_note(args)}", file=sys.stderr)
+    print(
+        f"crosscheck: interrupted; no new output written (a command's files are renamed "
+        f"into place only once all are complete){_out_note(args)}",
+        file=sys.stderr,
+    )
     return EXIT_INTERRUPTED
 
 

@@ -1,5 +1,6 @@
 """`crosscheck engines [--json]`: every registered engine, its package version, what it can do,
 and whether it imports here."""
+
 from __future__ import annotations
 
 import json
@@ -17,11 +18,23 @@ def cmd_engines(args) -> int:
             print(f"{r.name:10s} does not import: {r.error}")
             continue
         caps = r.capabilities or {}
-        can = [k for k in ("multipliers", "exact", "rigid_recovery", "mass_matrix",
-                           "nonholonomic", "variants") if caps.get(k)]
+        can = [
+            k
+            for k in (
+                "multipliers",
+                "exact",
+                "rigid_recovery",
+                "mass_matrix",
+                "nonholonomic",
+                "variants",
+            )
+            if caps.get(k)
+        ]
         integ = ", ".join(caps.get("integrators", [])) or "none"
-        print(f"{r.name:10s} {r.distribution} {r.version}  {len(r.models)} models  "
-              f"[{', '.join(can)}]  integrators: {integ}")
+        print(
+            f"{r.name:10s} {r.distribution} {r.version}  {len(r.models)} models  "
+            f"[{', '.join(can)}]  integrators: {integ}"
+        )
     return 0
 
 

@@ -10,6 +10,7 @@ KeyboardInterrupt whenever one was seen, so a run never turns an interrupt into 
 (callers that convert engine errors into failed records ask first) and never writes its
 outputs after one (Outputs.commit asks).
 """
+
 from __future__ import annotations
 
 import signal

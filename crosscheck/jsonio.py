@@ -1,6 +1,7 @@
 """The JSON encoding of every file the suite writes (results.json, sweep.json, bench.json, the
 baseline): numpy arrays and scalars become lists and numbers; NaN and infinities are kept
 (as JavaScript's NaN/Infinity, which Python's json reads back) unless ``allow_nan`` is False."""
+
 from __future__ import annotations
 
 import json
@@ -11,6 +12,7 @@ def default(x: Any) -> Any:
     """json.dumps' ``default``: numpy values to plain Python, anything else refused."""
     try:
         import numpy as np
+
         if isinstance(x, np.ndarray):
             return x.tolist()
         if isinstance(x, np.generic):

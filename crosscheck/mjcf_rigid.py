@@ -14,6 +14,7 @@ omega1 - omega2 (the weld's quaternion rows span the same space on the manifold)
 q1 - poly(q2) with Jdot v = -poly''(q2) v2^2. Dependent rows are solved as in
 reference.redundant (unique qacc, minimum-norm lambda).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ def _point(m, d, e: int, side: int, weld: bool):
     if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
         return int(m.site_bodyid[obj]), np.array(d.site_xpos[obj])
     k = (1 - side) if weld else side
-    anchor = m.eq_data[e, 3 * k:3 * k + 3]
+    anchor = m.eq_data[e, 3 * k : 3 * k + 3]
     return int(obj), d.xpos[obj] + d.xmat[obj].reshape(3, 3) @ anchor
 
 
@@ -85,8 +86,9 @@ def equality_rows(m, d):
                 a2 = m.jnt_qposadr[j2]
                 x = d.qpos[a2] - m.qpos0[a2]
                 v2 = d.qvel[m.jnt_dofadr[j2]]
-                row[0, m.jnt_dofadr[j2]] = -(c[1] + 2 * c[2] * x + 3 * c[3] * x**2
-                                            + 4 * c[4] * x**3)
+                row[0, m.jnt_dofadr[j2]] = -(
+                    c[1] + 2 * c[2] * x + 3 * c[3] * x**2 + 4 * c[4] * x**3
+                )
                 acc = -(2 * c[2] + 6 * c[3] * x + 12 * c[4] * x**2) * v2**2
             Js.append(row)
             jdv.append(np.array([acc]))
@@ -109,8 +111,9 @@ def rigid_forward(m, qpos, qvel, *, applied=None) -> RigidForward:
     mujoco.mj_fullM(m, d, M)
     J, jdv = equality_rows(m, d)
     rank, _s = redundant.numerical_rank(J)
-    qacc, lam, _piv, rank = redundant.solve(M, np.array(d.qfrc_smooth), J, -jdv,
-                                            rank_expected=rank, augment=False, where="MuJoCo")
+    qacc, lam, _piv, rank = redundant.solve(
+        M, np.array(d.qfrc_smooth), J, -jdv, rank_expected=rank, augment=False, where="MuJoCo"
+    )
     return RigidForward(qacc, lam, rank, J, np.array(d.qacc))
 
 
@@ -144,10 +147,15 @@ def agreement(imp, nm, count: int = 4, seed: int = 7) -> list[dict]:
         fw = nm.forward(qpos, u)
         qacc = qvel_from_rates(imp.joints, qpos, fw.accelerations, imp.mj.nv)
         scale = max(1.0, float(np.max(np.abs(rigid.qacc), initial=0.0)))
-        rows.append({"error": float(np.max(np.abs(qacc - rigid.qacc), initial=0.0)) / scale,
-                     "soft_vs_rigid": float(np.max(np.abs(rigid.qacc_soft - rigid.qacc),
-                                                   initial=0.0)) / scale,
-                     "rank": fw.rank, "mujoco_rank": rigid.rank})
+        rows.append(
+            {
+                "error": float(np.max(np.abs(qacc - rigid.qacc), initial=0.0)) / scale,
+                "soft_vs_rigid": float(np.max(np.abs(rigid.qacc_soft - rigid.qacc), initial=0.0))
+                / scale,
+                "rank": fw.rank,
+                "mujoco_rank": rigid.rank,
+            }
+        )
     return rows
 
 
@@ -159,8 +167,10 @@ def main(argv=None) -> int:
     from reference.mjcf import import_mjcf
     from reference.numeric import NumericModel
 
-    ap = argparse.ArgumentParser(prog="python -m crosscheck.mjcf_rigid",
-                                 description="reference vs MuJoCo's rigid answer on an MJCF file")
+    ap = argparse.ArgumentParser(
+        prog="python -m crosscheck.mjcf_rigid",
+        description="reference vs MuJoCo's rigid answer on an MJCF file",
+    )
     ap.add_argument("file")
     ap.add_argument("--formulations", default="kane")
     ap.add_argument("--states", type=int, default=4)
@@ -173,10 +183,13 @@ def main(argv=None) -> int:
         took = time.perf_counter() - t0
         rows = agreement(imp, nm, args.states, args.seed)
         for i, r in enumerate(rows):
-            print(f"{form} state {i}: error {r['error']:.1e}  soft-vs-rigid "
-                  f"{r['soft_vs_rigid']:.1e}  rank {r['rank']} (MuJoCo {r['mujoco_rank']})")
-        print(f"{form}: worst {max(r['error'] for r in rows):.1e}  (derivation + load "
-              f"{took:.1f} s)")
+            print(
+                f"{form} state {i}: error {r['error']:.1e}  soft-vs-rigid "
+                f"{r['soft_vs_rigid']:.1e}  rank {r['rank']} (MuJoCo {r['mujoco_rank']})"
+            )
+        print(
+            f"{form}: worst {max(r['error'] for r in rows):.1e}  (derivation + load {took:.1f} s)"
+        )
     return 0
 
 

@@ -6,6 +6,7 @@ SIGINT held back, so Ctrl-C cannot land between two renames. An interrupted or f
 removes its temporary files and leaves the directory as it was: the previous run's files,
 complete and consistent with each other, or nothing.
 """
+
 from __future__ import annotations
 
 import os
@@ -39,8 +40,9 @@ class Outputs:
     def path(self, name: str) -> Path:
         return self.dir / name
 
-    def commit(self, stale: tuple[str, ...] = (), *, after_interrupt: bool = False
-               ) -> dict[str, Path]:
+    def commit(
+        self, stale: tuple[str, ...] = (), *, after_interrupt: bool = False
+    ) -> dict[str, Path]:
         """Rename every staged file into place and remove `stale` files this command did not
         write (an old report beside new results would look current); returns final paths.
         After a Ctrl-C only files that say so (`after_interrupt`: a campaign's stop status, its
@@ -62,7 +64,7 @@ class Outputs:
             tmp.unlink(missing_ok=True)
         self._staged.clear()
 
-    def __enter__(self) -> "Outputs":
+    def __enter__(self) -> Outputs:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:

@@ -11,6 +11,7 @@ matplotlib hashes for clip paths use a fixed salt.
 Log axes cannot show 0: an error, residual or drift that is exactly 0 is drawn at `ZERO_AT`
 with a hollow marker (the caption says so), never dropped, so "exact" stays visible.
 """
+
 from __future__ import annotations
 
 import io
@@ -22,10 +23,28 @@ ZERO_AT = 1e-17  # below every double round-off figure of a quantity scaled to 1
 # (the engines' colours: ENGINE_PALETTE cycled in the registry's order, then the other engines
 # of the figure in its order)
 REFERENCE_COLOR = "#6b6b6b"
-ENGINE_PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf",
-                  "#bcbd22"]
-_LINE_COLORS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf",
-                "#bcbd22", "#7f7f7f", "#d62728"]
+ENGINE_PALETTE = [
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#bcbd22",
+]
+_LINE_COLORS = [
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#bcbd22",
+    "#7f7f7f",
+    "#d62728",
+]
 _MARKERS = ["o", "s", "^", "D", "v", "P", "X", "<", ">", "*"]
 FAIL_COLOR = "#d62728"
 
@@ -34,6 +53,7 @@ def engine_color(engine: str, order: list[str] | None = None) -> str:
     if engine == "reference":
         return REFERENCE_COLOR
     from .engines.registry import available_engines
+
     known = list(available_engines())
     seq = known + [e for e in (order or []) if e not in known and e != "reference"]
     i = seq.index(engine) if engine in seq else len(seq)
@@ -51,6 +71,7 @@ def _num(x) -> float:
 def _figure(width, height):
     from matplotlib.backends.backend_svg import FigureCanvasSVG
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasSVG(fig)
     return fig
@@ -58,6 +79,7 @@ def _figure(width, height):
 
 def _svg(fig) -> str:
     import matplotlib
+
     buf = io.StringIO()
     with matplotlib.rc_context({"svg.hashsalt": "multibody-crosscheck", "svg.fonttype": "path"}):
         fig.savefig(buf, format="svg", metadata={"Date": None})
@@ -87,10 +109,14 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
     if not rows:
         return None
     engines = list(dict.fromkeys(r.get("engine", "?") for r in records))
-    finite = [v for r in records for v in (_num(r.get("error")), _num(r.get("tolerance")))
-              if math.isfinite(v) and v > 0]
-    lo = min([ZERO_AT] + finite) / 3
-    hi = max([1.0] + finite) * 30
+    finite = [
+        v
+        for r in records
+        for v in (_num(r.get("error")), _num(r.get("tolerance")))
+        if math.isfinite(v) and v > 0
+    ]
+    lo = min([ZERO_AT, *finite]) / 3
+    hi = max([1.0, *finite]) * 30
     slots = [(key, r) for key in rows for r in by_row[key]]
     height = 1.1 + 0.27 * len(slots) + 0.12 * len(rows)
     fig = _figure(8.6, height)
@@ -109,14 +135,22 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
         ylabels.append(_row_label(key))
         if i % 2 == 0:
             ax.axhspan(ys[-1] - 0.5, ys[0] + 0.5, color="#f4f4f4", zorder=0, linewidth=0)
-        for r, yy in zip(group, ys):
+        for r, yy in zip(group, ys, strict=False):
             eng = r.get("engine", "?")
             color = engine_color(eng, engines)
             label = eng if eng not in seen_labels else None
             seen_labels.add(eng)
             if r.get("skipped") or r.get("passed") is None:
-                ax.text(lo * 1.5, yy, f"{eng}: skipped", va="center", ha="left", fontsize=7,
-                        color="#777777", style="italic")
+                ax.text(
+                    lo * 1.5,
+                    yy,
+                    f"{eng}: skipped",
+                    va="center",
+                    ha="left",
+                    fontsize=7,
+                    color="#777777",
+                    style="italic",
+                )
                 continue
             _agreement_point(ax, r, yy, color, label, hi, notes)
         y = ys[-1] - 1.3
@@ -134,57 +168,138 @@ def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dic
     and a red ring when it fails; `notes` records which legend entries are needed."""
     err, tol = _num(r.get("error")), _num(r.get("tolerance"))
     if math.isfinite(tol) and tol > 0:
-        ax.plot([tol], [yy], marker="|", markersize=13, markeredgewidth=2.2,
-                color="#222222", linestyle="none", zorder=3)
+        ax.plot(
+            [tol],
+            [yy],
+            marker="|",
+            markersize=13,
+            markeredgewidth=2.2,
+            color="#222222",
+            linestyle="none",
+            zorder=3,
+        )
     failed = r.get("passed") is False
     if not math.isfinite(err):
         notes["inf"] = True
-        ax.plot([hi / 2], [yy], marker=">", markersize=8, color=color, label=label,
-                linestyle="none", zorder=4)
-        ax.text(hi / 8, yy, "NaN" if err != err else "inf", ha="right", va="center",
-                fontsize=7, color=FAIL_COLOR if failed else color)
+        ax.plot(
+            [hi / 2],
+            [yy],
+            marker=">",
+            markersize=8,
+            color=color,
+            label=label,
+            linestyle="none",
+            zorder=4,
+        )
+        ax.text(
+            hi / 8,
+            yy,
+            "NaN" if err != err else "inf",
+            ha="right",
+            va="center",
+            fontsize=7,
+            color=FAIL_COLOR if failed else color,
+        )
     elif err <= 0:
         notes["zero"] = True
-        ax.plot([ZERO_AT], [yy], marker="o", markersize=6, markerfacecolor="white",
-                markeredgecolor=color, markeredgewidth=1.6, linestyle="none",
-                label=label, zorder=4)
+        ax.plot(
+            [ZERO_AT],
+            [yy],
+            marker="o",
+            markersize=6,
+            markerfacecolor="white",
+            markeredgecolor=color,
+            markeredgewidth=1.6,
+            linestyle="none",
+            label=label,
+            zorder=4,
+        )
     else:
-        ax.plot([err], [yy], marker="o", markersize=6, color=color, linestyle="none",
-                label=label, zorder=4)
+        ax.plot(
+            [err],
+            [yy],
+            marker="o",
+            markersize=6,
+            color=color,
+            linestyle="none",
+            label=label,
+            zorder=4,
+        )
     if failed:
         notes["fail"] = True
         x = hi / 2 if not math.isfinite(err) else max(err, ZERO_AT)
-        ax.plot([x], [yy], marker="o", markersize=12, markerfacecolor="none",
-                markeredgecolor=FAIL_COLOR, markeredgewidth=1.8, linestyle="none",
-                zorder=5)
+        ax.plot(
+            [x],
+            [yy],
+            marker="o",
+            markersize=12,
+            markerfacecolor="none",
+            markeredgecolor=FAIL_COLOR,
+            markeredgewidth=1.8,
+            linestyle="none",
+            zorder=5,
+        )
 
 
 def _agreement_legend(ax, notes: dict) -> None:
     """The engines' markers, the tolerance bar, and the entries `notes` asks for."""
     from matplotlib.lines import Line2D
+
     handles, labels = ax.get_legend_handles_labels()
-    handles.append(Line2D([], [], marker="|", markersize=11, markeredgewidth=2.2,
-                          color="#222222", linestyle="none"))
+    handles.append(
+        Line2D(
+            [],
+            [],
+            marker="|",
+            markersize=11,
+            markeredgewidth=2.2,
+            color="#222222",
+            linestyle="none",
+        )
+    )
     labels.append("tolerance")
     if notes["zero"]:
-        handles.append(Line2D([], [], marker="o", markerfacecolor="white",
-                              markeredgecolor="#555555", linestyle="none"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker="o",
+                markerfacecolor="white",
+                markeredgecolor="#555555",
+                linestyle="none",
+            )
+        )
         labels.append(f"exactly 0 (drawn at {ZERO_AT:.0e})")
     if notes["fail"]:
-        handles.append(Line2D([], [], marker="o", markersize=10, markerfacecolor="none",
-                              markeredgecolor=FAIL_COLOR, markeredgewidth=1.8, linestyle="none"))
+        handles.append(
+            Line2D(
+                [],
+                [],
+                marker="o",
+                markersize=10,
+                markerfacecolor="none",
+                markeredgecolor=FAIL_COLOR,
+                markeredgewidth=1.8,
+                linestyle="none",
+            )
+        )
         labels.append("failing")
     if notes["inf"]:
         handles.append(Line2D([], [], marker=">", color="#555555", linestyle="none"))
         labels.append("inf / NaN")
-    ax.legend(handles, labels, fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-              frameon=False)
+    ax.legend(
+        handles, labels, fontsize=7.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False
+    )
 
 
 def _row_key(r: dict) -> tuple:
     if r.get("engine") == "reference":
-        return (r.get("check", "?"), r.get("quantity", "?"), r.get("formulation", "?"),
-                r.get("against", ""))
+        return (
+            r.get("check", "?"),
+            r.get("quantity", "?"),
+            r.get("formulation", "?"),
+            r.get("against", ""),
+        )
     return (r.get("check", "?"), r.get("quantity", "?"), "", "")
 
 
@@ -212,10 +327,15 @@ def trajectory_panels(series: list[dict]) -> list[tuple[str, str]]:
 
     def drawable(key):
         return any(s.get(key) and any(_num(x) != 0 for x in s[key]) for s in lines) or (
-            key == "energy" and any(len(set(s.get(key) or [])) > 1 for s in lines))
+            key == "energy" and any(len(set(s.get(key) or [])) > 1 for s in lines)
+        )
+
     balance = any(s.get("work") is not None for s in lines)
-    return [(k, BALANCE_PANEL if k == "energy" and balance else t)
-            for k, t in TRAJECTORY_PANELS if drawable(k)]
+    return [
+        (k, BALANCE_PANEL if k == "energy" and balance else t)
+        for k, t in TRAJECTORY_PANELS
+        if drawable(k)
+    ]
 
 
 def trajectory_svg(series: list[dict], title: str = "") -> str | None:
@@ -223,6 +343,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     (engine, formulation, label): colour per label (method), line style per engine. A line that is
     exactly 0 throughout is named in the panel instead of drawn; other zeros sit at ZERO_AT."""
     import numpy as np
+
     lines = [s for s in series if s.get("t")]
     if not lines:
         return None
@@ -232,7 +353,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     styles = line_styles([_series_key(s) for s in lines])
     fig = _figure(8.6, 0.6 + 2.15 * len(panels))
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, (key, label) in zip(axes, panels):
+    for ax, (key, label) in zip(axes, panels, strict=False):
         _style(ax)
         ax.set_yscale("log")
         ax.set_ylabel(label, fontsize=8)
@@ -247,6 +368,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
             t, v = t[:n], v[:n]
             if key == "energy":  # as the records judge it: drift, or work-energy balance
                 from .report_content import energy_series
+
                 v = energy_series(s)
                 n = min(len(t), len(v))
                 t, v = t[:n], v[:n]
@@ -257,17 +379,30 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
             color, style = styles[_series_key(s)]
             ax.plot(t, v, color=color, linestyle=style, linewidth=1.3, label=series_label(s))
         if zeros:
-            ax.text(0.01, 0.02, "exactly 0 throughout: " + "; ".join(zeros), fontsize=7,
-                    color="#555555", transform=ax.transAxes, va="bottom")
+            ax.text(
+                0.01,
+                0.02,
+                "exactly 0 throughout: " + "; ".join(zeros),
+                fontsize=7,
+                color="#555555",
+                transform=ax.transAxes,
+                va="bottom",
+            )
     axes[-1].set_xlabel("t [s]", fontsize=8)
     # one legend under the panels (beside them, long labels squeeze the axes to nothing)
     handles = {}
     for ax in axes:
-        for h, lab in zip(*ax.get_legend_handles_labels()):
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=False):
             handles.setdefault(lab, h)
     if handles:
-        fig.legend(list(handles.values()), list(handles), fontsize=7.5, frameon=False,
-                   loc="outside lower center", ncols=2)
+        fig.legend(
+            list(handles.values()),
+            list(handles),
+            fontsize=7.5,
+            frameon=False,
+            loc="outside lower center",
+            ncols=2,
+        )
         fig.set_figheight(fig.get_figheight() + 0.22 * ((len(handles) + 1) // 2))
     if title:
         axes[0].set_title(title, fontsize=10, loc="left")
@@ -286,8 +421,13 @@ def line_styles(keys: list[tuple]) -> dict:
     labels = list(dict.fromkeys(k[0] for k in keys))
     engines = list(dict.fromkeys(k[1] for k in keys))
     styles = ["-", "--", ":", "-."]
-    return {k: (_LINE_COLORS[labels.index(k[0]) % len(_LINE_COLORS)],
-                styles[engines.index(k[1]) % len(styles)]) for k in keys}
+    return {
+        k: (
+            _LINE_COLORS[labels.index(k[0]) % len(_LINE_COLORS)],
+            styles[engines.index(k[1]) % len(styles)],
+        )
+        for k in keys
+    }
 
 
 def series_label(s: dict) -> str:
@@ -320,16 +460,20 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
     lines: dict[tuple, list[dict]] = {}
     for r in rows:
         lines.setdefault((method_label(r), r.get("engine", "?")), []).append(r)
-    panels = [(k, lab) for k, lab in WORK_PRECISION_PANELS
-              if any(math.isfinite(_num(r.get(k))) for r in rows)]
+    panels = [
+        (k, lab)
+        for k, lab in WORK_PRECISION_PANELS
+        if any(math.isfinite(_num(r.get(k))) for r in rows)
+    ]
     if not lines or not panels or not any(math.isfinite(_num(r.get("wall_s"))) for r in rows):
         return None
     from matplotlib.ticker import LogLocator, NullFormatter
+
     styles = line_styles(list(lines))
     engines = list(dict.fromkeys(k[1] for k in lines))
     fig = _figure(min(3.3 * len(panels) + 2.4, 12.0), 3.6)
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
-    for ax, (key, label) in zip(axes, panels):
+    for ax, (key, label) in zip(axes, panels, strict=False):
         _style(ax)
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -344,9 +488,16 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
             if not xs:
                 continue
             color, style = styles[(method, engine)]
-            ax.plot(xs, ys, color=color, linestyle=style,
-                    marker=_MARKERS[engines.index(engine) % len(_MARKERS)], markersize=4.5,
-                    linewidth=1.3, label=f"{method} · {engine}")
+            ax.plot(
+                xs,
+                ys,
+                color=color,
+                linestyle=style,
+                marker=_MARKERS[engines.index(engine) % len(_MARKERS)],
+                markersize=4.5,
+                linewidth=1.3,
+                label=f"{method} · {engine}",
+            )
         ax.xaxis.set_major_locator(LogLocator(numticks=5))
         ax.yaxis.set_major_locator(LogLocator(numticks=6))
         ax.xaxis.set_minor_formatter(NullFormatter())
@@ -376,16 +527,18 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
     height = 0.6 + 2.1 * nrows
     from matplotlib.backends.backend_svg import FigureCanvasSVG
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(8.6, height))  # fixed margins: constrained layout doubles the cost
     FigureCanvasSVG(fig)
     top = 0.35 + (0.25 if title else 0.0)
-    fig.subplots_adjust(left=0.075, right=0.985, top=1 - top / height, bottom=0.45 / height,
-                        hspace=0.5, wspace=0.2)
+    fig.subplots_adjust(
+        left=0.075, right=0.985, top=1 - top / height, bottom=0.45 / height, hspace=0.5, wspace=0.2
+    )
     axes = fig.subplots(nrows, ncols, squeeze=False)
     styles = ["-", "--", ":", "-."]
-    for ax in axes.flat[len(quantities):]:
+    for ax in axes.flat[len(quantities) :]:
         ax.set_visible(False)
-    for ax, qn in zip(axes.flat, quantities):
+    for ax, qn in zip(axes.flat, quantities, strict=False):
         _style(ax)
         ax.set_xscale("log")
         ax.set_title(qn, fontsize=8.5, loc="left")
@@ -404,12 +557,17 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
             edges = [10 ** (lo + k * step) for k in range(len(counts) + 1)]
             span += [edges[k] for k, c in enumerate(counts) if c]
             span += [edges[k + 1] for k, c in enumerate(counts) if c]
-            extra = [f"{h[k]} {k}" for k in ("zero", "below", "above", "nonfinite")
-                     if h.get(k)]
+            extra = [f"{h[k]} {k}" for k in ("zero", "below", "above", "nonfinite") if h.get(k)]
             label = eng + (f"/{var}" if var else "") + f" (n={r.get('count')}"
             label += (", " + ", ".join(extra) if extra else "") + ")"
-            ax.stairs(counts, edges, color=engine_color(eng, engines), linewidth=1.4,
-                      linestyle=styles[vlist.index(var) % len(styles)], label=label)
+            ax.stairs(
+                counts,
+                edges,
+                color=engine_color(eng, engines),
+                linewidth=1.4,
+                linestyle=styles[vlist.index(var) % len(styles)],
+                label=label,
+            )
             tol = _num(r.get("tolerance"))
             if math.isfinite(tol) and tol > 0:
                 tols.add((tol, eng))
@@ -419,6 +577,7 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
         if span:
             ax.set_xlim(min(span) / 10, max(span) * 10)
         from matplotlib.ticker import LogLocator, NullLocator
+
         ax.xaxis.set_major_locator(LogLocator(numticks=6))  # few labels: text is the cost here
         ax.xaxis.set_minor_locator(NullLocator())
         ax.set_ylabel("samples", fontsize=7.5)

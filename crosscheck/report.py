@@ -15,34 +15,60 @@
 Output is deterministic for the same inputs and arguments: nothing here reads the clock, and the
 figures are rendered with fixed ids (see crosscheck.plots).
 """
+
 from __future__ import annotations
 
 import json
 import shlex
 from pathlib import Path
 
-from .report_content import (DEFAULT_RESULTS, Content, ReportInputError, check_bench,
-                             check_results, check_sweep, load_json)
+from .report_content import (
+    DEFAULT_RESULTS,
+    Content,
+    ReportInputError,
+    check_bench,
+    check_results,
+    check_sweep,
+    load_json,
+)
 from .report_html import render_html
 from .report_junit import render_junit
 from .report_md import render_md
 
-__all__ = ["ReportInputError", "check_bench", "check_results", "check_sweep", "generate",
-           "load_json", "render_html", "render_junit", "render_md", "write_report"]
+__all__ = [
+    "ReportInputError",
+    "check_bench",
+    "check_results",
+    "check_sweep",
+    "generate",
+    "load_json",
+    "render_html",
+    "render_junit",
+    "render_md",
+    "write_report",
+]
 
 # ---- entry points ----------------------------------------------------------------------------
 
 
-def write_report(results: dict | None, bench: dict | None, out_dir: str | Path, command: str,
-                 results_path: str | None = None, bench_path: str | None = None,
-                 sweep: dict | None = None, sweep_path: str | None = None,
-                 outputs=None) -> dict:
+def write_report(
+    results: dict | None,
+    bench: dict | None,
+    out_dir: str | Path,
+    command: str,
+    results_path: str | None = None,
+    bench_path: str | None = None,
+    sweep: dict | None = None,
+    sweep_path: str | None = None,
+    outputs=None,
+) -> dict:
     """Write index.html, report.md and junit.xml into out_dir; returns their paths.
 
     The files are staged and renamed into place together (crosscheck.output), so an interrupt
     leaves the previous report or this one, never a mix; with `outputs` given (a run staging
     its results.json too) they are only staged, and the caller commits them all at once."""
     from .output import Outputs
+
     c = Content(results, bench, command, results_path, bench_path, sweep, sweep_path)
     names = {"html": "index.html", "md": "report.md", "junit": "junit.xml"}
     if results is None:
@@ -59,16 +85,24 @@ def write_report(results: dict | None, bench: dict | None, out_dir: str | Path, 
     return {k: staged.path(v) for k, v in names.items()}
 
 
-def generate(results_path: str | None, bench_path: str | None, out_dir: str,
-             sweep_path: str | None = None, outputs=None, results_text: str | None = None
-             ) -> dict:
+def generate(
+    results_path: str | None,
+    bench_path: str | None,
+    out_dir: str,
+    sweep_path: str | None = None,
+    outputs=None,
+    results_text: str | None = None,
+) -> dict:
     """Load and check the inputs, then write the report (`run` calls this with its staged
     outputs and the results.json text it is about to commit)."""
     if results_text is not None:
         results = check_results(json.loads(results_text), results_path)
     else:
-        results = check_results(load_json(results_path, "results"), results_path) \
-            if results_path else None
+        results = (
+            check_results(load_json(results_path, "results"), results_path)
+            if results_path
+            else None
+        )
     bench = check_bench(load_json(bench_path, "bench"), bench_path) if bench_path else None
     sweep = check_sweep(load_json(sweep_path, "sweep"), sweep_path) if sweep_path else None
     argv = ["crosscheck", "report"]
@@ -79,8 +113,17 @@ def generate(results_path: str | None, bench_path: str | None, out_dir: str,
     if sweep_path:
         argv += ["--sweep", str(sweep_path)]
     argv += ["--out", str(out_dir)]
-    return write_report(results, bench, out_dir, shlex.join(argv), results_path, bench_path,
-                        sweep, sweep_path, outputs)
+    return write_report(
+        results,
+        bench,
+        out_dir,
+        shlex.join(argv),
+        results_path,
+        bench_path,
+        sweep,
+        sweep_path,
+        outputs,
+    )
 
 
 def cmd_report(args) -> int:
@@ -90,8 +133,10 @@ def cmd_report(args) -> int:
         results_path = DEFAULT_RESULTS
         if not Path(results_path).is_file():
             if args.bench is None and sweep_path is None:
-                raise ReportInputError(f"no results file: {DEFAULT_RESULTS} does not exist "
-                                       f"(run `crosscheck run` first, or give --results FILE)")
+                raise ReportInputError(
+                    f"no results file: {DEFAULT_RESULTS} does not exist "
+                    f"(run `crosscheck run` first, or give --results FILE)"
+                )
             results_path = None  # a benchmark-only report
     bench_path = args.bench
     if bench_path is None and results_path is not None:
@@ -104,6 +149,7 @@ def cmd_report(args) -> int:
             sweep_path = str(beside)
     out_dir = args.out or str(Path(results_path or bench_path or sweep_path).parent)
     from .arguments import output_dir
+
     output_dir(out_dir)
     paths = generate(results_path, bench_path, out_dir, sweep_path)
     print("crosscheck report: " + ", ".join(str(p) for p in paths.values()))
@@ -111,17 +157,36 @@ def cmd_report(args) -> int:
 
 
 def register(sub):
-    r = sub.add_parser("report", help="HTML, Markdown and JUnit reports from results/bench JSON",
-                       description="Write DIR/index.html (self-contained), DIR/report.md and "
-                                   "DIR/junit.xml from a results.json and an optional bench.json.")
-    r.add_argument("--results", default=None, metavar="FILE",
-                   help=f"results.json from `crosscheck run` (default: {DEFAULT_RESULTS})")
-    r.add_argument("--bench", default=None, metavar="FILE",
-                   help="bench.json from `crosscheck bench` (default: bench.json beside the "
-                        "results file, when it exists)")
-    r.add_argument("--sweep", default=None, metavar="FILE",
-                   help="sweep.json from `crosscheck sweep`: error histograms per quantity "
-                        "(default: sweep.json beside the results file, when it exists)")
-    r.add_argument("--out", default=None, metavar="DIR",
-                   help="output directory (default: the results file's directory)")
+    r = sub.add_parser(
+        "report",
+        help="HTML, Markdown and JUnit reports from results/bench JSON",
+        description="Write DIR/index.html (self-contained), DIR/report.md and "
+        "DIR/junit.xml from a results.json and an optional bench.json.",
+    )
+    r.add_argument(
+        "--results",
+        default=None,
+        metavar="FILE",
+        help=f"results.json from `crosscheck run` (default: {DEFAULT_RESULTS})",
+    )
+    r.add_argument(
+        "--bench",
+        default=None,
+        metavar="FILE",
+        help="bench.json from `crosscheck bench` (default: bench.json beside the "
+        "results file, when it exists)",
+    )
+    r.add_argument(
+        "--sweep",
+        default=None,
+        metavar="FILE",
+        help="sweep.json from `crosscheck sweep`: error histograms per quantity "
+        "(default: sweep.json beside the results file, when it exists)",
+    )
+    r.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="output directory (default: the results file's directory)",
+    )
     r.set_defaults(func=cmd_report)

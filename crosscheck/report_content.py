@@ -1,17 +1,16 @@
 """The report's inputs and content, shared by the HTML, Markdown and JUnit renderers:
 loading and checking results/bench/sweep JSON, formatting, and ``Content`` (what each
 page shows, per model)."""
+
 from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 
 from .comparison import energy_error_series
-from .results_io import (ReportInputError, check_bench, check_results, check_sweep,  # noqa: F401
-                         load_json)
+from .results_io import ReportInputError, check_bench, check_results, check_sweep, load_json  # noqa: F401
 
 DEFAULT_RESULTS = "out/results.json"
 BASE_VERSION_KEYS = ("python", "numpy", "scipy", "sympy")
@@ -20,16 +19,30 @@ BASE_VERSION_KEYS = ("python", "numpy", "scipy", "sympy")
 def version_keys() -> tuple[str, ...]:
     """The versions results record: the numerical stack and every available engine's package."""
     from .engines.registry import engine_distributions
+
     return BASE_VERSION_KEYS + engine_distributions()
 
 
 def engine_anchors() -> tuple[tuple[str, str], ...]:
     """(engine, label) of every available engine, in the registry's order."""
     from .engines.registry import available_engines, engine_label
+
     return tuple((e, engine_label(e)) for e in available_engines())
+
+
 # record fields shown in their own columns; any other field goes to the "details" column
-STANDARD_FIELDS = {"model", "formulation", "engine", "check", "quantity", "error", "tolerance",
-                   "passed", "skipped", "reason"}
+STANDARD_FIELDS = {
+    "model",
+    "formulation",
+    "engine",
+    "check",
+    "quantity",
+    "error",
+    "tolerance",
+    "passed",
+    "skipped",
+    "reason",
+}
 
 
 def engine_label(r: dict) -> str:
@@ -95,8 +108,9 @@ def ratio_to_tolerance(r: dict) -> float:
 
 
 def record_id(r: dict) -> str:
-    return "/".join(str(r.get(k, "?")) for k in ("model", "formulation", "engine", "check",
-                                                  "quantity"))
+    return "/".join(
+        str(r.get(k, "?")) for k in ("model", "formulation", "engine", "check", "quantity")
+    )
 
 
 def details(r: dict) -> str:
@@ -113,9 +127,18 @@ def details(r: dict) -> str:
     return "; ".join(out)
 
 
-STATUS_CLASS = {"ok": "pass", "met": "pass", "pass": "pass", "passed": "pass",
-                "flagged": "flag", "warning": "flag", "not met": "fail", "fail": "fail",
-                "failed": "fail", "error": "fail"}
+STATUS_CLASS = {
+    "ok": "pass",
+    "met": "pass",
+    "pass": "pass",
+    "passed": "pass",
+    "flagged": "flag",
+    "warning": "flag",
+    "not met": "fail",
+    "fail": "fail",
+    "failed": "fail",
+    "error": "fail",
+}
 
 
 def named_items(section) -> list[tuple]:
@@ -126,8 +149,15 @@ def named_items(section) -> list[tuple]:
     if isinstance(section, dict):
         items = list(section.items())
     elif isinstance(section, list):
-        items = [(str(it.get("scene") or it.get("name") or it.get("id") or f"#{i + 1}")
-                  if isinstance(it, dict) else f"#{i + 1}", it) for i, it in enumerate(section)]
+        items = [
+            (
+                str(it.get("scene") or it.get("name") or it.get("id") or f"#{i + 1}")
+                if isinstance(it, dict)
+                else f"#{i + 1}",
+                it,
+            )
+            for i, it in enumerate(section)
+        ]
     else:
         items = [("value", section)]
     out = []
@@ -140,8 +170,11 @@ def named_items(section) -> list[tuple]:
         elif "met" in it:
             met = it["met"]
             if isinstance(met, dict):  # several targets: met only when every one is
-                met = all(met.values()) if met and all(isinstance(v, bool)
-                                                       for v in met.values()) else None
+                met = (
+                    all(met.values())
+                    if met and all(isinstance(v, bool) for v in met.values())
+                    else None
+                )
             st = {True: "met", False: "not met"}.get(met, "not evaluated")
         else:
             st = ""
@@ -152,8 +185,17 @@ def named_items(section) -> list[tuple]:
         for k in ("reason", "note"):
             if it.get(k):
                 notes.append(str(it[k]))
-        shown = {"status", "met", "what", "statement", "reasons", "reason", "note", "scene",
-                 "name"} | ({"tolerance"} if crit else set())
+        shown = {
+            "status",
+            "met",
+            "what",
+            "statement",
+            "reasons",
+            "reason",
+            "note",
+            "scene",
+            "name",
+        } | ({"tolerance"} if crit else set())
         rest = {k: v for k, v in it.items() if k not in shown}
         out.append((str(name), st, STATUS_CLASS.get(st.lower(), "skip"), desc, crit, notes, rest))
     return out
@@ -162,20 +204,28 @@ def named_items(section) -> list[tuple]:
 def wp_row(r: dict) -> list[str]:
     """A work-precision row as table cells: method/integrator, engine, setting, figures."""
     from .plots import method_label
+
     setting = r.get("setting", "")
     setting = fmt_tol(setting) if isinstance(setting, (int, float)) else str(setting)
     if r.get("setting_kind"):
         setting = f"{r['setting_kind']} {setting}"
-    return [method_label(r), str(r.get("engine", "")), setting,
-            fmt(to_float(r.get("wall_s"))) if r.get("wall_s") is not None else "—",
-            fmt(r.get("error")), fmt(r.get("residual")), fmt(r.get("energy_drift")),
-            str(r.get("nfev", "—"))]
+    return [
+        method_label(r),
+        str(r.get("engine", "")),
+        setting,
+        fmt(to_float(r.get("wall_s"))) if r.get("wall_s") is not None else "—",
+        fmt(r.get("error")),
+        fmt(r.get("residual")),
+        fmt(r.get("energy_drift")),
+        str(r.get("nfev", "—")),
+    ]
 
 
 def model_info(name: str) -> tuple[str, str]:
     """(source, title) from the model registry, or ('', '') for a name it does not know."""
     try:
         from reference import models
+
         m = models.get(name)
         return str(getattr(m, "source", "") or ""), str(getattr(m, "title", "") or "")
     except Exception:  # a renamed or unloadable model must not stop the report
@@ -185,6 +235,7 @@ def model_info(name: str) -> tuple[str, str]:
 def series_stats(s: dict) -> dict:
     def col(key):
         return [to_float(v) for v in (s.get(key) or [])]
+
     t = col("t")
     out = {"points": len(t), "t_end": t[-1] if t else math.nan}
     for key in ("state_error", "residual"):
@@ -203,8 +254,8 @@ def energy_series(s: dict) -> np.ndarray:
         return np.full(e.size, math.nan)
     w = s.get("work")
     if w is not None:
-        w = np.array([to_float(v) for v in w])[:e.size]
-        e = e[:w.size]
+        w = np.array([to_float(v) for v in w])[: e.size]
+        e = e[: w.size]
     return energy_error_series(e, w)
 
 
@@ -214,17 +265,27 @@ def conserves_energy(series: list[dict]) -> bool:
 
 def energy_heading(series: list[dict]) -> str:
     """The energy column's and panel's name for one model's series."""
-    return ("max energy drift" if conserves_energy(series)
-            else "max work-energy balance error (energy not conserved)")
+    return (
+        "max energy drift"
+        if conserves_energy(series)
+        else "max work-energy balance error (energy not conserved)"
+    )
 
 
 # ---- the report's content, shared by the HTML and the Markdown -------------------------------
 
 
 class Content:
-    def __init__(self, results: dict | None, bench: dict | None, command: str,
-                 results_path: str | None = None, bench_path: str | None = None,
-                 sweep: dict | None = None, sweep_path: str | None = None):
+    def __init__(
+        self,
+        results: dict | None,
+        bench: dict | None,
+        command: str,
+        results_path: str | None = None,
+        bench_path: str | None = None,
+        sweep: dict | None = None,
+        sweep_path: str | None = None,
+    ):
         self.sweep = sweep  # sweep.json of `crosscheck sweep` (its own section)
         self.sweep_path = sweep_path
         self.results = results or {}
@@ -240,12 +301,14 @@ class Content:
         names += [r.get("model", "?") for r in self.forward + self.work_precision]
         names += [s.get("model", "?") for s in (self.series or [])]
         self.models = list(dict.fromkeys(names))
-        self.counts = {k: sum(1 for r in self.records if status(r) == k)
-                       for k in ("pass", "fail", "skip")}
+        self.counts = {
+            k: sum(1 for r in self.records if status(r) == k) for k in ("pass", "fail", "skip")
+        }
         self.failing = [r for r in self.records if status(r) == "fail"]
         # bench sections this report has no dedicated layout for (e.g. "targets", "stress")
-        self.other_bench = {k: v for k, v in (bench or {}).items()
-                            if k not in ("meta", "forward", "work_precision")}
+        self.other_bench = {
+            k: v for k, v in (bench or {}).items() if k not in ("meta", "forward", "work_precision")
+        }
 
     def records_of(self, model):
         return [r for r in self.records if r.get("model", "?") == model]
@@ -263,10 +326,12 @@ class Content:
         if self.results_path is None:
             return "No trajectory shown: the report was made without a results.json."
         if not self.series:
-            return ("No trajectory was run: results.json has no \"series\" (the run recorded "
-                    "instantaneous checks only).")
+            return (
+                'No trajectory was run: results.json has no "series" (the run recorded '
+                "instantaneous checks only)."
+            )
         if not self.series_of(model):
-            return "No trajectory of this model in results.json's \"series\"."
+            return 'No trajectory of this model in results.json\'s "series".'
         return ""
 
     def timing_rows(self, model):
@@ -297,7 +362,7 @@ class Content:
 
     def regenerate(self) -> list[str]:
         cmds = [str(m.get("command")) for _, m in self.meta_rows() if m.get("command")]
-        return cmds + [self.command]
+        return [*cmds, self.command]
 
 
 def machine_text(meta: dict) -> str:
@@ -312,8 +377,10 @@ def machine_text(meta: dict) -> str:
 
 def versions_of(meta: dict) -> dict:
     v = meta.get("versions") or {}
-    return {k: (v.get(k) if v.get(k) is not None else "not installed") if k in v
-            else "not recorded" for k in version_keys()}
+    return {
+        k: (v.get(k) if v.get(k) is not None else "not installed") if k in v else "not recorded"
+        for k in version_keys()
+    }
 
 
 # ---- sweep section (sweep.json of `crosscheck sweep`) ----------------------------------------
@@ -328,8 +395,10 @@ def sweep_verdict(sw: dict) -> tuple[bool, str]:
     done = sum((st.get("completed") or {}).values())
     asked = sum((st.get("requested") or {}).values())
     ok = bool(st.get("passed"))
-    text = (f"{done} of {asked} samples, {st.get('outside_tolerance', '?')} outside tolerance, "
-            f"{st.get('faults', '?')} faults")
+    text = (
+        f"{done} of {asked} samples, {st.get('outside_tolerance', '?')} outside tolerance, "
+        f"{st.get('faults', '?')} faults"
+    )
     if st.get("stopped"):
         text += f"; stopped: {st['stopped']}"
     return ok, text
@@ -342,21 +411,46 @@ def sweep_rows(sw: dict, model: str) -> list[list]:
         if r.get("model") != model:
             continue
         if r.get("skipped"):
-            out.append([sweep_label(r), r.get("quantity", "?"), 0, None, None, None, None,
-                        None, None, "skip: " + str(r["skipped"])])
+            out.append(
+                [
+                    sweep_label(r),
+                    r.get("quantity", "?"),
+                    0,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    None,
+                    "skip: " + str(r["skipped"]),
+                ]
+            )
             continue
         q = r.get("quantiles") or {}
         worst = (r.get("worst") or [{}])[0]
         outside = r.get("outside_tolerance")
         st = "—" if outside is None else ("fail" if outside else "pass")
-        out.append([sweep_label(r), r.get("quantity", "?"), r.get("count"), r.get("max"),
-                    q.get("0.5"), q.get("0.99"), r.get("tolerance"), outside,
-                    worst.get("index"), st])
+        out.append(
+            [
+                sweep_label(r),
+                r.get("quantity", "?"),
+                r.get("count"),
+                r.get("max"),
+                q.get("0.5"),
+                q.get("0.99"),
+                r.get("tolerance"),
+                outside,
+                worst.get("index"),
+                st,
+            ]
+        )
     return out
 
 
 def sweep_models(sw: dict) -> list[str]:
-    return list(dict.fromkeys([r.get("model", "?") for r in sw.get("results", [])]
-                              + [r.get("model", "?") for r in sw.get("series", [])]))
-
-
+    return list(
+        dict.fromkeys(
+            [r.get("model", "?") for r in sw.get("results", [])]
+            + [r.get("model", "?") for r in sw.get("series", [])]
+        )
+    )

@@ -1,17 +1,37 @@
 """The report as one self-contained HTML page (index.html); see crosscheck.report."""
+
 from __future__ import annotations
 
-import base64
-import html
 import json
 
-from . import report_sensitivity  # the section of sensitivity.json beside results.json
-from .report_content import (Content, conserves_energy, details, energy_heading, engine_anchors,
-                             engine_label, fmt, fmt_ratio,
-                             fmt_time, fmt_tol, machine_text, model_info, named_items,
-                             ratio_to_tolerance, record_id, ReportInputError, series_stats, status,
-                             sweep_label, sweep_models, sweep_rows, sweep_verdict, version_keys,
-                             versions_of, wp_row)
+from . import (
+    report_sensitivity,  # the section of sensitivity.json beside results.json
+    report_sweep,  # the section of sweep.json
+)
+from .html_parts import anchor, e, img, table
+from .report_content import (
+    Content,
+    ReportInputError,
+    conserves_energy,
+    details,
+    energy_heading,
+    engine_anchors,
+    engine_label,
+    fmt,
+    fmt_ratio,
+    fmt_time,
+    fmt_tol,
+    machine_text,
+    model_info,
+    named_items,
+    ratio_to_tolerance,
+    record_id,
+    series_stats,
+    status,
+    version_keys,
+    versions_of,
+    wp_row,
+)
 
 # ---- HTML ------------------------------------------------------------------------------------
 CSS = """
@@ -56,49 +76,28 @@ addEventListener("hashchange",unfold);unfold();
 </script>"""
 
 
-def _e(x) -> str:
-    return html.escape(str(x), quote=True)
-
-
-def _anchor(model: str) -> str:
-    return "model-" + "".join(c if c.isalnum() or c in "-_" else "-" for c in model)
-
-
-def _img(svg: str | None, alt: str, caption: str) -> str:
-    if not svg:
-        return ""
-    data = base64.b64encode(svg.encode("utf-8")).decode("ascii")
-    return (f'<figure><img src="data:image/svg+xml;base64,{data}" alt="{_e(alt)}">'
-            f"<figcaption>{caption}</figcaption></figure>")
-
-
-def _table(headers: list[str], rows: list[list[str]], classes: list[str] | None = None,
-           num_cols: set[int] = frozenset()) -> str:
-    out = ["<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in headers) + "</tr></thead>",
-           "<tbody>"]
-    for i, row in enumerate(rows):
-        cls = f' class="{classes[i]}"' if classes and classes[i] else ""
-        cells = "".join(f'<td class="num">{c}</td>' if j in num_cols else f"<td>{c}</td>"
-                        for j, c in enumerate(row))
-        out.append(f"<tr{cls}>{cells}</tr>")
-    out.append("</tbody></table>")
-    return "\n".join(out)
-
-
 def _named_items_html(section) -> str:
     rows, classes = [], []
     for name, st, cls, desc, crit, notes, rest in named_items(section):
-        rest_html = (f"<details><summary>details</summary><pre>"
-                     f"{_e(json.dumps(rest, indent=1, allow_nan=True))}</pre></details>"
-                     if rest else "")
-        rows.append([f"<b>{_e(name)}</b>", f'<span class="badge {cls}">{_e(st)}</span>' if st
-                     else "", _e(desc) + (f'<br><span class="note">criterion: {_e(crit)}</span>'
-                                          if crit else ""),
-                     "<br>".join(_e(n) for n in notes), rest_html])
+        rest_html = (
+            f"<details><summary>details</summary><pre>"
+            f"{e(json.dumps(rest, indent=1, allow_nan=True))}</pre></details>"
+            if rest
+            else ""
+        )
+        rows.append(
+            [
+                f"<b>{e(name)}</b>",
+                f'<span class="badge {cls}">{e(st)}</span>' if st else "",
+                e(desc) + (f'<br><span class="note">criterion: {e(crit)}</span>' if crit else ""),
+                "<br>".join(e(n) for n in notes),
+                rest_html,
+            ]
+        )
         classes.append("fail" if cls == "fail" else "")
     if not rows:
         return '<p class="note">(empty)</p>'
-    return _table(["name", "status", "what", "notes", "figures"], rows, classes)
+    return table(["name", "status", "what", "notes", "figures"], rows, classes)
 
 
 def _checks_html(c: Content, model: str, recs: list[dict]) -> str:
@@ -108,29 +107,61 @@ def _checks_html(c: Content, model: str, recs: list[dict]) -> str:
         st = status(r)
         reason = str(r.get("reason") or "")
         if st == "skip":
-            why = f'<span class="reason">skipped: {_e(reason or "no reason given")}</span>'
+            why = f'<span class="reason">skipped: {e(reason or "no reason given")}</span>'
         else:
             if reason and reason not in notes:
                 notes.append(reason)
-            why = (f'<a href="#{_anchor(model)}-n{notes.index(reason) + 1}">'
-                   f"[{notes.index(reason) + 1}]</a>" if reason else "")
+            why = (
+                f'<a href="#{anchor(model)}-n{notes.index(reason) + 1}">'
+                f"[{notes.index(reason) + 1}]</a>"
+                if reason
+                else ""
+            )
         extra = details(r)
         label = {"pass": "PASS", "fail": "FAIL", "skip": "SKIP"}[st]
-        rows.append([f'<span class="badge {st}">{label}</span>', _e(r.get("formulation", "")),
-                     _e(engine_label(r)), _e(r.get("check", "")), _e(r.get("quantity", "")),
-                     _e(fmt(r.get("error"))), _e(fmt_tol(r.get("tolerance"))),
-                     _e(fmt(ratio_to_tolerance(r), 1)) if st != "skip" else "—",
-                     why + (("<br>" if why else "") + f'<span class="note">{_e(extra)}</span>'
-                            if extra else "")])
+        rows.append(
+            [
+                f'<span class="badge {st}">{label}</span>',
+                e(r.get("formulation", "")),
+                e(engine_label(r)),
+                e(r.get("check", "")),
+                e(r.get("quantity", "")),
+                e(fmt(r.get("error"))),
+                e(fmt_tol(r.get("tolerance"))),
+                e(fmt(ratio_to_tolerance(r), 1)) if st != "skip" else "—",
+                why
+                + (
+                    ("<br>" if why else "") + f'<span class="note">{e(extra)}</span>'
+                    if extra
+                    else ""
+                ),
+            ]
+        )
         classes.append(st)
-    table = _table(["status", "formulation", "engine", "check", "quantity", "error", "tolerance",
-                    "error / tolerance", "reason and details"], rows, classes, {5, 6, 7})
+    out = table(
+        [
+            "status",
+            "formulation",
+            "engine",
+            "check",
+            "quantity",
+            "error",
+            "tolerance",
+            "error / tolerance",
+            "reason and details",
+        ],
+        rows,
+        classes,
+        {5, 6, 7},
+    )
     if notes:
-        table += ('<p class="note" style="margin-bottom:0">Tolerances and their reasons:</p>'
-                  '<ol class="notes">' + "".join(
-                      f'<li id="{_anchor(model)}-n{i + 1}">{_e(n)}</li>'
-                      for i, n in enumerate(notes)) + "</ol>")
-    return table
+        out += (
+            '<p class="note" style="margin-bottom:0">Tolerances and their reasons:</p>'
+            '<ol class="notes">'
+            + "".join(f'<li id="{anchor(model)}-n{i + 1}">{e(n)}</li>' for i, n in enumerate(notes))
+            + "</ol>"
+        )
+    return out
 
 
 def _timing_html(c: Content, model: str) -> str:
@@ -142,66 +173,103 @@ def _timing_html(c: Content, model: str) -> str:
     body, classes = [], []
     for r, ratios in rows:
         skipped = r.get("skipped")
-        line = [_e(r.get("engine", "")), _e(r.get("path", "")), _e(r.get("batch", "")),
-                _e(fmt_time(r.get("us_per_state"))) if not skipped else
-                f'<span class="reason">skipped: {_e(skipped)}</span>',
-                _e(fmt_time(r.get("us_per_state_min")))]
-        line += [_e(fmt_ratio(ratios[k])) for k in anchors]
+        line = [
+            e(r.get("engine", "")),
+            e(r.get("path", "")),
+            e(r.get("batch", "")),
+            e(fmt_time(r.get("us_per_state")))
+            if not skipped
+            else f'<span class="reason">skipped: {e(skipped)}</span>',
+            e(fmt_time(r.get("us_per_state_min"))),
+        ]
+        line += [e(fmt_ratio(ratios[k])) for k in anchors]
         body.append(line)
         classes.append("skip" if skipped else "")
     num = set(range(2, len(headers)))
-    out = _table(headers, body, classes, num)
+    out = table(headers, body, classes, num)
     if anchors:
         names = " and ".join(label for label, _ in anchors.values())
-        out += (f'<p class="note">× {names}: this path\'s median time per state divided by the '
-                f"engine's constrained forward call at the same state, both measured in the same "
-                f"bench run (so the ratio, not the absolute time, is what carries over between "
-                f"machines; &lt; 1× means faster than the engine).</p>")
+        out += (
+            f'<p class="note">× {names}: this path\'s median time per state divided by the '
+            f"engine's constrained forward call at the same state, both measured in the same "
+            f"bench run (so the ratio, not the absolute time, is what carries over between "
+            f"machines; &lt; 1× means faster than the engine).</p>"
+        )
     else:
-        out += ('<p class="note">No engine was timed in this bench run, so there are no ratios '
-                f"against {' or '.join(label for _, label in engine_anchors())} (run "
-                f"<code>crosscheck bench --engines "
-                f"{','.join(e for e, _ in engine_anchors())}</code>).</p>")
+        out += (
+            '<p class="note">No engine was timed in this bench run, so there are no ratios '
+            f"against {' or '.join(label for _, label in engine_anchors())} (run "
+            f"<code>crosscheck bench --engines "
+            f"{','.join(e for e, _ in engine_anchors())}</code>).</p>"
+        )
     return out
 
 
 def _work_precision_html(c: Content, model: str) -> str:
     from . import plots
+
     rows = c.work_precision_of(model)
     if not rows:
         if c.bench is None:
             return ""
-        return ('<p class="note">No work-precision data for this model in bench.json '
-                '("work_precision" has no rows for it).</p>')
-    out = [_img(plots.work_precision_svg(rows), f"work-precision diagram for {model}",
-                "Wall time against the error at the end of the run (and the largest constraint "
-                "residual and energy drift where recorded), log-log; one line per method and "
-                "engine, points along the tolerance or step-size ladder. Lower left is better.")]
-    keys = ["method", "engine", "setting", "wall [s]", "error", "residual", "energy drift",
-            "nfev"]
-    body = [[_e(v) for v in wp_row(r)] for r in rows]
-    table = _table(keys, body, None, {3, 4, 5, 6, 7})
-    if len(rows) > 12:  # long ladders fold away under the diagram (no script: <details>)
-        table = f"<details><summary>table of the {len(rows)} points</summary>{table}</details>"
-    out.append(table)
+        return (
+            '<p class="note">No work-precision data for this model in bench.json '
+            '("work_precision" has no rows for it).</p>'
+        )
+    out = [
+        img(
+            plots.work_precision_svg(rows),
+            f"work-precision diagram for {model}",
+            "Wall time against the error at the end of the run (and the largest constraint "
+            "residual and energy drift where recorded), log-log; one line per method and "
+            "engine, points along the tolerance or step-size ladder. Lower left is better.",
+        )
+    ]
+    keys = ["method", "engine", "setting", "wall [s]", "error", "residual", "energy drift", "nfev"]
+    body = [[e(v) for v in wp_row(r)] for r in rows]
+    points = table(keys, body, None, {3, 4, 5, 6, 7})
+    if len(rows) > 12:  # long ladders fold away under the diagram
+        points = f"<details><summary>table of the {len(rows)} points</summary>{points}</details>"
+    out.append(points)
     return "\n".join(out)
 
 
 def _trajectory_html(c: Content, model: str) -> str:
     from . import plots
+
     note = c.series_note(model)
     if note:
-        return f'<p class="note">{_e(note)}</p>'
+        return f'<p class="note">{e(note)}</p>'
     ss = c.series_of(model)
-    out = [_img(plots.trajectory_svg(ss), f"trajectories of {model}", _trajectory_caption(ss))]
+    out = [img(plots.trajectory_svg(ss), f"trajectories of {model}", _trajectory_caption(ss))]
     body = []
     for s in ss:
         st = series_stats(s)
-        body.append([_e(plots.series_label(s)), _e(st["points"]), _e(f"{st['t_end']:g}"),
-                     _e(fmt(st["state_error"])), _e(fmt(st["residual"])),
-                     _e(fmt(st["energy"]))])
-    out.append(_table(["series", "points", "t end [s]", "max state error", "max residual",
-                       energy_heading(ss)], body, None, {1, 2, 3, 4, 5}))
+        body.append(
+            [
+                e(plots.series_label(s)),
+                e(st["points"]),
+                e(f"{st['t_end']:g}"),
+                e(fmt(st["state_error"])),
+                e(fmt(st["residual"])),
+                e(fmt(st["energy"])),
+            ]
+        )
+    out.append(
+        table(
+            [
+                "series",
+                "points",
+                "t end [s]",
+                "max state error",
+                "max residual",
+                energy_heading(ss),
+            ],
+            body,
+            None,
+            {1, 2, 3, 4, 5},
+        )
+    )
     return "\n".join(out)
 
 
@@ -215,48 +283,63 @@ _PANEL_TEXT = {
     "residual": "the largest position-constraint violation |f(q, t)|",
     "energy": "the energy drift |E − E(0)| / max(max |E|, 1)",
 }
-_BALANCE_TEXT = ("the work-energy balance |E − E(0) − W| / max(max |E|, 1) (energy is not "
-                 "conserved here: W is the work of loads and moving constraints)")
+_BALANCE_TEXT = (
+    "the work-energy balance |E − E(0) − W| / max(max |E|, 1) (energy is not "
+    "conserved here: W is the work of loads and moving constraints)"
+)
 
 
 def _trajectory_caption(series: list[dict]) -> str:
     """Names exactly the panels drawn; a quantity exactly 0 in every line has no panel."""
     from . import plots
+
     drawn = [k for k, _ in plots.trajectory_panels(series)]
-    texts = [(_BALANCE_TEXT if k == "energy" and not conserves_energy(series)
-              else _PANEL_TEXT[k]) for k in drawn]
+    texts = [
+        (_BALANCE_TEXT if k == "energy" and not conserves_energy(series) else _PANEL_TEXT[k])
+        for k in drawn
+    ]
     listed = ", ".join(texts[:-1]) + (" and " if len(texts) > 1 else "") + texts[-1]
     absent = [_PANEL_TEXT[k].removeprefix("the ") for k in _PANEL_TEXT if k not in drawn]
-    note = (f" No panel for {' or '.join(absent)}: exactly 0 in every line." if absent else "")
-    return (f"Against time, log scale: {listed}. A line that is exactly 0 throughout is named "
-            f"in its panel; other zeros are drawn at {plots.ZERO_AT:.0e}.{note}")
+    note = f" No panel for {' or '.join(absent)}: exactly 0 in every line." if absent else ""
+    return (
+        f"Against time, log scale: {listed}. A line that is exactly 0 throughout is named "
+        f"in its panel; other zeros are drawn at {plots.ZERO_AT:.0e}.{note}"
+    )
 
 
 def _model_html(c: Content, model: str) -> str:
     """One model's section: a <details> whose summary is its heading and verdict, folded on a
     long page unless a check failed (no script needed; one opens it on a link, below)."""
     from . import plots
+
     source, title = model_info(model)
     recs = c.records_of(model)
     n = {k: sum(1 for r in recs if status(r) == k) for k in ("pass", "fail", "skip")}
-    head = f'<h2 id="{_anchor(model)}">{_e(model)}'
+    head = f'<h2 id="{anchor(model)}">{e(model)}'
     if title or source:
-        src = f" ({_e(source)})" if source else ""
-        head += f' <span class="sub">— {_e(title)}{src}</span>'
+        src = f" ({e(source)})" if source else ""
+        head += f' <span class="sub">— {e(title)}{src}</span>'
     head += "</h2>"
-    verdict = (f'<span class="sub"> · {n["pass"]} passed, {n["fail"]} failed, {n["skip"]} '
-               f"skipped</span>" if recs else "")
+    verdict = (
+        f'<span class="sub"> · {n["pass"]} passed, {n["fail"]} failed, {n["skip"]} skipped</span>'
+        if recs
+        else ""
+    )
     unfold = n["fail"] > 0 or len(c.models) <= UNFOLDED_MODELS
-    out = [f'<details class="model"{" open" if unfold else ""}><summary>{head}{verdict}'
-           f"</summary>"]
+    out = [f'<details class="model"{" open" if unfold else ""}><summary>{head}{verdict}</summary>']
     if recs:
         out.append("<h3>Checks</h3>")
         out.append(_checks_html(c, model, recs))
         out.append("<h3>Agreement</h3>")
-        out.append(_img(plots.agreement_svg(recs), f"agreement plot for {model}",
-                        "Each executed check's error (dot, one colour per engine) beside its "
-                        "tolerance (black bar), log scale: a dot left of its bar passes. Failing "
-                        "checks are ringed in red; skipped checks are named in grey."))
+        out.append(
+            img(
+                plots.agreement_svg(recs),
+                f"agreement plot for {model}",
+                "Each executed check's error (dot, one colour per engine) beside its "
+                "tolerance (black bar), log scale: a dot left of its bar passes. Failing "
+                "checks are ringed in red; skipped checks are named in grey.",
+            )
+        )
     else:
         out.append('<p class="note">No cross-check records for this model in results.json.</p>')
     out.append("<h3>Trajectories</h3>")
@@ -272,64 +355,73 @@ def _model_html(c: Content, model: str) -> str:
 
 
 def _footer_html(c: Content) -> str:
-    out = ['<footer id="footer"><h3>Regenerate</h3><pre><code>'
-           + _e("\n".join(c.regenerate())) + "</code></pre>"]
+    out = [
+        '<footer id="footer"><h3>Regenerate</h3><pre><code>'
+        + e("\n".join(c.regenerate()))
+        + "</code></pre>"
+    ]
     metas = c.meta_rows()
     if metas:
         headers = [""] + [label for label, _ in metas]
-        rows = [["command"] + [f"<code>{_e(m.get('command', 'not recorded'))}</code>"
-                               for _, m in metas],
-                ["date (UTC)"] + [_e(m.get("date", "not recorded")) for _, m in metas],
-                ["machine"] + [_e(machine_text(m)) for _, m in metas]]
+        rows = [
+            ["command"] + [f"<code>{e(m.get('command', 'not recorded'))}</code>" for _, m in metas],
+            ["date (UTC)"] + [e(m.get("date", "not recorded")) for _, m in metas],
+            ["machine"] + [e(machine_text(m)) for _, m in metas],
+        ]
         for k in version_keys():
-            rows.append([k] + [_e(versions_of(m)[k]) for _, m in metas])
+            rows.append([k] + [e(versions_of(m)[k]) for _, m in metas])
         out.append("<h3>Machine and versions</h3>")
-        out.append(_table(headers, rows))
-    out.append('<p class="note">Generated by <code>crosscheck report</code> from the files above; '
-               "do not edit by hand.</p></footer>")
+        out.append(table(headers, rows))
+    out.append(
+        '<p class="note">Generated by <code>crosscheck report</code> from the files above; '
+        "do not edit by hand.</p></footer>"
+    )
     return "\n".join(out)
 
 
-def render_html(c: Content) -> str:
-    try:  # fail before writing anything, with one line, if the plotting library is missing
-        import matplotlib  # noqa: F401
-    except ImportError:
-        raise ReportInputError("the report's plots need matplotlib (a dependency of this "
-                               "package: pip install -e .)")
+def _banner(c: Content) -> str:
+    """The verdict line under the title."""
     n = c.counts
     executed = n["pass"] + n["fail"]
     if c.records:
         if n["fail"]:
-            banner = (f'<div class="banner bad">{n["fail"]} of {executed} executed checks FAIL '
-                      f'({n["pass"]} passed, {n["skip"]} skipped)</div>')
-        else:
-            banner = (f'<div class="banner ok">All {executed} executed checks pass '
-                      f'({n["skip"]} skipped)</div>')
-    elif c.sweep is not None and c.bench is None:
-        banner = '<div class="banner ok">No cross-check results given: sweep only</div>'
-    else:
-        banner = '<div class="banner ok">No cross-check results given: benchmarks only</div>'
+            return (
+                f'<div class="banner bad">{n["fail"]} of {executed} executed checks FAIL '
+                f"({n['pass']} passed, {n['skip']} skipped)</div>"
+            )
+        return (
+            f'<div class="banner ok">All {executed} executed checks pass '
+            f"({n['skip']} skipped)</div>"
+        )
+    if c.sweep is not None and c.bench is None:
+        return '<div class="banner ok">No cross-check results given: sweep only</div>'
+    return '<div class="banner ok">No cross-check results given: benchmarks only</div>'
+
+
+def _sources(c: Content) -> str:
+    """Which files the page shows, with their dates."""
     sources = []
     if c.results_path is not None:
-        sources.append(f"results <code>{_e(c.results_path)}</code> "
-                       f"({_e((c.results.get('meta') or {}).get('date', 'undated'))})")
+        sources.append(
+            f"results <code>{e(c.results_path)}</code> "
+            f"({e((c.results.get('meta') or {}).get('date', 'undated'))})"
+        )
     if c.bench_path is not None:
-        sources.append(f"bench <code>{_e(c.bench_path)}</code> "
-                       f"({_e((c.bench.get('meta') or {}).get('date', 'undated'))})")
+        sources.append(
+            f"bench <code>{e(c.bench_path)}</code> "
+            f"({e((c.bench.get('meta') or {}).get('date', 'undated'))})"
+        )
     if c.sweep_path is not None:
-        sources.append(f"sweep <code>{_e(c.sweep_path)}</code> "
-                       f"({_e((c.sweep.get('meta') or {}).get('date', 'undated'))})")
-    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-             '<meta name="viewport" content="width=device-width, initial-scale=1">',
-             "<title>multibody-crosscheck report</title>", f"<style>{CSS}</style></head>",
-             "<body><main>", "<h1>multibody-crosscheck report</h1>",
-             f'<p class="sub">{" · ".join(sources)}</p>', banner]
-    if c.models:
-        parts.append("<nav>" + "".join(f'<a href="#{_anchor(m)}">{_e(m)}</a>'
-                                       for m in c.models)
-                     + ('<a href="#bench-more">more from bench.json</a>' if c.other_bench else "")
-                     + ('<a href="#sweep">sweep</a>' if c.sweep is not None else "")
-                     + '<a href="#footer">versions</a></nav>')
+        sources.append(
+            f"sweep <code>{e(c.sweep_path)}</code> "
+            f"({e((c.sweep.get('meta') or {}).get('date', 'undated'))})"
+        )
+    return " · ".join(sources)
+
+
+def _overview(c: Content) -> list[str]:
+    """The per-model overview table and the list of failing checks."""
+    parts: list[str] = []
     headers = ["model", "passed", "failed", "skipped", "engines"]
     headers += ["trajectories"] if c.series is not None else []
     headers += ["forward timings", "work-precision points"] if c.bench is not None else []
@@ -338,104 +430,80 @@ def render_html(c: Content) -> str:
         recs = c.records_of(m)
         k = {s: sum(1 for r in recs if status(r) == s) for s in ("pass", "fail", "skip")}
         engines = ", ".join(dict.fromkeys(r.get("engine", "?") for r in recs))
-        row = [f'<a href="#{_anchor(m)}">{_e(m)}</a>', str(k["pass"]),
-               f'<b>{k["fail"]}</b>' if k["fail"] else "0", str(k["skip"]), _e(engines)]
+        row = [
+            f'<a href="#{anchor(m)}">{e(m)}</a>',
+            str(k["pass"]),
+            f"<b>{k['fail']}</b>" if k["fail"] else "0",
+            str(k["skip"]),
+            e(engines),
+        ]
         row += [str(len(c.series_of(m)))] if c.series is not None else []
-        row += ([str(len(c.forward_of(m))), str(len(c.work_precision_of(m)))]
-                if c.bench is not None else [])
+        row += (
+            [str(len(c.forward_of(m))), str(len(c.work_precision_of(m)))]
+            if c.bench is not None
+            else []
+        )
         overview.append(row)
     if overview:
         parts.append("<h3>Overview</h3>")
-        parts.append(_table(headers, overview,
-                            ["fail" if "<b>" in row[2] else "" for row in overview],
-                            {1, 2, 3} | set(range(5, len(headers)))))
+        parts.append(
+            table(
+                headers,
+                overview,
+                ["fail" if "<b>" in row[2] else "" for row in overview],
+                {1, 2, 3} | set(range(5, len(headers))),
+            )
+        )
     if c.failing:
         parts.append("<h3>Failing checks</h3><ul>")
         for r in c.failing:
-            parts.append(f'<li><a href="#{_anchor(r.get("model", "?"))}">{_e(record_id(r))}</a>: '
-                         f'error {_e(fmt(r.get("error")))} &gt; tolerance '
-                         f'{_e(fmt_tol(r.get("tolerance")))}</li>')
+            parts.append(
+                f'<li><a href="#{anchor(r.get("model", "?"))}">{e(record_id(r))}</a>: '
+                f"error {e(fmt(r.get('error')))} &gt; tolerance "
+                f"{e(fmt_tol(r.get('tolerance')))}</li>"
+            )
         parts.append("</ul>")
+    return parts
+
+
+def render_html(c: Content) -> str:
+    try:  # fail before writing anything, with one line, if the plotting library is missing
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise ReportInputError(
+            "the report's plots need matplotlib (a dependency of this package: pip install -e .)"
+        ) from None
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        "<title>multibody-crosscheck report</title>",
+        f"<style>{CSS}</style></head>",
+        "<body><main>",
+        "<h1>multibody-crosscheck report</h1>",
+        f'<p class="sub">{_sources(c)}</p>',
+        _banner(c),
+    ]
+    if c.models:
+        parts.append(
+            "<nav>"
+            + "".join(f'<a href="#{anchor(m)}">{e(m)}</a>' for m in c.models)
+            + ('<a href="#bench-more">more from bench.json</a>' if c.other_bench else "")
+            + ('<a href="#sweep">sweep</a>' if c.sweep is not None else "")
+            + '<a href="#footer">versions</a></nav>'
+        )
+    parts += _overview(c)
     for m in c.models:
         parts.append(_model_html(c, m))
     if c.other_bench:
         parts.append('<h2 id="bench-more">More from bench.json</h2>')
         for key, section in c.other_bench.items():
-            parts.append(f"<h3>{_e(key)}</h3>")
+            parts.append(f"<h3>{e(key)}</h3>")
             parts.append(_named_items_html(section))
     if c.sweep is not None:
-        parts.append(_sweep_html(c))
+        parts.append(report_sweep.html(c))
     parts.append(report_sensitivity.html(c))
     parts.append(_footer_html(c))
     parts.append(_UNFOLD_ON_LINK)
     parts.append("</main></body></html>")
     return "\n".join(p for p in parts if p) + "\n"
-
-
-def _sweep_html(c: Content) -> str:
-    from . import plots
-    sw = c.sweep
-    meta = sw.get("meta") or {}
-    ok, verdict = sweep_verdict(sw)
-    out = ['<h2 id="sweep">Sweep</h2>',
-           f'<p class="sub">seed {_e(meta.get("seed", "?"))}, {_e(meta.get("samples", "?"))} '
-           f'samples per model from index {_e(meta.get("index", 0))}; sampler: '
-           f'{_e(meta.get("sampler", "not recorded"))}</p>',
-           f'<div class="banner {"ok" if ok else "bad"}">{_e(verdict)}</div>']
-    headers = ["engine", "quantity", "samples", "max", "median", "q0.99", "tolerance",
-               "outside", "worst sample", "status"]
-    for m in sweep_models(sw):
-        out.append(f'<h3 id="sweep-{_anchor(m)}">{_e(m)}</h3>')
-        for s in sw.get("series", []):
-            if s.get("model") == m and s.get("unsupported"):
-                out.append(f'<p class="note">{_e(sweep_label(s))}: not run, the engine cannot '
-                           f'represent the model: {_e(s["unsupported"])}</p>')
-        rows = sweep_rows(sw, m)
-        if rows:
-            body, classes = [], []
-            for r in rows:
-                status_cell = r[9]
-                cls = "fail" if status_cell == "fail" else ("skip" if status_cell.startswith(
-                    "skip") else "")
-                body.append([_e(r[0]), _e(r[1]), _e(r[2]), _e(fmt(r[3])), _e(fmt(r[4])),
-                             _e(fmt(r[5])), _e(fmt_tol(r[6])), _e("—" if r[7] is None else r[7]),
-                             _e("—" if r[8] is None else r[8]),
-                             f'<span class="reason">{_e(status_cell)}</span>'])
-                classes.append(cls)
-            out.append(_table(headers, body, classes, {2, 3, 4, 5, 6, 7, 8}))
-        recs = [r for r in sw.get("results", []) if r.get("model") == m]
-        out.append(_img(plots.sweep_histogram_svg(recs), f"sweep error histograms for {m}",
-                        "Distribution of each quantity's error over the sweep's samples "
-                        "(log-spaced bins, one line per engine; dashed: that engine's "
-                        "tolerance). Exact zeros and values outside the binned range are "
-                        "counted in the legend."))
-        worst = [(r, w) for r in recs for w in (r.get("worst") or [])[:1]
-                 if r.get("outside_tolerance")]
-        if worst:
-            out.append("<details><summary>reproduce the worst samples outside tolerance"
-                       "</summary><pre>" + _e("\n".join(
-                           f"# {sweep_label(r)} {r.get('quantity')}: error {fmt(w.get('error'))}"
-                           f"\n{(w.get('reproduce') or {}).get('sweep', '')}"
-                           f"\n{(w.get('reproduce') or {}).get('eval', '')}"
-                           for r, w in worst)) + "</pre></details>")
-    faults = sw.get("faults") or {}
-    groups = faults.get("groups") or []
-    if groups or faults.get("chunks"):
-        out.append("<h3>Faults</h3>")
-        body = [[_e(g.get("model")), _e(sweep_label(g)), _e(g.get("stage")), _e(g.get("type")),
-                 _e(g.get("count")), _e(g.get("first_reason"))] for g in groups]
-        body += [[_e(ch.get("model")), "—", "chunk", _e(ch.get("type")),
-                  _e(f"[{ch.get('start')}, {ch.get('stop')})"), _e(ch.get("reason"))]
-                 for ch in faults.get("chunks") or []]
-        out.append(_table(["model", "engine", "stage", "type", "samples", "first reason"],
-                          body, ["fail"] * len(body), {4}))
-        cmds = [f"# {f.get('model')} {sweep_label(f)} {f.get('stage')} sample "
-                f"{f.get('index')}: {f.get('reason', '')[:120]}\n{f.get('reproduce', '')}"
-                for f in faults.get("records") or []]
-        if cmds:
-            out.append("<details><summary>reproduce faulty samples (the first "
-                       f"{_e(faults.get('kept_per_group', ''))} per group)</summary><pre>"
-                       + _e("\n".join(cmds)) + "</pre></details>")
-    return "\n".join(out)
-
-

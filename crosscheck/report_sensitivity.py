@@ -7,6 +7,7 @@ parameter in that engine's model that some check of the suite catches ("1e-11": 
 10 % is shown in red with the reason. The plot draws the same thresholds on a log axis, the
 parameters not caught in red at the top.
 """
+
 from __future__ import annotations
 
 import json
@@ -30,8 +31,10 @@ def load(c) -> dict | None:
     except (OSError, ValueError) as exc:
         return {"error": f"{path}: not readable as JSON ({exc})", "path": str(path)}
     if not isinstance(doc, dict) or not isinstance(doc.get("thresholds"), list):
-        return {"error": f"{path}: no \"thresholds\" list (not written by crosscheck "
-                         f"sensitivity)", "path": str(path)}
+        return {
+            "error": f'{path}: no "thresholds" list (not written by crosscheck sensitivity)',
+            "path": str(path),
+        }
     doc["path"] = str(path)
     return doc
 
@@ -43,8 +46,9 @@ def _fmt(x) -> str:
 def table(doc: dict) -> tuple[list[str], list[list[dict]], list[str]]:
     """(engines, rows, row labels): rows[i][j] is the threshold of row i for engine j, or {}."""
     engines = list(dict.fromkeys(t.get("engine", "?") for t in doc["thresholds"]))
-    keys = list(dict.fromkeys((t.get("model", "?"), t.get("parameter", "?"))
-                              for t in doc["thresholds"]))
+    keys = list(
+        dict.fromkeys((t.get("model", "?"), t.get("parameter", "?")) for t in doc["thresholds"])
+    )
     cell = {(t.get("model"), t.get("parameter"), t.get("engine")): t for t in doc["thresholds"]}
     rows = [[cell.get((m, p, e), {}) for e in engines] for m, p in keys]
     return engines, rows, [f"{m} / {p}" for m, p in keys]
@@ -57,6 +61,7 @@ def _caught(t: dict) -> bool:
 def plot_svg(doc: dict) -> str | None:
     """Thresholds per parameter (x) and engine (marker colour), log y; not caught: red x."""
     from .plots import FAIL_COLOR, _figure, _style, _svg, engine_color
+
     engines, rows, labels = table(doc)
     if not rows:
         return None
@@ -78,8 +83,15 @@ def plot_svg(doc: dict) -> str | None:
                 xr.append(x)
         ax.scatter(xs, ys, s=18, color=engine_color(e, engines), label=e, zorder=3)
         if xr:
-            ax.scatter(xr, [NOT_CAUGHT_AT] * len(xr), s=30, marker="x", color=FAIL_COLOR,
-                       zorder=4, label=f"{e}: not caught" if len(engines) > 1 else "not caught")
+            ax.scatter(
+                xr,
+                [NOT_CAUGHT_AT] * len(xr),
+                s=30,
+                marker="x",
+                color=FAIL_COLOR,
+                zorder=4,
+                label=f"{e}: not caught" if len(engines) > 1 else "not caught",
+            )
     ax.set_yscale("log")
     decades = doc.get("decades") or [1e-13, 1e-1]
     ax.set_ylim(min(decades) / 3, NOT_CAUGHT_AT * 3)
@@ -93,57 +105,85 @@ def plot_svg(doc: dict) -> str | None:
 
 def html(c) -> str:
     """The section (empty without a sensitivity.json beside results.json)."""
-    from .report_html import _e, _img, _table
+    from .html_parts import e as _e
+    from .html_parts import img as _img
+    from .html_parts import table as _table
+
     doc = load(c)
     if doc is None:
         return ""
     out = ['<h2 id="sensitivity">Sensitivity: the smallest error the suite catches</h2>']
     if "error" in doc:
-        return "\n".join(out + [f'<p class="note">{_e(doc["error"])}</p>'])
+        return "\n".join([*out, f'<p class="note">{_e(doc["error"])}</p>'])
     engines, rows, labels = table(doc)
-    out.append(f'<p class="sub"><code>{_e(doc["path"])}</code>: '
-               f'<code>{_e(doc.get("command", "crosscheck sensitivity"))}</code>; each cell is '
-               "the smallest relative change of the parameter in that engine's model alone "
-               "that some check fails (decades 1e-13 .. 1e-1); red: nothing caught it.</p>")
+    out.append(
+        f'<p class="sub"><code>{_e(doc["path"])}</code>: '
+        f"<code>{_e(doc.get('command', 'crosscheck sensitivity'))}</code>; each cell is "
+        "the smallest relative change of the parameter in that engine's model alone "
+        "that some check fails (decades 1e-13 .. 1e-1); red: nothing caught it.</p>"
+    )
     body, classes = [], []
-    for label, row in zip(labels, rows):
+    for label, row in zip(labels, rows, strict=False):
         cells, missed = [_e(label)], False
         for t in row:
             if not t:
                 cells.append("—")
             elif _caught(t):
-                cells.append(f'<span title="{_e(t.get("failing_check", ""))}">'
-                             f'{_e(_fmt(t["caught_at"]))}</span>')
+                cells.append(
+                    f'<span title="{_e(t.get("failing_check", ""))}">'
+                    f"{_e(_fmt(t['caught_at']))}</span>"
+                )
             else:
                 missed = True
-                cells.append(f'<span class="badge fail">not caught</span> '
-                             f'{_e(t.get("reason", ""))}')
+                cells.append(
+                    f'<span class="badge fail">not caught</span> {_e(t.get("reason", ""))}'
+                )
         body.append(cells)
         classes.append("fail" if missed else "")
     out.append(_table(["model / parameter"] + [_e(e) for e in engines], body, classes))
-    out.append(_img(plot_svg(doc), "sensitivity thresholds",
-                    "Smallest relative change caught, per parameter and engine (log scale); "
-                    "red crosses at the top: not caught up to 10 %."))
+    out.append(
+        _img(
+            plot_svg(doc),
+            "sensitivity thresholds",
+            "Smallest relative change caught, per parameter and engine (log scale); "
+            "red crosses at the top: not caught up to 10 %.",
+        )
+    )
     return "\n".join(out)
 
 
 def md(c) -> list[str]:
     """The Markdown section (empty without a sensitivity.json beside results.json)."""
     from .report_md import _md_table
+
     doc = load(c)
     if doc is None:
         return []
     out = ["## Sensitivity", ""]
     if "error" in doc:
-        return out + [doc["error"], ""]
+        return [*out, doc["error"], ""]
     engines, rows, labels = table(doc)
     command = doc.get("command", "crosscheck sensitivity")
-    out += [f"Smallest relative change of one parameter in one engine's model that the suite "
-            f"catches (`{command}`):", ""]
-    body = [[label] + [("—" if not t else _fmt(t["caught_at"]) if _caught(t)
-                        else f"NOT CAUGHT: {t.get('reason', '')}") for t in row]
-            for label, row in zip(labels, rows)]
-    return out + _md_table(["model / parameter"] + engines, body)
+    out += [
+        f"Smallest relative change of one parameter in one engine's model that the suite "
+        f"catches (`{command}`):",
+        "",
+    ]
+    body = [
+        [label]
+        + [
+            (
+                "—"
+                if not t
+                else _fmt(t["caught_at"])
+                if _caught(t)
+                else f"NOT CAUGHT: {t.get('reason', '')}"
+            )
+            for t in row
+        ]
+        for label, row in zip(labels, rows, strict=False)
+    ]
+    return out + _md_table(["model / parameter", *engines], body)
 
 
 def worst(doc: dict) -> float:

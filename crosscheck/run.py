@@ -5,6 +5,7 @@ record fields). Exit 0 when every executed record passes, 1 when any fails, 2 on
 `--perturb ENGINE:PARAM=REL` changes one parameter of one engine's model by a relative amount
 (fault injection: a run with mujoco:m2=1e-6 on the slider-crank must fail).
 """
+
 from __future__ import annotations
 
 import sys
@@ -39,7 +40,7 @@ def generic_model(name: str) -> NumericModel:
             nm = NumericModel(model, params=values)
             q, u = nm.project(model.initial_q, model.initial_u)
             return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
-        except Exception:  # noqa: BLE001 - any refusal means the geometry is not valid
+        except Exception:
             return False
 
     return NumericModel(model, params=generic_parameters(model, geometry_ok))
@@ -51,8 +52,11 @@ def _formulation_records(name, nm, states):
     out = []
     dependent = dict(model.formulation_dependent_rows)
     keep = [j for j, c in enumerate(model.constraint_names or [""] * nm.m) if c not in dependent]
-    tol = C.Tolerance(1e-11, "two derivations of the same equations evaluated in different "
-                             "arithmetic order: round-off only")
+    tol = C.Tolerance(
+        1e-11,
+        "two derivations of the same equations evaluated in different "
+        "arithmetic order: round-off only",
+    )
     for other in model.formulations[1:]:
         on = NumericModel(model, other, nm.params)
         acc, lam = C.WorstCase(), C.WorstCase()
@@ -60,19 +64,53 @@ def _formulation_records(name, nm, states):
             a, b = nm.forward(q, u), on.forward(q, u)
             acc.add(C.scaled_error(b.accelerations, a.accelerations), i)
             lam.add(C.scaled_error(b.multipliers[keep], a.multipliers[keep]), i)
-        out.append(C.record(name, other, "reference", "formulations", "accelerations",
-                            acc.error, tol, worst_state=acc.state,
-                            against=nm.formulation))
+        out.append(
+            C.record(
+                name,
+                other,
+                "reference",
+                "formulations",
+                "accelerations",
+                acc.error,
+                tol,
+                worst_state=acc.state,
+                against=nm.formulation,
+            )
+        )
         if nm.m == 0:
-            out.append(C.record(name, other, "reference", "formulations", "multipliers", None,
-                                None, "no constraints, so no multipliers to compare"))
+            out.append(
+                C.record(
+                    name,
+                    other,
+                    "reference",
+                    "formulations",
+                    "multipliers",
+                    None,
+                    None,
+                    "no constraints, so no multipliers to compare",
+                )
+            )
             continue
         reason = ""
         if dependent:
-            reason = (tol.reason + "; rows not compared because their multiplier depends on "
-                      "the formulation: " + "; ".join(f"{k}: {v}" for k, v in dependent.items()))
-        out.append(C.record(name, other, "reference", "formulations", "multipliers",
-                            lam.error, tol, reason, worst_state=lam.state, against=nm.formulation))
+            reason = (
+                tol.reason + "; rows not compared because their multiplier depends on "
+                "the formulation: " + "; ".join(f"{k}: {v}" for k, v in dependent.items())
+            )
+        out.append(
+            C.record(
+                name,
+                other,
+                "reference",
+                "formulations",
+                "multipliers",
+                lam.error,
+                tol,
+                reason,
+                worst_state=lam.state,
+                against=nm.formulation,
+            )
+        )
     return out
 
 
@@ -84,18 +122,33 @@ def _user_file_notes(name, engine, recs):
         return recs
     from .engines.pinocchio.parser_findings import findings_isolated, summary
     from .engines.pinocchio.user_file import BUILT_FROM
+
     for r in recs:
         r["engine_model"] = BUILT_FROM
     found = findings_isolated(src.path)
-    return [*recs, C.record(name, recs[0]["formulation"], engine, "parser", "mjcf_parse", None,
-                            None, summary(found), findings=found)]
+    return [
+        *recs,
+        C.record(
+            name,
+            recs[0]["formulation"],
+            engine,
+            "parser",
+            "mjcf_parse",
+            None,
+            None,
+            summary(found),
+            findings=found,
+        ),
+    ]
 
 
-SOFT_FILE = ("reported, not judged: MuJoCo integrates the file's own soft equality constraints "
-             "(its solref/solimp; MuJoCo's default solimp gives an impedance of 0.9..0.95, "
-             "against the 0.9999 the trajectory bounds are sized for), so its motion differs "
-             "from the rigid one by design; the instantaneous records judge its soft answer "
-             "against the error its impedance predicts")
+SOFT_FILE = (
+    "reported, not judged: MuJoCo integrates the file's own soft equality constraints "
+    "(its solref/solimp; MuJoCo's default solimp gives an impedance of 0.9..0.95, "
+    "against the 0.9999 the trajectory bounds are sized for), so its motion differs "
+    "from the rigid one by design; the instantaneous records judge its soft answer "
+    "against the error its impedance predicts"
+)
 
 
 def _soft_file_trajectories(name, recs):
@@ -107,17 +160,25 @@ def _soft_file_trajectories(name, recs):
     out = []
     for r in recs:
         if r["engine"] == "mujoco" and r["passed"] is not None:
-            r = {**r, "judged_tolerance": r["tolerance"], "tolerance": None, "passed": None,
-                 "skipped": True, "reason": f"{SOFT_FILE} (measured {r['error']:.3g}; the "
-                                            f"built-in models' bound: {r['reason']})"}
+            r = {
+                **r,
+                "judged_tolerance": r["tolerance"],
+                "tolerance": None,
+                "passed": None,
+                "skipped": True,
+                "reason": f"{SOFT_FILE} (measured {r['error']:.3g}; the "
+                f"built-in models' bound: {r['reason']})",
+            }
         out.append(r)
     return out
 
 
-def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
-        trajectories=True, t_end=5.0):
+def run(
+    model_names, engine_names, n_states=6, perturb=None, progress=None, trajectories=True, t_end=5.0
+):
     """All records (and trajectory series) for the models; see the module docstring."""
     from .trajectory import trajectory_records
+
     perturb = perturb or {}
     adapters = [get_engine(e) for e in engine_names]
     records, series = [], []
@@ -129,19 +190,30 @@ def run(model_names, engine_names, n_states=6, perturb=None, progress=None,
         for adapter in adapters:
             params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
             for variant in adapter.variants(name):
-                records += _user_file_notes(name, adapter.name, engine_records(
-                    name, nm, states, adapter, params, variant))
+                records += _user_file_notes(
+                    name, adapter.name, engine_records(name, nm, states, adapter, params, variant)
+                )
         records += _generic_records(name, adapters, n_states, perturb)
         if trajectories:
-            engine_params = {a.name: perturbed(name, nm.params, perturb.get(a.name, {}))
-                             for a in adapters}
+            engine_params = {
+                a.name: perturbed(name, nm.params, perturb.get(a.name, {})) for a in adapters
+            }
             recs, ser = trajectory_records(name, nm, adapters, t_end, engine_params)
             records += _soft_file_trajectories(name, recs)
             series += ser
         else:  # skipped on request: visible in the results, not silently absent
-            records.append(C.record(name, nm.formulation, "reference", "trajectory",
-                                    "state_error", None, None,
-                                    "instantaneous checks only (--instantaneous)"))
+            records.append(
+                C.record(
+                    name,
+                    nm.formulation,
+                    "reference",
+                    "trajectory",
+                    "state_error",
+                    None,
+                    None,
+                    "instantaneous checks only (--instantaneous)",
+                )
+            )
         if progress:
             progress(name)
     return records, series
@@ -166,6 +238,7 @@ def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .provenance import meta
+
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
     engine_names = resolve_engines(args.engines)
@@ -176,27 +249,44 @@ def cmd_run(args) -> int:
     bar = None
     if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
         from tqdm import tqdm
+
         bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
-    records, series = run(names, engine_names, args.states, perturb,
-                          progress=(lambda n: bar.update(1)) if bar else None,
-                          trajectories=not args.instantaneous, t_end=args.t_end)
+    records, series = run(
+        names,
+        engine_names,
+        args.states,
+        perturb,
+        progress=(lambda n: bar.update(1)) if bar else None,
+        trajectories=not args.instantaneous,
+        t_end=args.t_end,
+    )
     if bar:
         bar.close()
     out = Path(args.out)
-    result = {"meta": {**meta(sys.argv[1:]), "states_per_model": args.states,
-                       "state_seed": "crc32 of the model name "
-                                     "(crosscheck.sampling.consistent_states)",
-                       "metrics": C.METRICS},
-              "records": records, "series": series}
+    result = {
+        "meta": {
+            **meta(sys.argv[1:]),
+            "states_per_model": args.states,
+            "state_seed": "crc32 of the model name (crosscheck.sampling.consistent_states)",
+            "metrics": C.METRICS,
+        },
+        "records": records,
+        "series": series,
+    }
     _write_outputs(out, jsonio.dumps(result), not args.no_report)
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
     passed = sum(1 for r in records if r["passed"])
     for r in failed:
-        print(f"FAIL {r['model']} {r['engine']} {r['check']} {r['quantity']}: error "
-              f"{r['error']:.3e} > {r['tolerance']:.1e}", file=sys.stderr)
-    print(f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
-          f"-> {out / 'results.json'}" + ("" if args.no_report else f", {out / 'index.html'}"))
+        print(
+            f"FAIL {r['model']} {r['engine']} {r['check']} {r['quantity']}: error "
+            f"{r['error']:.3e} > {r['tolerance']:.1e}",
+            file=sys.stderr,
+        )
+    print(
+        f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
+        f"-> {out / 'results.json'}" + ("" if args.no_report else f", {out / 'index.html'}")
+    )
     return 1 if failed else 0
 
 
@@ -208,28 +298,46 @@ def _write_outputs(out: Path, results_text: str, report: bool) -> None:
     the previous run's files or this run's, never a mix; without the report, an old one is
     removed (it would describe other results)."""
     from .output import Outputs
+
     with Outputs(out) as staged:
         staged.stage("results.json", results_text)
         if report:  # the main job leaves a report a person can open
             from .report import generate
+
             bench = out / "bench.json"
-            generate(str(out / "results.json"), str(bench) if bench.exists() else None,
-                     str(out), outputs=staged, results_text=results_text)
+            generate(
+                str(out / "results.json"),
+                str(bench) if bench.exists() else None,
+                str(out),
+                outputs=staged,
+                results_text=results_text,
+            )
         staged.commit(stale=REPORT_FILES)
 
 
 def register(sub):
     from .arguments import MAX_T_END, add_engines, add_models, horizon, positive_int
+
     r = sub.add_parser("run", help="cross-check the reference against the engines")
     add_models(r)
     add_engines(r)
     r.add_argument("--out", default="out")
     r.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL")
     r.add_argument("--states", type=positive_int, default=6, help="consistent states per model")
-    r.add_argument("--instantaneous", action="store_true",
-                   help="only the checks at consistent states, no trajectories")
-    r.add_argument("--t-end", type=horizon, default=5.0,
-                   help=f"trajectory length [s], > 0 and at most {MAX_T_END:g}")
-    r.add_argument("--no-report", action="store_true",
-                   help="write results.json only (no index.html / report.md / junit.xml)")
+    r.add_argument(
+        "--instantaneous",
+        action="store_true",
+        help="only the checks at consistent states, no trajectories",
+    )
+    r.add_argument(
+        "--t-end",
+        type=horizon,
+        default=5.0,
+        help=f"trajectory length [s], > 0 and at most {MAX_T_END:g}",
+    )
+    r.add_argument(
+        "--no-report",
+        action="store_true",
+        help="write results.json only (no index.html / report.md / junit.xml)",
+    )
     r.set_defaults(func=cmd_run)

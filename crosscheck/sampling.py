@@ -23,6 +23,7 @@ U(0.8, 1.25): every draw is physical and the three inertias move apart (a slende
 themselves). Any other body with three nonzero principal inertias (the top's I, I, I3) is
 drawn again until its triangle holds (rejection sampling).
 """
+
 from __future__ import annotations
 
 import functools
@@ -108,7 +109,7 @@ def _triples_of(name: str):
 def _registered(model) -> bool:
     try:
         return models.get(model.name) is model
-    except Exception:  # noqa: BLE001 - a user model is not in the registry: no caching
+    except Exception:
         return False
 
 

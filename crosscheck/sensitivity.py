@@ -12,11 +12,12 @@ search costs at most 1 + ceil(log2(13)) = 5 comparisons per parameter.
 The parameters are the model's generic set (reference.generic), not the defaults: a load that is
 0 by default cannot be perturbed relatively, and equal defaults could hide one another.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Callable, Optional
 
 DECADES = tuple(range(-13, 0))  # rel = 10**k for k in DECADES
 
@@ -34,8 +35,8 @@ class Threshold:
     model: str
     engine: str
     parameter: str
-    caught_at: Optional[float]
-    not_caught_below: Optional[float]
+    caught_at: float | None
+    not_caught_below: float | None
     failing_check: str = ""
     reason: str = ""
     evaluations: int = 0
@@ -48,8 +49,9 @@ class Threshold:
 Evaluate = Callable[[float], str]
 
 
-def threshold(evaluate: Evaluate, decades: tuple[int, ...] = DECADES
-              ) -> tuple[Optional[int], Optional[int], str, int]:
+def threshold(
+    evaluate: Evaluate, decades: tuple[int, ...] = DECADES
+) -> tuple[int | None, int | None, str, int]:
     """(caught decade k, largest decade not caught, failing record at k, evaluations) over
     `decades` (ascending; the largest is checked first)."""
     calls = 0
@@ -57,7 +59,7 @@ def threshold(evaluate: Evaluate, decades: tuple[int, ...] = DECADES
     def failing(k: int) -> str:
         nonlocal calls
         calls += 1
-        return evaluate(10.0 ** k)
+        return evaluate(10.0**k)
 
     top = failing(decades[-1])
     if not top:
@@ -73,8 +75,14 @@ def threshold(evaluate: Evaluate, decades: tuple[int, ...] = DECADES
     return decades[hi], (decades[lo] if lo >= 0 else None), hi_fail, calls
 
 
-def search(model: str, engine: str, parameter: str, evaluate: Evaluate,
-           unused_reason: str = "", largest: int = DECADES[-1]) -> Threshold:
+def search(
+    model: str,
+    engine: str,
+    parameter: str,
+    evaluate: Evaluate,
+    unused_reason: str = "",
+    largest: int = DECADES[-1],
+) -> Threshold:
     """The threshold of one parameter; `unused_reason` marks a parameter the engine's model does
     not contain (nothing is searched, the reason is reported); `largest` is the largest decade
     the engine accepts as a change (a principal inertia at the edge of the triangle
@@ -83,14 +91,27 @@ def search(model: str, engine: str, parameter: str, evaluate: Evaluate,
         return Threshold(model, engine, parameter, None, None, reason=unused_reason)
     k, below, name, calls = threshold(evaluate, tuple(d for d in DECADES if d <= largest))
     if k is None:
-        return Threshold(model, engine, parameter, None, 10.0 ** below, evaluations=calls,
-                         reason=f"no instantaneous check failed for a change of up to "
-                                f"{10.0 ** below:.0e}: the compared quantities do not depend "
-                                "on this parameter at these states")
-    return Threshold(model, engine, parameter, 10.0 ** k,
-                     None if below is None else 10.0 ** below, failing_check=name,
-                     evaluations=calls)
+        return Threshold(
+            model,
+            engine,
+            parameter,
+            None,
+            10.0**below,
+            evaluations=calls,
+            reason=f"no instantaneous check failed for a change of up to "
+            f"{10.0**below:.0e}: the compared quantities do not depend "
+            "on this parameter at these states",
+        )
+    return Threshold(
+        model,
+        engine,
+        parameter,
+        10.0**k,
+        None if below is None else 10.0**below,
+        failing_check=name,
+        evaluations=calls,
+    )
 
 
-def log_decade(value: Optional[float]) -> Optional[int]:
-    return None if value is None else int(round(math.log10(value)))
+def log_decade(value: float | None) -> int | None:
+    return None if value is None else round(math.log10(value))

@@ -6,6 +6,7 @@ repeats the instantaneous comparison at the consistent states `crosscheck run` u
 model's generic parameter set (reference/generic.py). A parameter whose 10 % change moves no
 compared figure at all is reported as not used by the engine's model, with that reason.
 """
+
 from __future__ import annotations
 
 import json
@@ -26,12 +27,20 @@ def _engine_figures(name, nm, states, adapter, perturb) -> tuple[str, dict[str, 
     from .perturb import perturbed
 
     params = perturbed(name, nm.params, perturb)
-    recs = [r for variant in adapter.variants(name)
-            for r in engine_records(name, nm, states, adapter, params, variant)]
-    failing = next((f"{r['model']}/{r['engine']}/{r['check']}/{r['quantity']}" for r in recs
-                    if r["passed"] is False), "")
-    figures = {f"{r['check']}/{r['quantity']}": r["error"] for r in recs
-               if r["error"] is not None}
+    recs = [
+        r
+        for variant in adapter.variants(name)
+        for r in engine_records(name, nm, states, adapter, params, variant)
+    ]
+    failing = next(
+        (
+            f"{r['model']}/{r['engine']}/{r['check']}/{r['quantity']}"
+            for r in recs
+            if r["passed"] is False
+        ),
+        "",
+    )
+    figures = {f"{r['check']}/{r['quantity']}": r["error"] for r in recs if r["error"] is not None}
     return failing, figures
 
 
@@ -48,25 +57,47 @@ def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Th
     try:
         failing, base = _engine_figures(name, nm, states, adapter, {})
     except EngineUnsupported as exc:
-        return [search(name, engine, p, lambda rel: "", f"engine cannot represent the model: "
-                                                        f"{exc}") for p in params]
+        return [
+            search(name, engine, p, lambda rel: "", f"engine cannot represent the model: {exc}")
+            for p in params
+        ]
     if failing:
-        return [search(name, engine, p, lambda rel: "",
-                       f"the unperturbed comparison already fails ({failing})") for p in params]
+        return [
+            search(
+                name,
+                engine,
+                p,
+                lambda rel: "",
+                f"the unperturbed comparison already fails ({failing})",
+            )
+            for p in params
+        ]
     out = []
     for p in params:
         sign, k, moved, refused = _largest_change(name, nm, states, adapter, p)
         if moved is None:
-            out.append(search(name, engine, p, lambda rel: "",
-                              f"the engine refuses every change of it: {refused}"))
+            out.append(
+                search(
+                    name,
+                    engine,
+                    p,
+                    lambda rel: "",
+                    f"the engine refuses every change of it: {refused}",
+                )
+            )
             continue
 
         def evaluate(rel, p=p, sign=sign):
             return _engine_figures(name, nm, states, adapter, {p: sign * rel})[0]
 
-        unused = "" if moved != base else (
-            f"not used by the engine's model: a {10.0 ** k:.0e} change moves no compared "
-            "figure (the engine's coordinates or loads do not contain it)")
+        unused = (
+            ""
+            if moved != base
+            else (
+                f"not used by the engine's model: a {10.0**k:.0e} change moves no compared "
+                "figure (the engine's coordinates or loads do not contain it)"
+            )
+        )
         out.append(search(name, engine, p, evaluate, unused, largest=k))
     return out
 
@@ -79,7 +110,7 @@ def _largest_change(name, nm, states, adapter, p):
     for k in reversed(DECADES):
         for sign in (1.0, -1.0):
             try:
-                _, moved = _engine_figures(name, nm, states, adapter, {p: sign * 10.0 ** k})
+                _, moved = _engine_figures(name, nm, states, adapter, {p: sign * 10.0**k})
                 return sign, k, moved, ""
             except ValueError as exc:  # the engine's own refusal of the changed model
                 refused = str(exc).splitlines()[0]
@@ -99,22 +130,31 @@ def cmd_sensitivity(args) -> int:
     for name in names:
         for engine in engines:
             rows += engine_thresholds(name, engine, args.states)
-    doc = {"command": "crosscheck " + " ".join(sys.argv[1:]),
-           "decades": [10.0 ** k for k in DECADES], "states_per_model": args.states,
-           "wall_s": time.perf_counter() - t0, "thresholds": [r.to_json() for r in rows]}
+    doc = {
+        "command": "crosscheck " + " ".join(sys.argv[1:]),
+        "decades": [10.0**k for k in DECADES],
+        "states_per_model": args.states,
+        "wall_s": time.perf_counter() - t0,
+        "thresholds": [r.to_json() for r in rows],
+    }
     (out / "sensitivity.json").write_text(json.dumps(doc, indent=2))
     for r in rows:
         at = f"{r.caught_at:.0e}" if r.caught_at is not None else "NOT CAUGHT"
-        print(f"{r.model:20s} {r.engine:10s} {r.parameter:8s} {at:>10s}  "
-              f"{r.failing_check or r.reason}")
-    print(f"crosscheck sensitivity: {len(rows)} parameters in {doc['wall_s']:.1f} s -> "
-          f"{out / 'sensitivity.json'}")
+        print(
+            f"{r.model:20s} {r.engine:10s} {r.parameter:8s} {at:>10s}  "
+            f"{r.failing_check or r.reason}"
+        )
+    print(
+        f"crosscheck sensitivity: {len(rows)} parameters in {doc['wall_s']:.1f} s -> "
+        f"{out / 'sensitivity.json'}"
+    )
     return 0
 
 
 def register(sub) -> None:
-    s = sub.add_parser("sensitivity",
-                       help="smallest relative parameter error in each engine the suite catches")
+    s = sub.add_parser(
+        "sensitivity", help="smallest relative parameter error in each engine the suite catches"
+    )
     s.add_argument("models", nargs="*", help=f"models (default: {', '.join(DEFAULT_MODELS)})")
     s.add_argument("--engines", default=None, help="comma-separated (default: every engine)")
     s.add_argument("--states", type=int, default=STATES, help="consistent states per model")

@@ -12,20 +12,21 @@ Generator seeded with sampling.sample_seed(S, M, i): its randomness depends on (
 never on the worker that ran it, the chunking, the executor or the other models.
 
 Checks. For every sample and every engine variant, the instantaneous cross-checks of
-`crosscheck run` (crosscheck.comparison.compare_at_state, the one comparison path; the same
-metrics and named tolerances): state map, mass matrix (where the coordinates map one to one), energy,
-accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer recovered
-from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
-`*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance
-predicts (`*_soft_vs_predicted`, SOFT_PREDICTION). The reference is evaluated for all samples of
-a chunk in one batched call of its compiled code, with per-sample parameter arrays.
+`crosscheck run` (crosscheck.comparison.compare_at_state, the one comparison path; the same metrics
+and named tolerances): state map, mass matrix (where the coordinates map one to one), energy,
+accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer recovered from
+its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as `*_soft_error` (no
+tolerance: MuJoCo's softness) and judged against the error its impedance predicts
+(`*_soft_vs_predicted`, SOFT_PREDICTION). The reference is evaluated for all samples of a chunk in
+one batched call of its compiled code, with per-sample parameter arrays.
 
-Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding,
-executor), "status" (complete, stopped, completed sample ranges per model, outside_tolerance,
-faults, verdict, passed: true only for a complete campaign with nothing failed), "series" (per model x engine x variant: evaluated, faults, or why it is not
-run), "results" (per model x engine x variant x quantity: tolerance and its reason, count,
-max, mean, quantiles, a log10 histogram, outside_tolerance, the worst cases), "faults" (groups
-with counts, the first FAULTS_KEPT records per group), "timing" (where the time went; the only
+Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding, executor),
+"status" (complete, stopped, completed sample ranges per model, outside_tolerance, faults, verdict,
+passed: true only for a complete campaign with nothing failed), "series" (per model x engine x
+variant: evaluated, faults, or why it is not run), "results" (per model x engine x variant x
+quantity: tolerance and its reason, count, max, mean, quantiles, a log10 histogram,
+outside_tolerance, the worst cases), "faults" (groups with counts, the first FAULTS_KEPT records per
+group), "timing" (where the time went; the only
 part that is not deterministic, with "meta")}. A worst case carries its sample index, sample
 seed, parameters and state, and the command lines that reproduce it exactly:
     crosscheck sweep M --seed S --index i --samples 1 --engines E --workers 1 --out DIR
@@ -66,6 +67,7 @@ Layout: sweep_config (settings, Campaign), sweep_worker (one chunk, on a worker)
 run), sweep_bench (throughput); this module is the command line, and re-exports the names
 callers use (crosscheck.sweep.campaign, Campaign, ...).
 """
+
 from __future__ import annotations
 
 import shlex
@@ -104,33 +106,47 @@ def _print_summary(res: dict, path: Path) -> None:
     for r in res["results"]:
         if r.get("outside_tolerance"):
             w = r["worst"][0] if r["worst"] else {}
-            print(f"OUTSIDE {r['model']} {r['engine']}{'/' + r['variant'] if r['variant'] else ''}"
-                  f" {r['quantity']}: {r['outside_tolerance']} of {r['count']} samples > "
-                  f"{r['tolerance']:.0e} (max {r['max']:.3e}); reproduce the worst: "
-                  f"{w.get('reproduce', {}).get('sweep', '')}", file=sys.stderr)
+            print(
+                f"OUTSIDE {r['model']} {r['engine']}{'/' + r['variant'] if r['variant'] else ''}"
+                f" {r['quantity']}: {r['outside_tolerance']} of {r['count']} samples > "
+                f"{r['tolerance']:.0e} (max {r['max']:.3e}); reproduce the worst: "
+                f"{w.get('reproduce', {}).get('sweep', '')}",
+                file=sys.stderr,
+            )
     for g in res["faults"]["groups"]:
-        print(f"FAULT {g['model']} {g['engine']}{'/' + g['variant'] if g['variant'] else ''} "
-              f"{g['stage']} {g['type']} x{g['count']}: {g['first_reason'][:160]}",
-              file=sys.stderr)
+        print(
+            f"FAULT {g['model']} {g['engine']}{'/' + g['variant'] if g['variant'] else ''} "
+            f"{g['stage']} {g['type']} x{g['count']}: {g['first_reason'][:160]}",
+            file=sys.stderr,
+        )
     for c in res["faults"]["chunks"]:
-        print(f"CHUNK FAILED {c['model']} [{c['start']}, {c['stop']}): {c['type']} "
-              f"{c['reason'][:160]}", file=sys.stderr)
+        print(
+            f"CHUNK FAILED {c['model']} [{c['start']}, {c['stop']}): {c['type']} "
+            f"{c['reason'][:160]}",
+            file=sys.stderr,
+        )
     total = sum(st["completed"].values())
     requested = sum(st["requested"].values())
-    print(f"crosscheck sweep: {total} of {requested} samples, {st['outside_tolerance']} "
-          f"outside tolerance, {st['faults']} faults"
-          + (f", stopped: {st['stopped']}" if st["stopped"] else "") + f" -> {path}")
+    print(
+        f"crosscheck sweep: {total} of {requested} samples, {st['outside_tolerance']} "
+        f"outside tolerance, {st['faults']} faults"
+        + (f", stopped: {st['stopped']}" if st["stopped"] else "")
+        + f" -> {path}"
+    )
 
 
 def _user_models_here(args, names) -> None:
     """User models (--model-file) are registered in this process only: their samples run
     here (--workers 1); Dask workers elsewhere could not load the files."""
     from reference import models
+
     if not set(names) & set(models.user_names()):
         return
     if args.dask is not None:
-        raise ModelInputError("--model-file models run in this process only; leave out --dask "
-                              "(the workers would not have the file's models)")
+        raise ModelInputError(
+            "--model-file models run in this process only; leave out --dask "
+            "(the workers would not have the file's models)"
+        )
     args.workers = 1
 
 
@@ -138,6 +154,7 @@ def cmd_sweep(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .output import write_atomic
     from .sweep_store import ChunkStore
+
     if args.workers is not None and args.dask is not None:
         raise ModelInputError("give --workers or --dask, not both")
     if args.resume is not None:
@@ -149,18 +166,36 @@ def cmd_sweep(args) -> int:
         out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
         if args.bench:
             return _cmd_bench(args, names, engines, out)
-        cfg = Campaign(list(names), args.samples, args.seed, args.index, engines,
-                       parse_perturb(args.perturb), args.formulation, args.worst, str(out))
+        cfg = Campaign(
+            list(names),
+            args.samples,
+            args.seed,
+            args.index,
+            engines,
+            parse_perturb(args.perturb),
+            args.formulation,
+            args.worst,
+            str(out),
+        )
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
-        bar = tqdm(total=cfg.samples * len(cfg.models), desc="samples", unit="sample",
-                   file=sys.stderr)
+
+        bar = tqdm(
+            total=cfg.samples * len(cfg.models), desc="samples", unit="sample", file=sys.stderr
+        )
     store = ChunkStore(out, cfg)
     try:
-        res = campaign(cfg, workers=args.workers, dask=args.dask, chunk=args.chunk,
-                       max_seconds=args.max_seconds, progress=bar.update if bar else None,
-                       store=store, resume=args.resume is not None)
+        res = campaign(
+            cfg,
+            workers=args.workers,
+            dask=args.dask,
+            chunk=args.chunk,
+            max_seconds=args.max_seconds,
+            progress=bar.update if bar else None,
+            store=store,
+            resume=args.resume is not None,
+        )
     finally:
         if bar:
             bar.close()
@@ -170,25 +205,36 @@ def cmd_sweep(args) -> int:
     if res["status"]["complete"]:
         store.remove()  # after sweep.json is in place: nothing left to resume
     else:
-        print(f"finished chunks kept in {store.dir}; continue with: "
-              f"{shlex.join(['crosscheck', 'sweep', '--resume', str(out)])}")
+        print(
+            f"finished chunks kept in {store.dir}; continue with: "
+            f"{shlex.join(['crosscheck', 'sweep', '--resume', str(out)])}"
+        )
     return exit_code(res["status"])
 
 
 # campaign options of the command line, with their defaults: under --resume each must be left
 # at its default or agree with the stored campaign
-_CAMPAIGN_OPTIONS = {"models": [], "samples": 100, "seed": 0, "index": 0,
-                     "engines": None, "perturb": [], "formulation": None,
-                     "worst": WORST_CASES}
+_CAMPAIGN_OPTIONS = {
+    "models": [],
+    "samples": 100,
+    "seed": 0,
+    "index": 0,
+    "engines": None,
+    "perturb": [],
+    "formulation": None,
+    "worst": WORST_CASES,
+}
 
 
 def _resumed_campaign(args):
     """The campaign stored in --resume DIR; options that contradict it are refused."""
     from .arguments import output_dir
     from .sweep_store import stored_settings
+
     if args.bench:
-        raise ModelInputError("--resume continues a campaign; --bench measures throughput: "
-                              "give one of them")
+        raise ModelInputError(
+            "--resume continues a campaign; --bench measures throughput: give one of them"
+        )
     out = output_dir(args.resume, "--resume")
     if args.out not in ("out", args.resume):
         raise ModelInputError(f"--resume {args.resume!r} writes there; drop --out {args.out!r}")
@@ -199,19 +245,30 @@ def _resumed_campaign(args):
         if value != default and given.get(key, value) != st[key]:
             raise ModelInputError(
                 f"--resume {args.resume!r} continues the campaign stored there ({key} "
-                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out")
-    cfg = Campaign(list(st["models"]), st["samples"], st["seed"], st["index"],
-                   tuple(st["engines"]), st["perturb"], st["formulation"], st["worst"],
-                   str(out))
+                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out"
+            )
+    cfg = Campaign(
+        list(st["models"]),
+        st["samples"],
+        st["seed"],
+        st["index"],
+        tuple(st["engines"]),
+        st["perturb"],
+        st["formulation"],
+        st["worst"],
+        str(out),
+    )
     return cfg, out
 
 
 def _cmd_bench(args, names, engines, out) -> int:
     from .output import write_atomic
+
     cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
     cfg.validate()
-    b = bench(names, args.samples, args.seed, engines,
-              log=lambda m: print(m, file=sys.stderr, flush=True))
+    b = bench(
+        names, args.samples, args.seed, engines, log=lambda m: print(m, file=sys.stderr, flush=True)
+    )
     write_atomic(out / "sweep_bench.json", jsonio.dumps(b))
     _print_bench(b)
     print(f"wrote {out / 'sweep_bench.json'}")
@@ -222,6 +279,7 @@ def exit_code(status: dict) -> int:
     """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
     stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
     from .cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+
     if status["stopped"] == "interrupted":
         return EXIT_INTERRUPTED
     return {"passed": 0, "failed": 1}.get(status["verdict"], EXIT_INCOMPLETE)
@@ -235,36 +293,74 @@ def register(sub):
         positive_int,
         positive_seconds,
     )
+
     s = sub.add_parser(
-        "sweep", help="seeded random campaigns of the cross-checks (local workers or Dask)",
+        "sweep",
+        help="seeded random campaigns of the cross-checks (local workers or Dask)",
         description="Draw N seeded random parameter sets and consistent states per model, run "
-                    "the instantaneous cross-checks on each, write DIR/sweep.json.")
+        "the instantaneous cross-checks on each, write DIR/sweep.json.",
+    )
     add_models(s)
-    s.add_argument("--samples", type=positive_int, default=100,
-                   help="samples per model (default 100)")
+    s.add_argument(
+        "--samples", type=positive_int, default=100, help="samples per model (default 100)"
+    )
     s.add_argument("--seed", type=nonnegative_int, default=0, help="campaign seed (default 0)")
-    s.add_argument("--index", type=nonnegative_int, default=0,
-                   help="first sample index (default 0): --index I --samples 1 reruns sample I")
+    s.add_argument(
+        "--index",
+        type=nonnegative_int,
+        default=0,
+        help="first sample index (default 0): --index I --samples 1 reruns sample I",
+    )
     add_engines(s)
-    s.add_argument("--formulation", default=None,
-                   help="reference formulation (default: each model's first)")
-    s.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL",
-                   help="fault injection, as in crosscheck run")
-    s.add_argument("--workers", type=positive_int, default=None, help="local worker processes (default: all cores; "
-                                                   "1 runs in this process)")
-    s.add_argument("--dask", default=None, metavar="ADDRESS",
-                   help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]")
-    s.add_argument("--chunk", type=positive_int, default=None,
-                   help="samples per task (default: sized per executor)")
-    s.add_argument("--max-seconds", type=positive_seconds, default=None,
-                   help="time budget: stop and report what is done")
-    s.add_argument("--worst", type=nonnegative_int, default=WORST_CASES,
-                   help="worst cases kept per quantity")
-    s.add_argument("--bench", action="store_true",
-                   help="measure throughput (per model and engine, 1 vs 2 workers) and write "
-                        "DIR/sweep_bench.json instead of running a campaign")
+    s.add_argument(
+        "--formulation", default=None, help="reference formulation (default: each model's first)"
+    )
+    s.add_argument(
+        "--perturb",
+        action="append",
+        default=[],
+        metavar="ENGINE:PARAM=REL",
+        help="fault injection, as in crosscheck run",
+    )
+    s.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="local worker processes (default: all cores; 1 runs in this process)",
+    )
+    s.add_argument(
+        "--dask",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]",
+    )
+    s.add_argument(
+        "--chunk",
+        type=positive_int,
+        default=None,
+        help="samples per task (default: sized per executor)",
+    )
+    s.add_argument(
+        "--max-seconds",
+        type=positive_seconds,
+        default=None,
+        help="time budget: stop and report what is done",
+    )
+    s.add_argument(
+        "--worst", type=nonnegative_int, default=WORST_CASES, help="worst cases kept per quantity"
+    )
+    s.add_argument(
+        "--bench",
+        action="store_true",
+        help="measure throughput (per model and engine, 1 vs 2 workers) and write "
+        "DIR/sweep_bench.json instead of running a campaign",
+    )
     s.add_argument("--out", default="out")
-    s.add_argument("--resume", default=None, metavar="DIR",
-                   help="continue the interrupted campaign whose --out was DIR: its finished "
-                        "chunks (DIR/sweep.chunks) are kept, only the rest is computed")
+    s.add_argument(
+        "--resume",
+        default=None,
+        metavar="DIR",
+        help="continue the interrupted campaign whose --out was DIR: its finished "
+        "chunks (DIR/sweep.chunks) are kept, only the rest is computed",
+    )
     s.set_defaults(func=cmd_sweep)

@@ -1,5 +1,6 @@
 """A sweep campaign from plan to summary: the models' engine variants, the chunks still to run,
 the executor, merging as chunks finish, and what an interrupt or the time budget leaves."""
+
 from __future__ import annotations
 
 import sys
@@ -39,11 +40,10 @@ def _plan(cfg: Campaign):
                 except EngineUnsupported as exc:
                     unsupported[(e, v)] = _first_line(exc)
                     continue
-                except Exception:  # noqa: BLE001 - left to the samples, which record it
+                except Exception:
                     pass
                 series.append((e, v))
-        aggs[name] = _ModelAgg(name, base.formulation, cfg.index, cfg.samples, series,
-                               unsupported)
+        aggs[name] = _ModelAgg(name, base.formulation, cfg.index, cfg.samples, series, unsupported)
     return aggs
 
 
@@ -56,9 +56,19 @@ def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
     for name, agg in aggs.items():
         for a in range(cfg.index, end, chunk):
             b = min(a + chunk, end)
-            for lo, hi in _ranges(~agg.completed[a - cfg.index:b - cfg.index], a):
-                specs.append(ChunkSpec(name, agg.formulation, cfg.seed, lo, hi,
-                                       tuple(agg.series), perturb, deadline))
+            for lo, hi in _ranges(~agg.completed[a - cfg.index : b - cfg.index], a):
+                specs.append(
+                    ChunkSpec(
+                        name,
+                        agg.formulation,
+                        cfg.seed,
+                        lo,
+                        hi,
+                        tuple(agg.series),
+                        perturb,
+                        deadline,
+                    )
+                )
     return specs
 
 
@@ -70,23 +80,69 @@ def _executor(cfg: Campaign, workers, dask, chunk):
         client, cluster = _dask_client(dask)
         threads = sum(client.nthreads().values()) or 1
         chunk = chunk or dask_chunk(cfg.samples, threads)
-        executor = {"kind": "dask", "address": dask if isinstance(dask, str)
-                    else str(client.scheduler.address), "threads": threads, "chunk": chunk}
+        executor = {
+            "kind": "dask",
+            "address": dask if isinstance(dask, str) else str(client.scheduler.address),
+            "threads": threads,
+            "chunk": chunk,
+        }
     else:
         workers = workers or default_workers()
         if workers < 1:
             raise ModelInputError(f"--workers must be >= 1, got {workers}")
         chunk = chunk or local_chunk(cfg.samples, workers)
-        executor = {"kind": "serial" if workers == 1 else "processes", "workers": workers,
-                    "chunk": chunk}
+        executor = {
+            "kind": "serial" if workers == 1 else "processes",
+            "workers": workers,
+            "chunk": chunk,
+        }
     if chunk < 1:
         raise ModelInputError(f"--chunk must be >= 1, got {chunk}")
     return client, cluster, workers, threads, chunk, executor
 
 
-def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | None = None,
-             max_seconds: float | None = None, progress=None, on_chunk=None,
-             store=None, resume: bool = False) -> dict:
+class _Merger:
+    """Merges each finished chunk into its model's aggregate (a chunk that failed as a whole is
+    recorded as a chunk fault), stores it for --resume and reports progress."""
+
+    def __init__(self, aggs, store, progress, on_chunk):
+        self.aggs, self.store, self.progress, self.on_chunk = aggs, store, progress, on_chunk
+        self.seen: set = set()
+
+    def __call__(self, spec, res) -> None:
+        self.seen.add((spec.model, spec.start))
+        agg = self.aggs[spec.model]
+        if isinstance(res, BaseException):
+            agg.chunk_faults.append(
+                {
+                    "model": spec.model,
+                    "start": spec.start,
+                    "stop": spec.stop,
+                    "type": type(res).__name__,
+                    "reason": _first_line(res),
+                }
+            )
+            return
+        agg.merge(res)
+        if self.store is not None:
+            self.store.save(res)
+        if self.progress:
+            self.progress(res["completed"])
+        if self.on_chunk:
+            self.on_chunk(res)
+
+
+def campaign(
+    cfg: Campaign,
+    workers: int | None = None,
+    dask=None,
+    chunk: int | None = None,
+    max_seconds: float | None = None,
+    progress=None,
+    on_chunk=None,
+    store=None,
+    resume: bool = False,
+) -> dict:
     """Run a campaign and return the sweep.json content.
 
     workers: local processes (default: all cores; 1 = in this process); dask: a scheduler
@@ -96,6 +152,7 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
     sweep_store.ChunkStore that keeps every finished chunk on disk, and with resume=True
     supplies the chunks an interrupted run of the same campaign finished (not recomputed)."""
     from .provenance import meta
+
     cfg.validate()
     if max_seconds is not None and not max_seconds > 0:
         raise ModelInputError(f"--max-seconds must be > 0, got {max_seconds}")
@@ -106,27 +163,17 @@ def campaign(cfg: Campaign, workers: int | None = None, dask=None, chunk: int | 
     loaded = _load_stored(cfg, aggs, store, resume, progress)
     specs = _specs(cfg, aggs, chunk, deadline)
     stopped = None
-    seen = set()
-
-    def merge(spec, res):
-        seen.add((spec.model, spec.start))
-        agg = aggs[spec.model]
-        if isinstance(res, BaseException):
-            agg.chunk_faults.append({"model": spec.model, "start": spec.start, "stop": spec.stop,
-                                     "type": type(res).__name__, "reason": _first_line(res)})
-            return
-        agg.merge(res)
-        if store is not None:
-            store.save(res)
-        if progress:
-            progress(res["completed"])
-        if on_chunk:
-            on_chunk(res)
-
+    merge = _Merger(aggs, store, progress, on_chunk)
+    seen = merge.seen
     runner = None
     try:
-        runner = (_Dask(specs, client, threads) if client is not None
-                  else _Serial(specs) if workers == 1 else _Pool(specs, workers))
+        runner = (
+            _Dask(specs, client, threads)
+            if client is not None
+            else _Serial(specs)
+            if workers == 1
+            else _Pool(specs, workers)
+        )
         try:
             for spec, res in runner:
                 merge(spec, res)
@@ -172,5 +219,8 @@ def _load_stored(cfg: Campaign, aggs, store, resume: bool, progress) -> dict:
         aggs[res["model"]].merge(res)
         if progress:
             progress(res["completed"])
-    return {"chunks": len(chunks), "samples": sum(r["completed"] for r in chunks),
-            "from": str(store.dir)}
+    return {
+        "chunks": len(chunks),
+        "samples": sum(r["completed"] for r in chunks),
+        "from": str(store.dir),
+    }

@@ -1,5 +1,6 @@
 """Where a sweep's chunks run: in this process, a local process pool, or a Dask cluster; and
 the chunk sizes each executor is given."""
+
 from __future__ import annotations
 
 import math
@@ -32,6 +33,7 @@ def _mp_context():
     """forkserver: workers fork from a clean server that has imported this module (and the
     engines), so they start fast and inherit no threads of the parent (a Dask client, tqdm)."""
     import multiprocessing as mp
+
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["crosscheck.sweep", *engine_modules()])
     return ctx
@@ -47,7 +49,7 @@ class _Serial:
         for spec in self.specs:
             try:
                 res = run_chunk(spec)
-            except Exception as exc:  # noqa: BLE001 - a chunk that fails as a whole
+            except Exception as exc:
                 res = exc
             yield spec, res
 
@@ -72,8 +74,9 @@ class _Pool:
     in flight, so a campaign of 10^6 samples does not queue 10^5 futures up front."""
 
     def __init__(self, specs, workers: int):
-        self.ex = ProcessPoolExecutor(max_workers=workers, mp_context=_mp_context(),
-                                      initializer=_worker_init)
+        self.ex = ProcessPoolExecutor(
+            max_workers=workers, mp_context=_mp_context(), initializer=_worker_init
+        )
         self.todo = _submittable(specs)
         self.live: dict = {}  # future -> spec
         self.window = 2 * workers
@@ -93,7 +96,7 @@ class _Pool:
                 spec = self.live.pop(fut)
                 try:
                     res = fut.result()
-                except Exception as exc:  # noqa: BLE001 - e.g. a worker that died
+                except Exception as exc:
                     res = exc
                 self._fill()  # keep the workers busy while the parent merges
                 yield spec, res
@@ -104,8 +107,11 @@ class _Pool:
         for f in self.live:
             f.cancel()
         self.ex.shutdown(wait=True, cancel_futures=True)
-        return [(s, f.result()) for f, s in self.live.items()
-                if f.done() and not f.cancelled() and f.exception() is None]
+        return [
+            (s, f.result())
+            for f, s in self.live.items()
+            if f.done() and not f.cancelled() and f.exception() is None
+        ]
 
     def close(self) -> None:
         self.ex.shutdown(wait=True, cancel_futures=True)
@@ -115,22 +121,27 @@ def _dask_client(address):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
-        raise ModelInputError("--dask needs dask.distributed: pip install "
-                              "'multibody-crosscheck[sweep]' (or 'dask[distributed]')")
+        raise ModelInputError(
+            "--dask needs dask.distributed: pip install "
+            "'multibody-crosscheck[sweep]' (or 'dask[distributed]')"
+        ) from None
     if not isinstance(address, str):
         return address, None  # a Client given by the caller (tests, notebooks)
     if address.startswith("local"):
         k = address.partition(":")[2] or str(default_workers())
         if not k.isdigit() or int(k) < 1:
             raise ModelInputError(f"--dask {address!r}: expected local or local:K with K >= 1")
-        cluster = LocalCluster(n_workers=int(k), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+        cluster = LocalCluster(
+            n_workers=int(k), threads_per_worker=1, processes=True, dashboard_address=None
+        )
         return Client(cluster), cluster
     try:
         return Client(address, timeout="10s"), None
     except (OSError, ValueError, TypeError) as exc:
-        raise ModelInputError(f"--dask {address!r}: cannot connect to a Dask scheduler "
-                              f"({_first_line(exc) or type(exc).__name__})")
+        raise ModelInputError(
+            f"--dask {address!r}: cannot connect to a Dask scheduler "
+            f"({_first_line(exc) or type(exc).__name__})"
+        ) from None
 
 
 class _Dask:
@@ -139,6 +150,7 @@ class _Dask:
 
     def __init__(self, specs, client, threads: int):
         from distributed import as_completed as dask_completed
+
         self.client = client
         self.todo = _submittable(specs)
         self.live: dict = {}  # key -> (future, spec)
@@ -160,14 +172,15 @@ class _Dask:
             _, spec = self.live.pop(fut.key)
             try:
                 res = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a task that failed as a whole
+            except Exception as exc:
                 res = exc
             self._fill()
             yield spec, res
 
     def stop(self) -> list:
-        late = [(spec, fut.result()) for fut, spec in self.live.values()
-                if fut.status == "finished"]
+        late = [
+            (spec, fut.result()) for fut, spec in self.live.values() if fut.status == "finished"
+        ]
         self.client.cancel([fut for fut, _ in self.live.values()])
         return late
 
@@ -180,8 +193,14 @@ def dask_chunk(n_samples: int, threads: int) -> int:
     busy; otherwise a quarter of a model's samples per thread (load balance), at most
     DASK_MAX_CHUNK (a task of seconds, not minutes: an interrupt or a lost worker costs
     little)."""
-    return max(1, min(max(DASK_MIN_CHUNK, math.ceil(n_samples / (4 * threads))),
-                      math.ceil(n_samples / threads), DASK_MAX_CHUNK))
+    return max(
+        1,
+        min(
+            max(DASK_MIN_CHUNK, math.ceil(n_samples / (4 * threads))),
+            math.ceil(n_samples / threads),
+            DASK_MAX_CHUNK,
+        ),
+    )
 
 
 def local_chunk(n_samples: int, workers: int) -> int:

@@ -7,6 +7,7 @@ recomputes only the samples no file covers, and writes the sweep.json an uninter
 writes (everything but meta and timing identical). A complete campaign removes the directory.
 Every file is written atomically (crosscheck.output), so a chunk file is whole or absent.
 """
+
 from __future__ import annotations
 
 import json
@@ -50,8 +51,11 @@ class ChunkStore:
     def save(self, res: dict) -> None:
         if res["completed"] > 0:
             # a finished chunk stays valid after a Ctrl-C (kept for --resume)
-            write_atomic(self.dir / f"{res['model']}-{res['start']}.json",
-                         json.dumps(encode(res), allow_nan=True), after_interrupt=True)
+            write_atomic(
+                self.dir / f"{res['model']}-{res['start']}.json",
+                json.dumps(encode(res), allow_nan=True),
+                after_interrupt=True,
+            )
 
     def load(self) -> list[dict]:
         """The stored chunk results, in a fixed order (model, start)."""
@@ -65,19 +69,23 @@ class ChunkStore:
 def stored_settings(out_dir: str | Path) -> dict:
     """The settings of the campaign stored in out_dir, or a one-line error saying why not."""
     from reference.errors import ModelInputError
+
     path = Path(out_dir) / STORE / "campaign.json"
     if not path.is_file():
         done = (Path(out_dir) / "sweep.json").is_file()
-        raise ModelInputError(f"--resume {str(out_dir)!r}: no interrupted campaign there (no "
-                              f"{STORE}/campaign.json" + ("; its sweep.json is complete)"
-                                                          if done else ")"))
+        raise ModelInputError(
+            f"--resume {str(out_dir)!r}: no interrupted campaign there (no "
+            f"{STORE}/campaign.json" + ("; its sweep.json is complete)" if done else ")")
+        )
     try:
         data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise ModelInputError(f"--resume: {path} is unreadable ({exc})") from None
     if data.get("format") != FORMAT or not all(k in data for k in SETTINGS):
-        raise ModelInputError(f"--resume: {path} was written by another version of the sweep; "
-                              "start the campaign again")
+        raise ModelInputError(
+            f"--resume: {path} was written by another version of the sweep; "
+            "start the campaign again"
+        )
     return data
 
 
@@ -88,27 +96,40 @@ def _key(k) -> list:
 def encode(res: dict) -> dict:
     """A chunk result as JSON: tuple keys as lists, arrays as lists of floats."""
     t = res["timing"]
-    return {"model": res["model"], "start": res["start"], "stop": res["stop"],
-            "completed": res["completed"],
-            "values": [[*_key(k), [float(x) for x in v]] for k, v in res["values"].items()],
-            "soft": [[*_key(k), v] for k, v in res["soft"].items()],
-            "skips": [[*_key(k), v] for k, v in res["skips"].items()],
-            "faults": res["faults"],
-            "timing": {**{k: t[k] for k in ("draw_s", "reference_s", "reference_aux_s",
-                                             "samples")},
-                       "series": [[*_key(k), list(v)] for k, v in t["series"].items()]}}
+    return {
+        "model": res["model"],
+        "start": res["start"],
+        "stop": res["stop"],
+        "completed": res["completed"],
+        "values": [[*_key(k), [float(x) for x in v]] for k, v in res["values"].items()],
+        "soft": [[*_key(k), v] for k, v in res["soft"].items()],
+        "skips": [[*_key(k), v] for k, v in res["skips"].items()],
+        "faults": res["faults"],
+        "timing": {
+            **{k: t[k] for k in ("draw_s", "reference_s", "reference_aux_s", "samples")},
+            "series": [[*_key(k), list(v)] for k, v in t["series"].items()],
+        },
+    }
 
 
 def decode(d: dict) -> dict:
     import numpy as np
+
     t = d["timing"]
-    return {"model": d["model"], "start": d["start"], "stop": d["stop"],
-            "completed": d["completed"],
-            "values": {(e, v, q): np.array([math.nan if x is None else x for x in arr], float)
-                       for e, v, q, arr in d["values"]},
-            "soft": {(e, v): s for e, v, s in d["soft"]},
-            "skips": {(e, v, q): r for e, v, q, r in d["skips"]},
-            "faults": d["faults"],
-            "timing": {**{k: t[k] for k in ("draw_s", "reference_s", "reference_aux_s",
-                                             "samples")},
-                       "series": {(e, v): tuple(x) for e, v, x in t["series"]}}}
+    return {
+        "model": d["model"],
+        "start": d["start"],
+        "stop": d["stop"],
+        "completed": d["completed"],
+        "values": {
+            (e, v, q): np.array([math.nan if x is None else x for x in arr], float)
+            for e, v, q, arr in d["values"]
+        },
+        "soft": {(e, v): s for e, v, s in d["soft"]},
+        "skips": {(e, v, q): r for e, v, q, r in d["skips"]},
+        "faults": d["faults"],
+        "timing": {
+            **{k: t[k] for k in ("draw_s", "reference_s", "reference_aux_s", "samples")},
+            "series": {(e, v): tuple(x) for e, v, x in t["series"]},
+        },
+    }

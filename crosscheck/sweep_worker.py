@@ -1,5 +1,6 @@
 """One chunk of a sweep's samples, as it runs on a worker: draws, the batched reference, then
 every engine variant per sample (crosscheck.sweep has the campaign around it)."""
+
 from __future__ import annotations
 
 import copy
@@ -74,11 +75,14 @@ def reference_batch(base: NumericModel, nms, T, Q, U):
     def batch(sel):
         nmb = copy.copy(base)
         nmb.p = tuple(np.array([nms[j].p[k] for j in sel], float) for k in range(len(base.p)))
-        nmb.sref = tuple(np.array([nms[j].sref[k] for j in sel], float)
-                         for k in range(len(base.sref)))
-        return nmb.forward_batch(np.asarray([Q[j] for j in sel], float),
-                                 np.asarray([U[j] for j in sel], float),
-                                 np.asarray([T[j] for j in sel], float))
+        nmb.sref = tuple(
+            np.array([nms[j].sref[k] for j in sel], float) for k in range(len(base.sref))
+        )
+        return nmb.forward_batch(
+            np.asarray([Q[j] for j in sel], float),
+            np.asarray([U[j] for j in sel], float),
+            np.asarray([T[j] for j in sel], float),
+        )
 
     errors: list = [None] * N
     try:
@@ -103,7 +107,7 @@ def _draw_chunk(spec: ChunkSpec, base, past, timing: dict) -> list:
             break
         try:
             drawn.append((i, *draw_sample(base, spec.seed, i)))
-        except Exception as exc:  # noqa: BLE001 - a failed draw is a recorded fault
+        except Exception as exc:
             drawn.append((i, sample_seed(spec.seed, name, i), exc))
     t1 = time.perf_counter()
     timing["draw_s"] = t1 - t0
@@ -117,8 +121,9 @@ def _reference_chunk(base, drawn: list, timing: dict) -> dict:
     ok = [d for d in drawn if len(d) == 6]
     ref = {}
     if ok:
-        UD, LAM, errs = reference_batch(base, [d[2] for d in ok], [d[3] for d in ok],
-                                        [d[4] for d in ok], [d[5] for d in ok])
+        UD, LAM, errs = reference_batch(
+            base, [d[2] for d in ok], [d[3] for d in ok], [d[4] for d in ok], [d[5] for d in ok]
+        )
         timing["reference_s"] = time.perf_counter() - t1
         for j, (i, _s, nm, t, q, u) in enumerate(ok):
             if errs[j] is not None:
@@ -129,8 +134,9 @@ def _reference_chunk(base, drawn: list, timing: dict) -> dict:
     return ref
 
 
-def _evaluate_chunk(spec: ChunkSpec, base, drawn: list, ref: dict, perturb: dict, n: int,
-                    past, fault) -> tuple:
+def _evaluate_chunk(
+    spec: ChunkSpec, base, drawn: list, ref: dict, perturb: dict, n: int, past, fault
+) -> tuple:
     """3. every engine variant, sample by sample."""
     name = spec.model
     values: dict[tuple, np.ndarray] = {}
@@ -158,16 +164,15 @@ def _evaluate_chunk(spec: ChunkSpec, base, drawn: list, ref: dict, perturb: dict
             try:
                 params = perturbed(name, nm.params, perturb.get(engine, {}))
                 em = build(_adapter(engine), name, params, variant)
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:
                 fault(i, s, engine, variant, "build", exc)
                 per_series[(engine, variant)][0] += time.perf_counter() - tb
                 continue
             te = time.perf_counter()
             try:
-                sc = compare_at_state(em, q, u, t, ReferenceAnswer(acc, lam, M_ref, E_ref),
-                                      base.m)
+                sc = compare_at_state(em, q, u, t, ReferenceAnswer(acc, lam, M_ref, E_ref), base.m)
                 vals, sk, sf = sc.values, sc.skips, sc.soft
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:
                 fault(i, s, engine, variant, "evaluate", exc)
                 vals, sk, sf = None, {}, None
             tf = time.perf_counter()
@@ -204,17 +209,35 @@ def run_chunk(spec: ChunkSpec) -> dict:
     faults: list[dict] = []
 
     def fault(i, s, engine, variant, stage, exc):
-        faults.append({"model": name, "engine": engine, "variant": variant, "index": i,
-                       "sample_seed": s, "stage": stage, "type": type(exc).__name__,
-                       "reason": _first_line(exc)})
+        faults.append(
+            {
+                "model": name,
+                "engine": engine,
+                "variant": variant,
+                "index": i,
+                "sample_seed": s,
+                "stage": stage,
+                "type": type(exc).__name__,
+                "reason": _first_line(exc),
+            }
+        )
 
     past = (lambda: False) if spec.deadline is None else (lambda: time.time() > spec.deadline)
     drawn = _draw_chunk(spec, base, past, timing)
     ref = _reference_chunk(base, drawn, timing)
     values, skips, soft, per_series, completed = _evaluate_chunk(
-        spec, base, drawn, ref, perturb, n, past, fault)
+        spec, base, drawn, ref, perturb, n, past, fault
+    )
     timing["samples"] = completed
     timing["series"] = {sv: tuple(x) for sv, x in per_series.items()}
-    return {"model": name, "start": spec.start, "stop": spec.stop, "completed": completed,
-            "values": {key: arr[:completed] for key, arr in values.items()},
-            "soft": soft, "skips": skips, "faults": faults, "timing": timing}
+    return {
+        "model": name,
+        "start": spec.start,
+        "stop": spec.stop,
+        "completed": completed,
+        "values": {key: arr[:completed] for key, arr in values.items()},
+        "soft": soft,
+        "skips": skips,
+        "faults": faults,
+        "timing": timing,
+    }

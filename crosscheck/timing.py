@@ -4,6 +4,7 @@ The machine is shared and noisy (2 cores): medians move by up to 2-3x between ru
 compares timings only as ratios measured in the same run, and reports the minimum beside the
 median.
 """
+
 from __future__ import annotations
 
 import statistics
@@ -27,5 +28,9 @@ def per_call_seconds(fn, *, min_time: float = 0.02, repeats: int = 7) -> dict:
         for _ in range(n):
             fn()
         samples.append((time.perf_counter() - t0) / n)
-    return {"median": statistics.median(samples), "min": min(samples), "loops": n,
-            "repeats": repeats}
+    return {
+        "median": statistics.median(samples),
+        "min": min(samples),
+        "loops": n,
+        "repeats": repeats,
+    }

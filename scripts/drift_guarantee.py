@@ -8,6 +8,7 @@ is round-off; crosscheck/trajectory.py's drift tolerances are built from these b
 
     PYTHONPATH=$PWD python scripts/drift_guarantee.py [MODEL ...]
 """
+
 from __future__ import annotations
 
 import sys
@@ -28,16 +29,20 @@ def main(names) -> None:
             continue
         q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
         for method in ("projection", "index1"):
-            r = simulate(nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL,
-                         t_eval=output_grid(5.0))
+            r = simulate(
+                nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL, t_eval=output_grid(5.0)
+            )
             pos, vel = [], []
-            for t, q, u in zip(r.t, r.q, r.u):
+            for t, q, u in zip(r.t, r.q, r.u, strict=False):
                 f, v = nm.residuals(q, u, t)
                 qs, us = 1.0 + np.max(np.abs(q)), max(1.0, float(np.max(np.abs(u))))
                 pos.append(float(np.max(np.abs(f), initial=0.0)) / (PROJECTION_TOL * qs))
                 vel.append(float(np.max(np.abs(v), initial=0.0)) / (EPS * us))
-            print(f"{name:24s} {method:10s} |f|/(tol(1+|q|)) {max(pos):10.3g}  "
-                  f"|Au+a0|/(eps|u|) {max(vel):10.3g}", flush=True)
+            print(
+                f"{name:24s} {method:10s} |f|/(tol(1+|q|)) {max(pos):10.3g}  "
+                f"|Au+a0|/(eps|u|) {max(vel):10.3g}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

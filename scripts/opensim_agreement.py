@@ -8,6 +8,7 @@ else crosscheck.sampling.random_consistent_state at t ~ U(0, 2)); relative error
 max(|ref|_inf, 1). Times: the median of 300 calls of timed_forward (realizeAcceleration only,
 the state already set) and of forward() (mapping, solve and multiplier map).
 """
+
 from __future__ import annotations
 
 import sys
@@ -20,9 +21,13 @@ from crosscheck.sampling import random_consistent_state
 from reference.models import get
 from reference.numeric import NumericModel
 
-PARAMS = {"slider_crank": {"T": 0.7}, "slider_crank_split": {"T": 0.7},
-          "slider_crank_free": {"T": 0.7}, "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2},
-          "frame_bar": {"M_phi": 0.3, "M_theta": -0.2}}
+PARAMS = {
+    "slider_crank": {"T": 0.7},
+    "slider_crank_split": {"T": 0.7},
+    "slider_crank_free": {"T": 0.7},
+    "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2},
+    "frame_bar": {"M_phi": 0.3, "M_theta": -0.2},
+}
 
 
 def _rel(a, b) -> float:
@@ -64,25 +69,34 @@ def measure(name: str, n: int, seed: int, variant=None) -> dict:
     q, u, t = draws[0]
     call = em.timed_forward(q, u)
     label = name if variant is None else f"{name} ({variant})"
-    return {"model": label, "acc": worst_a, "lam": worst_l,
-            "lam_mapped": em.forward(q, u, t).multipliers is not None,
-            "solve_us": _median_us(call), "forward_us": _median_us(lambda: em.forward(q, u, t)),
-            "tol": adapter.exact_tolerance(name).value}
+    return {
+        "model": label,
+        "acc": worst_a,
+        "lam": worst_l,
+        "lam_mapped": em.forward(q, u, t).multipliers is not None,
+        "solve_us": _median_us(call),
+        "forward_us": _median_us(lambda: em.forward(q, u, t)),
+        "tol": adapter.exact_tolerance(name).value,
+    }
 
 
 def main() -> None:
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 100
     seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
-    print(f"| model | worst rel. acc | worst rel. lambda | tolerance | realizeAcceleration "
-          f"(us) | forward() (us) |   ({n} states, seed {seed})")
+    print(
+        f"| model | worst rel. acc | worst rel. lambda | tolerance | realizeAcceleration "
+        f"(us) | forward() (us) |   ({n} states, seed {seed})"
+    )
     print("|---|---|---|---|---|---|")
     adapter = OpenSimAdapter()
     cases = [(name, v) for name in adapter.models() for v in adapter.variants(name)]
     for name, variant in cases:
         r = measure(name, n, seed, variant)
         lam = f"{r['lam']:.1e}" if r["lam_mapped"] else "None (not a force)"
-        print(f"| {r['model']} | {r['acc']:.1e} | {lam} | {r['tol']:.0e} | {r['solve_us']:.0f} | "
-              f"{r['forward_us']:.0f} |")
+        print(
+            f"| {r['model']} | {r['acc']:.1e} | {lam} | {r['tol']:.0e} | {r['solve_us']:.0f} | "
+            f"{r['forward_us']:.0f} |"
+        )
 
 
 if __name__ == "__main__":

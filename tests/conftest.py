@@ -1,4 +1,5 @@
 """Shared test configuration: deterministic hypothesis profiles."""
+
 from __future__ import annotations
 
 import os
@@ -8,10 +9,16 @@ from hypothesis import HealthCheck, settings
 
 # CI: derandomized (the same examples every run) so a red build is reproducible; dev: random
 # exploration with the same example budget. Select with HYPOTHESIS_PROFILE.
-settings.register_profile("ci", derandomize=True, max_examples=25, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("dev", max_examples=25, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "ci",
+    derandomize=True,
+    max_examples=25,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "dev", max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci" if os.environ.get("CI") else "dev"))
 
 

@@ -12,6 +12,7 @@ reference.generic); signed parameters (applied loads) are their factor mapped on
 max(1, |default|). The state is the initial state plus the offsets, projected onto the
 constraint manifold.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -47,13 +48,14 @@ def instances(model) -> st.SearchStrategy[Instance]:
         factors=st.tuples(*[_floats(*SCALE_RANGE)] * n_p),
         t=_floats(*T_RANGE),
         dq=st.tuples(*[_floats(-3.0, 3.0)] * n_q),
-        du=st.tuples(*[_floats(-3.0, 3.0)] * n_u))
+        du=st.tuples(*[_floats(-3.0, 3.0)] * n_u),
+    )
 
 
 def parameters(model, factors) -> dict[str, float]:
     lo, hi = SCALE_RANGE
     values = {}
-    for p, f in zip(model.parameters, factors):
+    for p, f in zip(model.parameters, factors, strict=False):
         if p.positive or p.nonnegative:
             values[p.name] = p.default * f
         else:  # a signed load: the factor's place in its range mapped onto [-1, 1]

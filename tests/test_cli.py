@@ -1,4 +1,5 @@
 """The CLI contract: names, JSON fields, exit codes, one-line errors."""
+
 from __future__ import annotations
 
 import json
@@ -19,8 +20,15 @@ def test_models_json_fields(capsys):
     assert code == 0
     listed = {d["name"]: d for d in json.loads(out)}
     sc = listed["slider_crank"]
-    for key in ("name", "source", "coordinates", "speeds", "parameters", "constraints",
-                "formulations"):
+    for key in (
+        "name",
+        "source",
+        "coordinates",
+        "speeds",
+        "parameters",
+        "constraints",
+        "formulations",
+    ):
         assert key in sc
     assert sc["source"] == "Example 2(b)"
     assert sc["coordinates"] == ["theta1", "theta2"]
@@ -36,6 +44,7 @@ def test_models_table(capsys):
 def test_eval_json_matches_addendum(capsys):
     # theta = 0.3, theta' = 1 on L = 0.8: T = m L w^2 + m g cos(theta) = -lambda L
     import math
+
     L, th, w, m, g = 0.8, 0.3, 1.0, 1.5, 9.81
     q = f"{L * math.sin(th)!r},{L * math.cos(th)!r}"
     u = f"{L * w * math.cos(th)!r},{-L * w * math.sin(th)!r}"
@@ -48,19 +57,22 @@ def test_eval_json_matches_addendum(capsys):
     assert abs(d["residuals"]["position"][0]) < 1e-15
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["eval", "nope"], "unknown model"),
-    (["eval", "slider_crank", "--formulation", "hamilton"], "unknown formulation"),
-    (["eval", "slider_crank", "--set", "mass=2"], "unknown parameter"),
-    (["eval", "slider_crank", "--set", "m2=0"], "must be > 0"),
-    (["eval", "slider_crank", "--set", "m2=nan"], "not finite"),
-    (["eval", "slider_crank", "--q", "0.5"], "expected 2 coordinates"),
-    (["eval", "slider_crank", "--q", "0.5,0.1", "--u", "1"], "expected 2 speeds"),
-    (["eval", "slider_crank", "--q", "0.5,nan", "--u", "0,0"], "NaN"),
-    (["eval", "slider_crank", "--q", "0.5,0.1", "--u", "0,0"], "off the constraint manifold"),
-    (["eval", "slider_crank", "--q", "0.5,x"], "not a number"),
-    (["run", "slider_crank", "--perturb", "bullet:m2=1"], "unknown engine"),
-])
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["eval", "nope"], "unknown model"),
+        (["eval", "slider_crank", "--formulation", "hamilton"], "unknown formulation"),
+        (["eval", "slider_crank", "--set", "mass=2"], "unknown parameter"),
+        (["eval", "slider_crank", "--set", "m2=0"], "must be > 0"),
+        (["eval", "slider_crank", "--set", "m2=nan"], "not finite"),
+        (["eval", "slider_crank", "--q", "0.5"], "expected 2 coordinates"),
+        (["eval", "slider_crank", "--q", "0.5,0.1", "--u", "1"], "expected 2 speeds"),
+        (["eval", "slider_crank", "--q", "0.5,nan", "--u", "0,0"], "NaN"),
+        (["eval", "slider_crank", "--q", "0.5,0.1", "--u", "0,0"], "off the constraint manifold"),
+        (["eval", "slider_crank", "--q", "0.5,x"], "not a number"),
+        (["run", "slider_crank", "--perturb", "bullet:m2=1"], "unknown engine"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(capsys, argv, needle):
     code, _, err = _run(capsys, *argv)
     assert code == 2
@@ -69,8 +81,9 @@ def test_bad_input_is_one_line_and_exit_2(capsys, argv, needle):
 
 
 def test_off_manifold_project(capsys):
-    code, out, _ = _run(capsys, "eval", "slider_crank", "--q", "0.5,0.1", "--u", "0,0",
-                        "--project", "--json")
+    code, out, _ = _run(
+        capsys, "eval", "slider_crank", "--q", "0.5,0.1", "--u", "0,0", "--project", "--json"
+    )
     assert code == 0
     d = json.loads(out)
     assert max(map(abs, d["residuals"]["position"])) < 1e-12
@@ -80,15 +93,34 @@ def test_singular_pose_is_refused(capsys):
     # l1 = l2 folds the slider-crank onto itself at theta1 = pi/2: the slider row's
     # coefficients l1 C1, l2 C2 both vanish and A loses rank
     import math
-    code, _, err = _run(capsys, "eval", "slider_crank", "--set", "l2=0.3",
-                        "--q", f"{math.pi / 2!r},{-math.pi / 2!r}", "--u", "0,0")
+
+    code, _, err = _run(
+        capsys,
+        "eval",
+        "slider_crank",
+        "--set",
+        "l2=0.3",
+        "--q",
+        f"{math.pi / 2!r},{-math.pi / 2!r}",
+        "--u",
+        "0,0",
+    )
     assert code == 2 and "singular" in err
 
 
 @pytest.mark.parametrize("engine", ["pinocchio", "mujoco"])
 def test_run_fault_injection_fails(tmp_path, capsys, engine):
-    code, out, err = _run(capsys, "run", "slider_crank", "--engines", engine,
-                          "--out", str(tmp_path), "--perturb", f"{engine}:m2=1e-6")
+    code, _out, _err = _run(
+        capsys,
+        "run",
+        "slider_crank",
+        "--engines",
+        engine,
+        "--out",
+        str(tmp_path),
+        "--perturb",
+        f"{engine}:m2=1e-6",
+    )
     assert code == 1
     records = json.loads((tmp_path / "results.json").read_text())["records"]
     failed = {r["quantity"] for r in records if r["passed"] is False}
@@ -96,8 +128,9 @@ def test_run_fault_injection_fails(tmp_path, capsys, engine):
 
 
 def test_run_clean_passes_and_records_contract(tmp_path, capsys):
-    code, out, err = _run(capsys, "run", "slider_crank", "--engines", "pinocchio,mujoco",
-                          "--out", str(tmp_path))
+    code, _out, err = _run(
+        capsys, "run", "slider_crank", "--engines", "pinocchio,mujoco", "--out", str(tmp_path)
+    )
     assert code == 0, err
     data = json.loads((tmp_path / "results.json").read_text())
     for key in ("command", "versions", "machine", "date"):
@@ -105,8 +138,17 @@ def test_run_clean_passes_and_records_contract(tmp_path, capsys):
     for key in ("python", "numpy", "scipy", "sympy", "pin", "mujoco"):
         assert data["meta"]["versions"][key]
     for r in data["records"]:
-        for key in ("model", "formulation", "engine", "check", "quantity", "error",
-                    "tolerance", "passed", "reason"):
+        for key in (
+            "model",
+            "formulation",
+            "engine",
+            "check",
+            "quantity",
+            "error",
+            "tolerance",
+            "passed",
+            "reason",
+        ):
             assert key in r
 
 
@@ -115,8 +157,9 @@ def test_two_runs_give_identical_results(tmp_path, capsys):
     data = []
     for k in range(2):
         out = tmp_path / f"r{k}"
-        code, _, err = _run(capsys, "run", "slider_crank", "top_euler", "--out", str(out),
-                            "--no-report")
+        code, _, err = _run(
+            capsys, "run", "slider_crank", "top_euler", "--out", str(out), "--no-report"
+        )
         assert code == 0, err
         data.append(json.loads((out / "results.json").read_text()))
     assert data[0]["records"] == data[1]["records"]
@@ -125,12 +168,17 @@ def test_two_runs_give_identical_results(tmp_path, capsys):
     assert meta[0] == meta[1]
 
 
-@pytest.mark.parametrize("spaced,joined", [
-    (["--q", "-0.5,0.2", "--u", "-1,0"], ["--q=-0.5,0.2", "--u=-1,0"]),
-    (["--q", "-.5,0.2", "--u", "1,-0"], ["--q=-.5,0.2", "--u=1,-0"]),
-    (["--set", "T=-2", "--q", "-1e-1,0.3", "--t", "-0.5"],
-     ["--set=T=-2", "--q=-1e-1,0.3", "--t=-0.5"]),
-])
+@pytest.mark.parametrize(
+    "spaced,joined",
+    [
+        (["--q", "-0.5,0.2", "--u", "-1,0"], ["--q=-0.5,0.2", "--u=-1,0"]),
+        (["--q", "-.5,0.2", "--u", "1,-0"], ["--q=-.5,0.2", "--u=1,-0"]),
+        (
+            ["--set", "T=-2", "--q", "-1e-1,0.3", "--t", "-0.5"],
+            ["--set=T=-2", "--q=-1e-1,0.3", "--t=-0.5"],
+        ),
+    ],
+)
 def test_negative_values_after_an_option(capsys, spaced, joined):
     """`--q -0.5,0.2` is read as the value it looks like (argparse alone takes it for an option)
     and gives exactly what the `--q=-0.5,0.2` spelling gives."""
@@ -152,6 +200,7 @@ def test_default_paths_resolve_in_the_tests_own_directory(tmp_path, capsys):
     """conftest runs every test in its tmp_path: `crosscheck report` without --results looks
     for out/results.json there, not in the checkout (issue 15 item 9)."""
     from pathlib import Path
+
     assert Path.cwd() == tmp_path
     code, _, err = _run(capsys, "report")
     assert code == 2 and "out/results.json does not exist" in err

@@ -1,4 +1,5 @@
 """Eqs. 1-4 and 8: coefficients, independence (rank), the integrability test, rheonomic rows."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -7,8 +8,7 @@ import pytest
 import sympy as sp
 
 from reference import NumericModel, models
-from reference.constraints import (configuration_coefficients, integrability,
-                                   motion_coefficients)
+from reference.constraints import configuration_coefficients, integrability, motion_coefficients
 from reference.errors import RedundantConstraintError
 
 x, y, th, L, t, xd, yd, thd = sp.symbols("x y theta L t x_dot y_dot theta_dot", real=True)
@@ -25,7 +25,7 @@ def test_configuration_coefficients_unit_example_1():
 def test_configuration_coefficients_rheonomic():
     """A support moving as a sin(W t): a0 = df/dt != 0 (Eq. 4)."""
     a, W = sp.symbols("a W", real=True)
-    f = sp.Matrix([((x - a * sp.sin(W * t))**2 + y**2 - L**2) / 2])
+    f = sp.Matrix([((x - a * sp.sin(W * t)) ** 2 + y**2 - L**2) / 2])
     A, a0 = configuration_coefficients(f, (x, y), t)
     assert sp.simplify(A[0] - (x - a * sp.sin(W * t))) == 0
     assert sp.simplify(a0[0] + (x - a * sp.sin(W * t)) * a * W * sp.cos(W * t)) == 0
@@ -49,17 +49,22 @@ def test_integrability_holonomic_and_not_exact():
 def test_redundant_constraints_named():
     model = models.get("slider_crank_split")
     doubled = dataclasses.replace(
-        model, name="slider_crank_split_doubled",
-        configuration_constraints=model.configuration_constraints
-        + (2 * model.configuration_constraints[1],),
-        constraint_names=("B_x", "B_y", "B_y_again"))
+        model,
+        name="slider_crank_split_doubled",
+        configuration_constraints=(
+            *model.configuration_constraints,
+            2 * model.configuration_constraints[1],
+        ),
+        constraint_names=("B_x", "B_y", "B_y_again"),
+    )
     with pytest.raises(RedundantConstraintError, match=r"B_y_again.*Remove the redundant"):
         NumericModel(doubled)
 
 
 def test_unknown_symbol_in_model_is_reported():
     from reference.errors import ModelDefinitionError
+
     model = models.get("pendulum_xy")
-    bad = dataclasses.replace(model, potential=sp.Symbol("k") * model.coordinates[0]**2)
-    with pytest.raises(ModelDefinitionError, match="undeclared symbols.*k"):
+    bad = dataclasses.replace(model, potential=sp.Symbol("k") * model.coordinates[0] ** 2)
+    with pytest.raises(ModelDefinitionError, match=r"undeclared symbols.*k"):
         bad.validate()

@@ -5,6 +5,7 @@
 - Example 2(b) = Note 2 / Exercise 6.3 = the one-coordinate reduction in theta1;
 - the compiled fast path = a slow sympy subs/evalf path; batched = per-state.
 """
+
 from __future__ import annotations
 
 import math
@@ -12,11 +13,11 @@ import math
 import numpy as np
 import pytest
 
+from crosscheck.sampling import random_consistent_state
 from reference import NumericModel, models
 from reference.formulations import derive
-from reference.models.pendulum import rod_tension
 from reference.minimal import slider_crank_one_coordinate
-from crosscheck.sampling import random_consistent_state
+from reference.models.pendulum import rod_tension
 
 # Two evaluations of the same equations through differently ordered arithmetic differ by
 # round-off: a few hundred ulps of the largest term (|terms| up to ~1e3 in these models).
@@ -43,13 +44,17 @@ def test_formulations_agree_numerically(name):
         # rows whose multiplier depends on the formulation (the model says which and why:
         # the Euler-parameter normalization of the top, Exercise 6.6); the motion does not
         dependent = dict(model.formulation_dependent_rows)
-        keep = [j for j, c in enumerate(model.constraint_names or [""] * ref.m)
-                if c not in dependent]
+        keep = [
+            j for j, c in enumerate(model.constraint_names or [""] * ref.m) if c not in dependent
+        ]
         for nm in others:
             r = nm.forward(q, u)
             assert _rel(r.accelerations, r0.accelerations) < ROUNDOFF_REL, (nm.formulation, q, u)
             assert _rel(r.multipliers[keep], r0.multipliers[keep]) < ROUNDOFF_REL, (
-                nm.formulation, q, u)
+                nm.formulation,
+                q,
+                u,
+            )
 
 
 def test_pendulum_1a_equals_1b_and_tension():
@@ -62,8 +67,10 @@ def test_pendulum_1a_equals_1b_and_tension():
         q = [L * math.sin(th), L * math.cos(th)]
         u = [L * w * math.cos(th), -L * w * math.sin(th)]
         rb = b.forward(q, u)
-        expected = [L * (thdd * math.cos(th) - w**2 * math.sin(th)),
-                    -L * (thdd * math.sin(th) + w**2 * math.cos(th))]
+        expected = [
+            L * (thdd * math.cos(th) - w**2 * math.sin(th)),
+            -L * (thdd * math.sin(th) + w**2 * math.cos(th)),
+        ]
         assert _rel(rb.accelerations, expected) < ROUNDOFF_REL
         # Addendum: T = -lambda L equals the radial balance m L w^2 + m g cos(theta)
         T = rod_tension(rb.multipliers[0], L)
@@ -90,8 +97,9 @@ def test_slider_crank_three_ways():
         assert _rel(r1.accelerations, r2.accelerations[:1]) < ROUNDOFF_REL
         # slider acceleration from Example 2's angles: x'' = d2/dt2 (l1 C1 + l2 C2)
         a1, a2 = r2.accelerations
-        xdd = (-l1 * (a1 * math.sin(th1) + w1**2 * math.cos(th1))
-               - l2 * (a2 * math.sin(th2) + w2**2 * math.cos(th2)))
+        xdd = -l1 * (a1 * math.sin(th1) + w1**2 * math.cos(th1)) - l2 * (
+            a2 * math.sin(th2) + w2**2 * math.cos(th2)
+        )
         assert abs(r3.accelerations[1] - xdd) < ROUNDOFF_REL * max(1, abs(xdd))
 
 
@@ -104,8 +112,8 @@ def test_fast_path_equals_slow_sympy_path(name):
     rng = np.random.default_rng(5)
     for _ in range(3):
         q, u = random_consistent_state(nm, rng)
-        subs = {s: v for s, v in zip(model.coordinates, q)}
-        subs.update({s: v for s, v in zip(model.speeds, u)})
+        subs = {s: v for s, v in zip(model.coordinates, q, strict=False)}
+        subs.update({s: v for s, v in zip(model.speeds, u, strict=False)})
         subs.update({p.symbol: nm.params[p.name] for p in model.parameters})
         subs[model.t] = 0.0
         M = np.array(eom.M.subs(subs).evalf(30), dtype=float)

@@ -1,6 +1,7 @@
 """`crosscheck gate` as CI and a person use it: a baseline from a real run, then a clean fresh
 run (exit 0), a planted regression (exit 1, each regression named), a fault injected into an
 engine's model (exit 1), a deliberate --update, and usage errors (exit 2, one line)."""
+
 from __future__ import annotations
 
 import copy
@@ -47,8 +48,9 @@ def clean(tmp_path_factory):
 def baseline(tmp_path, tmp_path_factory, capsys):
     """reports/baseline.json made the way the lead makes it: --update on a clean run."""
     path = tmp_path / "reports" / "baseline.json"
-    code, out, _ = gate(capsys, "--baseline", path, "--results",
-                        results_of(tmp_path_factory, "clean"), "--update")
+    code, out, _ = gate(
+        capsys, "--baseline", path, "--results", results_of(tmp_path_factory, "clean"), "--update"
+    )
     assert code == 0 and "created baseline" in out and path.exists()
     return path
 
@@ -83,8 +85,10 @@ def test_planted_regression_is_caught_and_named(baseline, clean, tmp_path):
     assert p.returncode == 1, p.stdout + p.stderr
     found = regressions(p.stdout)
     assert len(found) == 3, p.stdout
-    assert any(ln.startswith(key(worse)) and "error" in ln and f"worse than {FACTOR:g}x" in ln
-               for ln in found)
+    assert any(
+        ln.startswith(key(worse)) and "error" in ln and f"worse than {FACTOR:g}x" in ln
+        for ln in found
+    )
     assert any(ln.startswith(key(broken)) and "passed -> failed" in ln for ln in found)
     assert any(ln.startswith(key(removed)) and "missing from the results" in ln for ln in found)
     assert "3 regressions" in p.stdout
@@ -97,29 +101,34 @@ def test_round_off_changes_are_not_regressions(baseline, clean, tmp_path, capsys
     for r in tiny:
         r["error"] = max(r["error"], 1e-16) * 100 if r["error"] else ROUND_OFF_FLOOR / 2
         assert r["error"] <= ROUND_OFF_FLOOR
-    code, out, _ = gate(capsys, "--baseline", baseline, "--results",
-                        write(tmp_path, "r.json", noisy))
+    code, out, _ = gate(
+        capsys, "--baseline", baseline, "--results", write(tmp_path, "r.json", noisy)
+    )
     assert code == 0, out
 
 
-@pytest.mark.parametrize("old,new,regressed", [
-    (1e-15, 1e-13, False),   # both round-off: equal
-    (1e-15, 2e-12, True),    # out of round-off by more than 10x the floor
-    (1e-12, 9e-12, False),   # within the factor
-    (1e-12, 2e-11, True),    # beyond the factor
-    (1e-12, float("inf"), True),
-    (1e-12, None, True),     # a figure that disappeared
-    (float("inf"), float("inf"), False),
-    (None, 1.0, False),      # no baseline figure (skipped): nothing to get worse
-    (0.0, 5e-14, False),
-])
+@pytest.mark.parametrize(
+    "old,new,regressed",
+    [
+        (1e-15, 1e-13, False),  # both round-off: equal
+        (1e-15, 2e-12, True),  # out of round-off by more than 10x the floor
+        (1e-12, 9e-12, False),  # within the factor
+        (1e-12, 2e-11, True),  # beyond the factor
+        (1e-12, float("inf"), True),
+        (1e-12, None, True),  # a figure that disappeared
+        (float("inf"), float("inf"), False),
+        (None, 1.0, False),  # no baseline figure (skipped): nothing to get worse
+        (0.0, 5e-14, False),
+    ],
+)
 def test_worsened_rule(old, new, regressed):
     assert worsened(old, new) is regressed
 
 
 def test_fault_injected_into_an_engine_fails_the_gate(baseline, tmp_path_factory, capsys):
-    code, out, _ = gate(capsys, "--baseline", baseline, "--results",
-                        results_of(tmp_path_factory, "faulty"))
+    code, out, _ = gate(
+        capsys, "--baseline", baseline, "--results", results_of(tmp_path_factory, "faulty")
+    )
     faulty = json.loads(results_of(tmp_path_factory, "faulty").read_text())
     failing = [key(r) for r in faulty["records"] if r["passed"] is False]
     assert code == 1 and failing
@@ -128,28 +137,37 @@ def test_fault_injected_into_an_engine_fails_the_gate(baseline, tmp_path_factory
         assert any(ln.startswith(k) and "passed -> failed" in ln for ln in found), (k, out)
 
 
-def test_passed_to_skipped_and_new_failing_records_are_regressions(baseline, clean, tmp_path,
-                                                                   capsys):
+def test_passed_to_skipped_and_new_failing_records_are_regressions(
+    baseline, clean, tmp_path, capsys
+):
     data = copy.deepcopy(clean)
     r = next(r for r in data["records"] if r["passed"] and r["engine"] == "pinocchio")
     r.update(passed=None, skipped=True, error=None, tolerance=None, reason="test: not run")
-    new_ok = dict(r, quantity="new_quantity_ok", passed=True, skipped=False, error=0.0,
-                  tolerance=1e-11)
+    new_ok = dict(
+        r, quantity="new_quantity_ok", passed=True, skipped=False, error=0.0, tolerance=1e-11
+    )
     new_bad = dict(new_ok, quantity="new_quantity_bad", passed=False, error=1.0)
     data["records"] += [new_ok, new_bad]
-    code, out, _ = gate(capsys, "--baseline", baseline, "--results",
-                        write(tmp_path, "r.json", data))
+    code, out, _ = gate(
+        capsys, "--baseline", baseline, "--results", write(tmp_path, "r.json", data)
+    )
     found = regressions(out)
     assert code == 1 and len(found) == 3, out
     assert any(ln.startswith(key(r)) and "passed -> skipped (test: not run)" in ln for ln in found)
     assert any(ln.startswith(key(new_bad)) and "new record, failing" in ln for ln in found)
-    assert any(ln.startswith(f"{key(new_ok)}: new record (passed)") and "--accept-new" in ln
-               for ln in found)  # ungated: a regression unless accepted (issue 15 item 7)
-    code, out, _ = gate(capsys, "--baseline", baseline, "--results",
-                        write(tmp_path, "r.json", data), "--accept-new")
+    assert any(
+        ln.startswith(f"{key(new_ok)}: new record (passed)") and "--accept-new" in ln
+        for ln in found
+    )  # ungated: a regression unless accepted (issue 15 item 7)
+    code, out, _ = gate(
+        capsys, "--baseline", baseline, "--results", write(tmp_path, "r.json", data), "--accept-new"
+    )
     found = regressions(out)
     assert code == 1 and len(found) == 2, out  # a new failing record is never accepted
-    assert "accepted by --accept-new (run --update to gate them) (1):" in out and f"{key(new_ok)}: new record (passed)" in out
+    assert (
+        "accepted by --accept-new (run --update to gate them) (1):" in out
+        and f"{key(new_ok)}: new record (passed)" in out
+    )
 
 
 def test_a_baseline_of_one_model_does_not_pass_the_whole_suite(clean, tmp_path, capsys):
@@ -165,13 +183,20 @@ def test_a_baseline_of_one_model_does_not_pass_the_whole_suite(clean, tmp_path, 
     code, out, _ = gate(capsys, "--baseline", base, "--results", results)
     assert code == 1 and len(regressions(out)) == lacking, out
     code, out, _ = gate(capsys, "--baseline", base, "--results", results, "--accept-new")
-    assert code == 0 and f"accepted by --accept-new (run --update to gate them) ({lacking}):" \
-        in out, out
+    assert (
+        code == 0 and f"accepted by --accept-new (run --update to gate them) ({lacking}):" in out
+    ), out
     fewer = copy.deepcopy(clean)
     gone = next(r for r in fewer["records"] if r["engine"] == "reference")
     fewer["records"].remove(gone)
-    code, out, _ = gate(capsys, "--baseline", base, "--results",
-                        write(tmp_path, "fewer.json", fewer), "--accept-new")
+    code, out, _ = gate(
+        capsys,
+        "--baseline",
+        base,
+        "--results",
+        write(tmp_path, "fewer.json", fewer),
+        "--accept-new",
+    )
     found = regressions(out)
     assert code == 1 and len(found) == 1 and found[0].startswith(key(gone)), out
     assert "missing from the results" in found[0]
@@ -190,23 +215,39 @@ def test_update_rewrites_the_baseline_and_says_what_changed(baseline, clean, tmp
     code, out, _ = gate(capsys, "--baseline", baseline, "--results", results)
     assert code == 0 and "known failures" in out and key(r) in out  # now a known failure
     # and the fixed check is an improvement, not a regression
-    code, out, _ = gate(capsys, "--baseline", baseline, "--results",
-                        write(tmp_path, "c.json", clean))
+    code, out, _ = gate(
+        capsys, "--baseline", baseline, "--results", write(tmp_path, "c.json", clean)
+    )
     assert code == 0 and f"{key(r)}: failed -> passed" in out
 
 
 def test_timings_are_gated_only_as_same_run_ratios(baseline, clean, tmp_path, capsys):
     bench = synthetic_bench("slider_crank")
     results = write(tmp_path, "r.json", clean)
-    code, out, _ = gate(capsys, "--baseline", baseline, "--results", results,
-                        "--bench", write(tmp_path, "b0.json", bench), "--update")
+    code, out, _ = gate(
+        capsys,
+        "--baseline",
+        baseline,
+        "--results",
+        results,
+        "--bench",
+        write(tmp_path, "b0.json", bench),
+        "--update",
+    )
     assert code == 0
 
     def variant(name, change):
         b = copy.deepcopy(bench)
         change(b)
-        return gate(capsys, "--baseline", baseline, "--results", results,
-                    "--bench", write(tmp_path, name, b))
+        return gate(
+            capsys,
+            "--baseline",
+            baseline,
+            "--results",
+            results,
+            "--bench",
+            write(tmp_path, name, b),
+        )
 
     def scale(b, path, f):
         for r in b["forward"]:
@@ -223,13 +264,17 @@ def test_timings_are_gated_only_as_same_run_ratios(baseline, clean, tmp_path, ca
     # one path 20x slower: a regression, named with its anchor
     code, out, _ = variant("slower.json", lambda b: scale(b, "single", 20))
     found = regressions(out)
-    assert code == 1 and len(found) == 1 and found[0].startswith(
-        "timing slider_crank/single/engine:pinocchio"), out
+    assert (
+        code == 1
+        and len(found) == 1
+        and found[0].startswith("timing slider_crank/single/engine:pinocchio")
+    ), out
 
     # work-precision accuracy: an error 100x worse, and a row gone
     def wp(b):
         b["work_precision"][0]["error"] *= 100
         del b["work_precision"][-1]
+
     code, out, _ = variant("wp.json", wp)
     found = regressions(out)
     assert code == 1 and len(found) == 2, out
@@ -240,16 +285,22 @@ def test_timings_are_gated_only_as_same_run_ratios(baseline, clean, tmp_path, ca
     assert code == 0 and "benchmarks not compared" in out
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["--baseline", "{tmp}/none.json", "--results", "{clean}"], "--update"),
-    (["--baseline", "{tmp}/bad.json", "--results", "{clean}"], "not valid JSON"),
-    (["--baseline", "{base}", "--results", "{tmp}/norecords.json"], "no \"records\" list"),
-    (["--baseline", "{base}", "--results", "{clean}", "--bench", "{tmp}/none.json"],
-     "not found"),
-    (["--baseline", "{base}", "--results", "{clean}", "--factor", "0.5"], "--factor"),
-])
-def test_usage_errors_are_one_line_and_exit_2(baseline, tmp_path, tmp_path_factory, capsys,
-                                              argv, needle):
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["--baseline", "{tmp}/none.json", "--results", "{clean}"], "--update"),
+        (["--baseline", "{tmp}/bad.json", "--results", "{clean}"], "not valid JSON"),
+        (["--baseline", "{base}", "--results", "{tmp}/norecords.json"], 'no "records" list'),
+        (
+            ["--baseline", "{base}", "--results", "{clean}", "--bench", "{tmp}/none.json"],
+            "not found",
+        ),
+        (["--baseline", "{base}", "--results", "{clean}", "--factor", "0.5"], "--factor"),
+    ],
+)
+def test_usage_errors_are_one_line_and_exit_2(
+    baseline, tmp_path, tmp_path_factory, capsys, argv, needle
+):
     (tmp_path / "bad.json").write_text("{nope")
     (tmp_path / "norecords.json").write_text('{"meta": {}}')
     subst = {"tmp": tmp_path, "clean": results_of(tmp_path_factory, "clean"), "base": baseline}

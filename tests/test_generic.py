@@ -1,4 +1,5 @@
 """The generic parameter set: distinct values, physical inertias, valid geometry."""
+
 from __future__ import annotations
 
 import itertools
@@ -15,6 +16,7 @@ def _geometry_ok(model):
         nm = NumericModel(model, params=values)
         q, u = nm.project(model.initial_q, model.initial_u)
         return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
+
     return ok
 
 
@@ -32,7 +34,8 @@ def test_generic_set_separates_every_parameter_and_stays_physical(name):
     for unit, names in by_unit.items():
         for a, b in itertools.combinations(names, 2):
             assert abs(values[a] - values[b]) > 1e-3 * max(abs(values[a]), abs(values[b])), (
-                f"{a} and {b} ({unit}) are alike in the generic set")
+                f"{a} and {b} ({unit}) are alike in the generic set"
+            )
     for triple in inertia_triples(model):
         I = sorted(values[n] for n in triple)
         assert I[0] + I[1] >= I[2], f"{triple} breaks the triangle inequality"
@@ -40,7 +43,9 @@ def test_generic_set_separates_every_parameter_and_stays_physical(name):
 
 def test_inertia_triples_are_found_where_a_body_has_three_principal_inertias():
     assert inertia_triples(models.get("double_pendulum_3d")) == [
-        ("I1_11", "I1_22", "I1_33"), ("I2_11", "I2_22", "I2_33")]
+        ("I1_11", "I1_22", "I1_33"),
+        ("I2_11", "I2_22", "I2_33"),
+    ]
     assert inertia_triples(models.get("slider_crank")) == []  # planar bars: I_zz only
 
 

@@ -1,5 +1,6 @@
 """Interrupted commands (issue 15 item 5): one line, exit 130, and the output directory holds
 the previous run's files, complete and consistent, or this run's, never a mix."""
+
 from __future__ import annotations
 
 import json
@@ -56,8 +57,10 @@ def test_interrupt_during_report_keeps_the_previous_run(previous_run, monkeypatc
 
 
 def test_no_report_removes_the_stale_report(previous_run, capsys):
-    assert main(["run", "slider_crank", "--instantaneous", "--no-report",
-                 "--out", str(previous_run)]) == 0
+    assert (
+        main(["run", "slider_crank", "--instantaneous", "--no-report", "--out", str(previous_run)])
+        == 0
+    )
     capsys.readouterr()
     assert sorted(p.name for p in previous_run.iterdir()) == ["results.json"]
     assert _models_in(previous_run) == {"slider_crank"}
@@ -69,8 +72,14 @@ def tmp_cwd() -> str:
 
 def _start(args: list[str]) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.Popen([sys.executable, "-m", "crosscheck", *args], cwd=tmp_cwd(), env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "crosscheck", *args],
+        cwd=tmp_cwd(),
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize("delay", [1.0, 3.0, 5.0, 8.0])
@@ -96,8 +105,20 @@ def test_sigint_on_a_real_run(previous_run, delay):
 def test_sigint_on_a_real_sweep(tmp_path):
     """An interrupted campaign writes what it completed and never reads as passed (item 6)."""
     out = tmp_path / "sweep"
-    proc = _start(["sweep", "pendulum_xy", "--samples", "1000000", "--workers", "1",
-                   "--engines", "pinocchio", "--out", str(out)])
+    proc = _start(
+        [
+            "sweep",
+            "pendulum_xy",
+            "--samples",
+            "1000000",
+            "--workers",
+            "1",
+            "--engines",
+            "pinocchio",
+            "--out",
+            str(out),
+        ]
+    )
     deadline = time.time() + 300
     while time.time() < deadline:  # interrupt once a chunk is finished (and stored)
         time.sleep(0.5)
@@ -122,6 +143,7 @@ def test_an_interrupt_the_engine_swallowed_still_interrupts(previous_run, monkey
     reports failure, or the interrupt vanishes) must not turn Ctrl-C into a failed record or a
     finished run: the remembered signal stops the command before its files are committed."""
     from crosscheck import interrupts
+
     before = _snapshot(previous_run)
     monkeypatch.setattr(interrupts, "_seen", [signal.SIGINT])  # as if swallowed mid-run
     code = main(["run", "slider_crank", "--instantaneous", "--out", str(previous_run)])

@@ -11,6 +11,7 @@
     Example 3 and Exercise 6.7 against their stated physical meaning.
 The printed equations are typed here from the textbook, never built from the model modules.
 """
+
 from __future__ import annotations
 
 import functools
@@ -73,7 +74,7 @@ def _assert_same(derived, printed, angles=None):
     """derived - printed is identically 0: expanded (polynomials), or, given the angles,
     reduced modulo sin^2 + cos^2 = 1 (trigonometric identities)."""
     assert len(derived) == len(printed)
-    for k, (d, p) in enumerate(zip(derived, printed)):
+    for k, (d, p) in enumerate(zip(derived, printed, strict=False)):
         diff = sp.expand(d - p)
         ok = diff == 0 or (angles is not None and _vanishes_on_circles(diff, angles))
         assert ok, f"equation {k + 1}: derived - printed = {diff}"
@@ -108,7 +109,8 @@ ALL_3D = ["frame_bar", "double_pendulum_3d", "top_euler", "top_cartesian"]
 # ---------------------------------------------------------------------------------------------
 def test_example_3_printed_equations():
     m, d, I1, I2, I3, Mp, Mt, th, lam = map(
-        _sym, ["m", "d", "I1", "I2", "I3", "M_phi", "M_theta", "theta", "lambda1"])
+        _sym, ["m", "d", "I1", "I2", "I3", "M_phi", "M_theta", "theta", "lambda1"]
+    )
     w1, w2, w3 = _syms("omega{}", (1, 2, 3))
     a1, a2, a3 = _syms("omega{}_dot", (1, 2, 3))
     S, C = sp.sin(th), sp.cos(th)
@@ -126,17 +128,27 @@ def test_example_3_printed_equations():
 
 def _textbook_R(a, b, c, lib=sp):
     """Example 4's 3-1-3 R_i as printed (N components -> link components)."""
-    C1, S1, C2, S2, C3, S3 = (lib.cos(a), lib.sin(a), lib.cos(b), lib.sin(b),
-                              lib.cos(c), lib.sin(c))
-    rows = [[C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
-            [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
-            [S1 * S2, -C1 * S2, C2]]
+    C1, S1, C2, S2, C3, S3 = (
+        lib.cos(a),
+        lib.sin(a),
+        lib.cos(b),
+        lib.sin(b),
+        lib.cos(c),
+        lib.sin(c),
+    )
+    rows = [
+        [C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
+        [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
+        [S1 * S2, -C1 * S2, C2],
+    ]
     return sp.Matrix(rows) if lib is sp else np.array(rows)
 
 
 def _example_4_symbols():
-    s = {n: _sym(n) for n in ["l1", "l2", "m1", "m2", "I1_11", "I1_22", "I1_33",
-                              "I2_11", "I2_22", "I2_33", "g"]}
+    s = {
+        n: _sym(n)
+        for n in ["l1", "l2", "m1", "m2", "I1_11", "I1_22", "I1_33", "I2_11", "I2_22", "I2_33", "g"]
+    }
     th = [_syms(f"theta{i}{{}}", (1, 2, 3)) for i in (1, 2)]
     w = [_syms(f"w{i}{{}}", (1, 2, 3)) for i in (1, 2)]
     wd = [_syms(f"w{i}{{}}_dot", (1, 2, 3)) for i in (1, 2)]
@@ -155,16 +167,18 @@ def test_example_4_printed_dynamics_eqs_10_to_21():
     (w11, w12, w13), (w21, w22, w23) = w
     (a11, a12, a13), (a21, a22, a23) = wd
     printed = [
-        I1[0] * a11 + (I1[2] - I1[1]) * w12 * w13                                      # (10)
+        I1[0] * a11
+        + (I1[2] - I1[1]) * w12 * w13  # (10)
         - (l1 / 2 * (R1[2, :] * La)[0] + l1 * (R1[2, :] * Lb)[0]),
-        I1[1] * a12 + (I1[0] - I1[2]) * w11 * w13,                                     # (11)
-        I1[2] * a13 + (I1[1] - I1[0]) * w11 * w12                                      # (12)
+        I1[1] * a12 + (I1[0] - I1[2]) * w11 * w13,  # (11)
+        I1[2] * a13
+        + (I1[1] - I1[0]) * w11 * w12  # (12)
         - (-l1 / 2 * (R1[0, :] * La)[0] - l1 * (R1[0, :] * Lb)[0]),
-        I2[0] * a21 + (I2[2] - I2[1]) * w22 * w23 - l2 / 2 * (R2[2, :] * Lb)[0],       # (13)
-        I2[1] * a22 + (I2[0] - I2[2]) * w21 * w23,                                     # (14)
-        I2[2] * a23 + (I2[1] - I2[0]) * w21 * w22 + l2 / 2 * (R2[0, :] * Lb)[0],       # (15)
+        I2[0] * a21 + (I2[2] - I2[1]) * w22 * w23 - l2 / 2 * (R2[2, :] * Lb)[0],  # (13)
+        I2[1] * a22 + (I2[0] - I2[2]) * w21 * w23,  # (14)
+        I2[2] * a23 + (I2[1] - I2[0]) * w21 * w22 + l2 / 2 * (R2[0, :] * Lb)[0],  # (15)
     ]
-    for i, (mi, v) in enumerate(((m1, vd[0]), (m2, vd[1]))):                         # (16)-(21)
+    for i, (mi, v) in enumerate(((m1, vd[0]), (m2, vd[1]))):  # (16)-(21)
         for j in range(3):
             printed.append(mi * v[j] - lam[3 * i + j] + (mi * g if j == 1 else 0))
     eom = derive(models.get("double_pendulum_3d"), "kane")
@@ -175,16 +189,21 @@ def test_example_4_printed_constraint_eqs_22_23():
     """Eqs. 22-23: the derived rows differentiate R_i^T through the 3-1-3 kinematic equations
     (with 1/sin(theta_i2)); the printed ones use d(R^T x)/dt = R^T (x' + omega x x). Equal
     through sin^2 + cos^2 = 1 only, so the differences are reduced modulo those identities."""
-    s, th, w, wd, vd, lam = _example_4_symbols()
+    s, th, w, wd, vd, _lam = _example_4_symbols()
     l1, l2 = s["l1"], s["l2"]
     R1, R2 = _textbook_R(*th[0]), _textbook_R(*th[1])
 
     def h(wi, ai):  # printed bracket: (-w3' + w1 w2, -(w1^2 + w3^2), w1' + w2 w3)
-        return sp.Matrix([-ai[2] + wi[0] * wi[1], -(wi[0]**2 + wi[2]**2), ai[0] + wi[1] * wi[2]])
+        return sp.Matrix(
+            [-ai[2] + wi[0] * wi[1], -(wi[0] ** 2 + wi[2] ** 2), ai[0] + wi[1] * wi[2]]
+        )
 
-    printed = list(sp.Matrix(vd[0]) + l1 / 2 * R1.T * h(w[0], wd[0]))                  # (22)
-    printed += list(sp.Matrix(vd[1]) + l1 * R1.T * h(w[0], wd[0])                       # (23)
-                    + l2 / 2 * R2.T * h(w[1], wd[1]))
+    printed = list(sp.Matrix(vd[0]) + l1 / 2 * R1.T * h(w[0], wd[0]))  # (22)
+    printed += list(
+        sp.Matrix(vd[1])
+        + l1 * R1.T * h(w[0], wd[0])  # (23)
+        + l2 / 2 * R2.T * h(w[1], wd[1])
+    )
     eom = derive(models.get("double_pendulum_3d"), "kane")
     _assert_same(eom.constraint_equations(), printed, angles=th[0] + th[1])
 
@@ -220,15 +239,19 @@ def test_exercise_6_5_printed_equations(formulation):
     eps, ed, edd, m, L, I, I3, g, (lam,) = _top_symbols(1)
     e1, e2, e3, e4 = eps
     lhs = _printed_euler_lhs(eps, ed, edd, I + m * L**2, I3)
-    rhs = [4 * m * g * L * e1 * (e3**2 + e4**2) + lam * e1,
-           4 * m * g * L * e2 * (e3**2 + e4**2) + lam * e2,
-           -4 * m * g * L * e3 * (e1**2 + e2**2) + lam * e3,
-           -4 * m * g * L * e4 * (e1**2 + e2**2) + lam * e4]
+    rhs = [
+        4 * m * g * L * e1 * (e3**2 + e4**2) + lam * e1,
+        4 * m * g * L * e2 * (e3**2 + e4**2) + lam * e2,
+        -4 * m * g * L * e3 * (e1**2 + e2**2) + lam * e3,
+        -4 * m * g * L * e4 * (e1**2 + e2**2) + lam * e4,
+    ]
     eom = derive(models.get("top_euler"), formulation)
-    _assert_same(eom.residual_equations(), [a - b for a, b in zip(lhs, rhs)])
+    _assert_same(eom.residual_equations(), [a - b for a, b in zip(lhs, rhs, strict=False)])
     # fourth row of the kinematical equations, 0 = 2 eps . eps', differentiated (halved)
-    _assert_same(eom.constraint_equations(),
-                 [sum(e * a for e, a in zip(eps, edd)) + sum(v**2 for v in ed)])
+    _assert_same(
+        eom.constraint_equations(),
+        [sum(e * a for e, a in zip(eps, edd, strict=False)) + sum(v**2 for v in ed)],
+    )
 
 
 @pytest.mark.parametrize("formulation", ["dalembert", "kane"])
@@ -239,22 +262,31 @@ def test_exercise_6_7_printed_equations(formulation):
     xdd = _syms("x{}_dot_dot", (1, 2, 3))
     printed = [m * xdd[0] - l1, m * xdd[1] - l2, m * xdd[2] + m * g - l3]
     lhs = _printed_euler_lhs(eps, ed, edd, I, I3)
-    rhs = [-2 * L * e3 * l1 + 2 * L * e4 * l2 + 2 * L * e1 * l3 + e1 * l4,
-           -2 * L * e4 * l1 - 2 * L * e3 * l2 + 2 * L * e2 * l3 + e2 * l4,
-           -2 * L * e1 * l1 - 2 * L * e2 * l2 - 2 * L * e3 * l3 + e3 * l4,
-           -2 * L * e2 * l1 + 2 * L * e1 * l2 - 2 * L * e4 * l3 + e4 * l4]
-    printed += [a - b for a, b in zip(lhs, rhs)]
+    rhs = [
+        -2 * L * e3 * l1 + 2 * L * e4 * l2 + 2 * L * e1 * l3 + e1 * l4,
+        -2 * L * e4 * l1 - 2 * L * e3 * l2 + 2 * L * e2 * l3 + e2 * l4,
+        -2 * L * e1 * l1 - 2 * L * e2 * l2 - 2 * L * e3 * l3 + e3 * l4,
+        -2 * L * e2 * l1 + 2 * L * e1 * l2 - 2 * L * e4 * l3 + e4 * l4,
+    ]
+    printed += [a - b for a, b in zip(lhs, rhs, strict=False)]
     # printed position rows x - L(...) = 0 and the normalization, differentiated twice here
     t = sp.Symbol("t")
     X = [sp.Function(f"X{i}")(t) for i in (1, 2, 3)]
     P = [sp.Function(f"P{i}")(t) for i in (1, 2, 3, 4)]
-    f = [X[0] - 2 * L * (P[0] * P[2] + P[1] * P[3]),
-         X[1] - 2 * L * (P[1] * P[2] - P[0] * P[3]),
-         X[2] + L * (P[0]**2 + P[1]**2 - P[2]**2 - P[3]**2),
-         (sum(p**2 for p in P) - 1) / 2]
+    f = [
+        X[0] - 2 * L * (P[0] * P[2] + P[1] * P[3]),
+        X[1] - 2 * L * (P[1] * P[2] - P[0] * P[3]),
+        X[2] + L * (P[0] ** 2 + P[1] ** 2 - P[2] ** 2 - P[3] ** 2),
+        (sum(p**2 for p in P) - 1) / 2,
+    ]
     rep = {}
-    for fn, sym, d1, d2 in zip(X + P, _syms("x{}", (1, 2, 3)) + eps,
-                               _syms("x{}_dot", (1, 2, 3)) + ed, xdd + edd):
+    for fn, sym, d1, d2 in zip(
+        X + P,
+        _syms("x{}", (1, 2, 3)) + eps,
+        _syms("x{}_dot", (1, 2, 3)) + ed,
+        xdd + edd,
+        strict=False,
+    ):
         rep.update({fn.diff(t, 2): d2, fn.diff(t): d1})
         rep[fn] = sym
     printed_con = [sp.expand(fj.diff(t, 2)).subs(rep) for fj in f]
@@ -266,11 +298,13 @@ def test_exercise_6_7_printed_equations(formulation):
 def test_printed_equation_check_can_fail():
     """The comparison detects a wrong sign: Example 3 with lambda S replaced by -lambda S."""
     m, d, I1, I2, I3, Mp, th, lam = map(
-        _sym, ["m", "d", "I1", "I2", "I3", "M_phi", "theta", "lambda1"])
+        _sym, ["m", "d", "I1", "I2", "I3", "M_phi", "theta", "lambda1"]
+    )
     w1, w2 = _syms("omega{}", (1, 2))
     a3 = _sym("omega3_dot")
-    wrong = ((I3 + m * d**2) * a3 + (I2 - I1 - m * d**2) * w1 * w2
-             - (sp.cos(th) * Mp - lam * sp.sin(th)))
+    wrong = (
+        (I3 + m * d**2) * a3 + (I2 - I1 - m * d**2) * w1 * w2 - (sp.cos(th) * Mp - lam * sp.sin(th))
+    )
     eom = derive(models.get("frame_bar"), "kane")
     with pytest.raises(AssertionError):
         _assert_same([eom.residual_equations()[2]], [wrong])
@@ -283,7 +317,7 @@ def _lambda_free_sum(eom):
     """sum_k eps_k (M u' - f)_k: equals lambda eps.eps by the equations of motion."""
     eps = eom.model.coordinates[-4:]
     res0 = eom.M * sp.Matrix(eom.accelerations) - eom.f
-    return sp.expand(sum(e * r for e, r in zip(eps, list(res0)[-4:])))
+    return sp.expand(sum(e * r for e, r in zip(eps, list(res0)[-4:], strict=False)))
 
 
 @pytest.mark.parametrize("formulation", ["dalembert", "kane"])
@@ -325,8 +359,14 @@ def _body_functions(model, body, R=None):
     """Numeric R, R', omega, v_G (inertial), r_G, r_G' of a body at (q, u, params)."""
     R = body.R if R is None else R
     v_in = body.v_G if body.v_frame == "inertial" else R * body.v_G
-    exprs = [R, model.time_derivative(R), body.omega, v_in, body.r_G,
-             model.time_derivative(body.r_G)]
+    exprs = [
+        R,
+        model.time_derivative(R),
+        body.omega,
+        v_in,
+        body.r_G,
+        model.time_derivative(body.r_G),
+    ]
     args = (model.coordinates, model.speeds, model.parameter_symbols, model.t)
     return sp.lambdify(args, exprs, "numpy")
 
@@ -339,7 +379,7 @@ def test_rotation_rate_and_mass_center_velocity(name):
     for body in model.bodies:
         fn = _body_functions(model, body)
         for q, u in _states(nm, 15, seed=3):
-            R, Rd, w, v, r, rd = (np.array(x, float) for x in fn(q, u, p, 0.0))
+            R, Rd, w, v, _r, rd = (np.array(x, float) for x in fn(q, u, p, 0.0))
             w = w.ravel()
             scale = 1 + np.abs(w).max()
             assert np.abs(R.T @ R - np.eye(3)).max() < KIN_REL
@@ -382,8 +422,9 @@ def test_example_4_rotation_rate_symbolic():
 # ---------------------------------------------------------------------------------------------
 # (d) energy
 # ---------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("name,formulation",
-                         [(n, f) for n in ALL_3D for f in models.get(n).formulations])
+@pytest.mark.parametrize(
+    "name,formulation", [(n, f) for n in ALL_3D for f in models.get(n).formulations]
+)
 def test_energy_rate(name, formulation):
     """dE/dt = grad E . (q', u') along the dynamics: 0 for the conservative systems; for
     Example 3 with motor torques, M_phi phi' + M_theta theta' (power of the motors)."""
@@ -405,7 +446,7 @@ def test_energy_rate(name, formulation):
 # ---------------------------------------------------------------------------------------------
 # (e) independent checks of Example 4, and the multipliers' meaning
 # ---------------------------------------------------------------------------------------------
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _kanes_double_pendulum():
     """The same double pendulum in sympy.physics.mechanics: 3-1-3 orientations, six independent
     speeds (body-fixed omegas), kinematic equations derived by sympy from the orientation."""
@@ -433,12 +474,14 @@ def _kanes_double_pendulum():
     G1.v2pt_theory(O, N, A)
     PA.v2pt_theory(O, N, A)
     G2.v2pt_theory(PA, N, B)
-    bodies = [me.RigidBody("b1", G1, A, m1, (me.inertia(A, *Ia), G1)),
-              me.RigidBody("b2", G2, B, m2, (me.inertia(B, *Ib), G2))]
+    bodies = [
+        me.RigidBody("b1", G1, A, m1, (me.inertia(A, *Ia), G1)),
+        me.RigidBody("b2", G2, B, m2, (me.inertia(B, *Ib), G2)),
+    ]
     KM = me.KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=kd)
     KM.kanes_equations(bodies, [(G1, -m1 * g * N.y), (G2, -m2 * g * N.y)])
     qs, us = sp.symbols("q1:7"), sp.symbols("u1:7")
-    rep = dict(zip(q, qs)) | dict(zip(u, us))
+    rep = dict(zip(q, qs, strict=False)) | dict(zip(u, us, strict=False))
     pars = (l1, l2, m1, m2, *Ia, *Ib, g)
     fn = sp.lambdify((qs, us, pars), [KM.mass_matrix.xreplace(rep), KM.forcing.xreplace(rep)])
     dcm = sp.lambdify((qs,), [A.dcm(N).xreplace(rep), B.dcm(N).xreplace(rep)])
@@ -447,8 +490,19 @@ def _kanes_double_pendulum():
 
 def _dp_params(nm):
     P = nm.params
-    return (P["l1"], P["l2"], P["m1"], P["m2"], P["I1_11"], P["I1_22"], P["I1_33"],
-            P["I2_11"], P["I2_22"], P["I2_33"], P["g"])
+    return (
+        P["l1"],
+        P["l2"],
+        P["m1"],
+        P["m2"],
+        P["I1_11"],
+        P["I1_22"],
+        P["I1_33"],
+        P["I2_11"],
+        P["I2_22"],
+        P["I2_33"],
+        P["g"],
+    )
 
 
 def test_example_4_against_kanes_method():
@@ -458,7 +512,7 @@ def test_example_4_against_kanes_method():
     Rfun = sp.lambdify((model.coordinates,), [b.R for b in model.bodies])
     for q, u in _states(nm, 8, seed=44):
         # our Body.R (body -> N) is the transpose of sympy's (and the textbook's) N -> body DCM
-        for Rb, D in zip(Rfun(q), dcm(q)):
+        for Rb, D in zip(Rfun(q), dcm(q), strict=False):
             assert np.abs(np.array(Rb, float).T - np.array(D, float)).max() < KIN_REL
         M, F = (np.array(x, float) for x in fn(q, u[:6], _dp_params(nm)))
         wdot = np.linalg.solve(M, F.ravel())
@@ -469,32 +523,45 @@ def _newton_euler(q, u, P):
     """Ball-joint double pendulum by Newton-Euler in N components (numpy, independent of the
     model): unknowns alpha1, alpha2, a_G1, a_G2, F_O (ground on link 1), F_A (link 1 on 2)."""
     l1, l2, m1, m2, i11, i12, i13, i21, i22, i23, g = P
-    R1, R2 = (_textbook_R(*q[3 * i:3 * i + 3], lib=np).T for i in (0, 1))  # link -> N
+    R1, R2 = (_textbook_R(*q[3 * i : 3 * i + 3], lib=np).T for i in (0, 1))  # link -> N
     n12, n22 = R1[:, 1], R2[:, 1]
     rG1, rA = -l1 / 2 * n12, -l1 * n12
     rG2 = rA - l2 / 2 * n22
     w1, w2 = R1 @ u[0:3], R2 @ u[3:6]
     J1, J2 = R1 @ np.diag([i11, i12, i13]) @ R1.T, R2 @ np.diag([i21, i22, i23]) @ R2.T
-    X = lambda r: np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])  # noqa: E731
+    X = lambda r: np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
     Z, E = np.zeros((3, 3)), np.eye(3)
     W = np.array([0.0, -g, 0.0])
     # columns: alpha1, alpha2, aG1, aG2, F_O, F_A
-    K = np.block([
-        [Z, Z, m1 * E, Z, -E, E],                              # m1 aG1 = F_O - F_A + m1 W
-        [Z, Z, Z, m2 * E, Z, -E],                              # m2 aG2 = F_A + m2 W
-        [J1, Z, Z, Z, -X(-rG1), X(rA - rG1)],   # J1 al1 + w1 x J1 w1 = (O-G1) x F_O + (A-G1) x -F_A
-        [Z, J2, Z, Z, Z, -X(rA - rG2)],         # J2 al2 + w2 x J2 w2 = (A-G2) x F_A
-        [X(rG1), Z, E, Z, Z, Z],                # aG1 = al1 x rG1 + w1 x (w1 x rG1)
-        [X(rA), X(rG2 - rA), Z, E, Z, Z],       # aG2 = al1 x rA + al2 x (rG2 - rA) + centripetal
-    ])
-    rhs = np.concatenate([
-        m1 * W, m2 * W,
-        -np.cross(w1, J1 @ w1), -np.cross(w2, J2 @ w2),
-        np.cross(w1, np.cross(w1, rG1)),
-        np.cross(w1, np.cross(w1, rA)) + np.cross(w2, np.cross(w2, rG2 - rA)),
-    ])
+    K = np.block(
+        [
+            [Z, Z, m1 * E, Z, -E, E],  # m1 aG1 = F_O - F_A + m1 W
+            [Z, Z, Z, m2 * E, Z, -E],  # m2 aG2 = F_A + m2 W
+            [
+                J1,
+                Z,
+                Z,
+                Z,
+                -X(-rG1),
+                X(rA - rG1),
+            ],  # J1 al1 + w1 x J1 w1 = (O-G1) x F_O + (A-G1) x -F_A
+            [Z, J2, Z, Z, Z, -X(rA - rG2)],  # J2 al2 + w2 x J2 w2 = (A-G2) x F_A
+            [X(rG1), Z, E, Z, Z, Z],  # aG1 = al1 x rG1 + w1 x (w1 x rG1)
+            [X(rA), X(rG2 - rA), Z, E, Z, Z],  # aG2 = al1 x rA + al2 x (rG2 - rA) + centripetal
+        ]
+    )
+    rhs = np.concatenate(
+        [
+            m1 * W,
+            m2 * W,
+            -np.cross(w1, J1 @ w1),
+            -np.cross(w2, J2 @ w2),
+            np.cross(w1, np.cross(w1, rG1)),
+            np.cross(w1, np.cross(w1, rA)) + np.cross(w2, np.cross(w2, rG2 - rA)),
+        ]
+    )
     x = np.linalg.solve(K, rhs)
-    a1, a2, aG1, aG2, FO, FA = (x[3 * k:3 * k + 3] for k in range(6))
+    a1, a2, aG1, aG2, FO, FA = (x[3 * k : 3 * k + 3] for k in range(6))
     return R1.T @ a1, R2.T @ a2, aG1, aG2, FO, FA
 
 
@@ -520,11 +587,12 @@ def test_example_3_multiplier_meaning():
         fw = nm.forward(q, u)
         S, C = math.sin(q[1]), math.cos(q[1])
         w, a = u, fw.accelerations
-        aG = P["d"] * np.array([-a[2] + w[0] * w[1], -(w[0]**2 + w[2]**2), a[0] + w[1] * w[2]])
+        aG = P["d"] * np.array([-a[2] + w[0] * w[1], -(w[0] ** 2 + w[2] ** 2), a[0] + w[1] * w[2]])
         Tstar = Iv * a + np.cross(w, Iv * w)
         lam = P["m"] * P["d"] * aG @ np.array([-S, 0, C]) + Tstar @ np.array([C, 0, S])
-        assert abs(fw.multipliers[0] - lam) < SOLVE_REL * (1 + np.abs(Tstar).max()
-                                                            + P["m"] * P["d"] * np.abs(aG).max())
+        assert abs(fw.multipliers[0] - lam) < SOLVE_REL * (
+            1 + np.abs(Tstar).max() + P["m"] * P["d"] * np.abs(aG).max()
+        )
 
 
 def test_example_3_multiplier_depends_on_partial_velocities():
@@ -538,15 +606,18 @@ def test_example_3_multiplier_depends_on_partial_velocities():
     th = model.coordinates[1]
     bar = model.bodies[0]
     extra = _sym("d") * (w1 * sp.cos(th) + w3 * sp.sin(th)) * sp.Matrix([0, 1, 0])
-    variant = dataclasses.replace(model, name="frame_bar_test_variant",
-                                  bodies=(dataclasses.replace(bar, v_G=bar.v_G + extra),))
+    variant = dataclasses.replace(
+        model,
+        name="frame_bar_test_variant",
+        bodies=(dataclasses.replace(bar, v_G=bar.v_G + extra),),
+    )
     params = {"M_phi": 0.7, "M_theta": -0.4}
     nm, nv = _numeric("frame_bar", None, params), NumericModel(variant, None, params)
     P = nm.params
     for q, u in _states(nm, 10, seed=34):
         a, b = nm.forward(q, u), nv.forward(q, u)
         phi_dot = nm.kinematics(q, u)[0]
-        shift = -P["m"] * P["d"]**2 * phi_dot**2
+        shift = -P["m"] * P["d"] ** 2 * phi_dot**2
         assert _rel(b.accelerations, a.accelerations) < SOLVE_REL
         assert abs(b.multipliers[0] - a.multipliers[0] - shift) < SOLVE_REL * (1 + abs(shift))
         if abs(shift) > 1e-3:
@@ -570,11 +641,13 @@ def test_exercise_6_7_multipliers_are_the_socket_force():
         F_body = R.T @ fw.multipliers[:3]
         lhs = Iv * alpha + np.cross(w, Iv * w)
         rhs = np.cross([0.0, 0.0, -P["L"]], F_body)
-        assert np.abs(lhs - rhs).max() < SOLVE_REL * (1 + np.abs(Iv * alpha).max()
-                                                      + np.abs(np.cross(w, Iv * w)).max())
+        assert np.abs(lhs - rhs).max() < SOLVE_REL * (
+            1 + np.abs(Iv * alpha).max() + np.abs(np.cross(w, Iv * w)).max()
+        )
         assert _rel(fw.accelerations[3:], ne.forward(q[3:], u[3:]).accelerations) < SOLVE_REL
         # eps times the Euler-parameter rows: 0 = -2 x . F_O + lambda4 (E eps = 0, and each
         # x_j - L (R e3)_j is homogeneous of degree 2 in eps)
         lam4 = 2 * q[:3] @ fw.multipliers[:3]
-        assert abs(fw.multipliers[3] - lam4) < SOLVE_REL * (1 + np.abs(q[:3]).max()
-                                                           * np.abs(fw.multipliers[:3]).max())
+        assert abs(fw.multipliers[3] - lam4) < SOLVE_REL * (
+            1 + np.abs(q[:3]).max() * np.abs(fw.multipliers[:3]).max()
+        )

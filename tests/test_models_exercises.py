@@ -11,6 +11,7 @@
     the motion matches the one-angle equation with the support acceleration;
 (e) 6.1, 6.2, 6.4: the declared load power is the hand-written one and dE/dt equals it.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,6 +21,7 @@ import pytest
 import sympy as sp
 from scipy.integrate import solve_ivp
 
+from crosscheck.sampling import random_consistent_state
 from reference import NumericModel, models
 from reference.constraints import classify
 from reference.formulations import derive
@@ -30,11 +32,10 @@ from reference.models import exercise_6_4 as ex4
 from reference.models.common import T_SYM, particle, planar_body
 from reference.models.pendulum import rod_tension
 from reference.system import Body, Force, Model, Torque, rate, rot_x, rot_z, symbols, vec
-from crosscheck.sampling import random_consistent_state
 
 FORMS = ["lagrange", "dalembert", "kane"]
 EXERCISES = ["exercise_6_1", "exercise_6_2", "exercise_6_4"]
-ALL = EXERCISES + ["knife_edge", "pendulum_moving_support"]
+ALL = [*EXERCISES, "knife_edge", "pendulum_moving_support"]
 N_STATES = 12  # random consistent states per numeric check
 
 # Two double-precision evaluations of the same physics through different expression trees (the
@@ -55,7 +56,7 @@ def _zero(e) -> bool:
 
 def _assert_same(derived, printed, what=""):
     assert len(derived) == len(printed)
-    for k, (d, p) in enumerate(zip(derived, printed)):
+    for k, (d, p) in enumerate(zip(derived, printed, strict=False)):
         diff = sp.simplify(sp.expand_trig(sp.expand(d - p)))
         assert diff == 0, f"{what} equation {k + 1}: derived - printed = {diff}"
 
@@ -67,14 +68,17 @@ def _close(a, b, scale, tol=ROUNDOFF_REL):
 
 # ---- (a) the printed answers, decoded (see each model's docstring) -------------------------
 
+
 def _printed_6_1():
     m, m_p, l, k, c, F, g, th, x, xd, thd = _s("m m_p l k c F g theta x x_dot theta_dot")
     xdd, ydd, thdd, l1, l2 = _s("x_dot_dot y_dot_dot theta_dot_dot lambda1 lambda2")
     C, S = sp.cos(th), sp.sin(th)
     h = sp.Rational(1, 4)
-    dyn = [h * m * xdd + c * xd + k * x - l1,
-           (h * m + m_p) * ydd + (m / 2 + m_p) * g - (l2 - F),
-           sp.Rational(1, 12) * m * l**2 * thdd - l * (-l1 * C + l2 * S)]
+    dyn = [
+        h * m * xdd + c * xd + k * x - l1,
+        (h * m + m_p) * ydd + (m / 2 + m_p) * g - (l2 - F),
+        sp.Rational(1, 12) * m * l**2 * thdd - l * (-l1 * C + l2 * S),
+    ]
     con = [xdd - l * (thdd * C - thd**2 * S), ydd + l * (thdd * S + thd**2 * C)]
     return dyn, con
 
@@ -82,15 +86,18 @@ def _printed_6_1():
 def _printed_6_2():
     m1, m2, l, k, c, F, g, th, x, xd, thd = _s("m1 m2 l k c F g theta x x_dot theta_dot")
     xdd, thdd, xGdd, yGdd, l1, l2 = _s(
-        "x_dot_dot theta_dot_dot x_G_dot_dot y_G_dot_dot lambda1 lambda2")
+        "x_dot_dot theta_dot_dot x_G_dot_dot y_G_dot_dot lambda1 lambda2"
+    )
     C, S = sp.cos(th), sp.sin(th)
     # printed order x, x_G, y_G, theta; the model's coordinates are (x, theta, x_G, y_G)
     e_x = (m1 + m2) * xdd + m2 * xGdd + c * xd + k * x - F
     e_xG = m2 * xdd + m2 * xGdd - l1
     e_yG = m2 * yGdd - m2 * g - l2
     e_th = sp.Rational(1, 12) * m2 * l**2 * thdd - l / 2 * (-l1 * C + l2 * S)
-    con = [xGdd - l / 2 * thdd * C + l / 2 * thd**2 * S,
-           yGdd + l / 2 * thdd * S + l / 2 * thd**2 * C]
+    con = [
+        xGdd - l / 2 * thdd * C + l / 2 * thd**2 * S,
+        yGdd + l / 2 * thdd * S + l / 2 * thd**2 * C,
+    ]
     return [e_x, e_th, e_xG, e_yG], con
 
 
@@ -98,23 +105,34 @@ def _printed_6_4():
     m_d, R, m, l, k, c, M_phi, M_theta, g = _s("m_d R m l k c M_phi M_theta g")
     th, yG, phid, thd, yGd = _s("theta y_G phi_dot theta_dot y_G_dot")
     phidd, thdd, yGdd, zGdd, l1, l2 = _s(
-        "phi_dot_dot theta_dot_dot y_G_dot_dot z_G_dot_dot lambda1 lambda2")
+        "phi_dot_dot theta_dot_dot y_G_dot_dot z_G_dot_dot lambda1 lambda2"
+    )
     C, S = sp.cos(th), sp.sin(th)
-    e_phi = ((m_d * R**2 / 2 + m * yG**2 + m * l**2 * S**2 / 12) * phidd
-             + 2 * m * yG * yGd * phid + m * l**2 * S * C * thd * phid / 6 - M_phi)
-    e_th = (m * l**2 * thdd / 12 - m * l**2 * S * C * phid**2 / 12 + c * thd + k * th
-            - (M_theta - l / 2 * l1 * C - l / 2 * l2 * S))
+    e_phi = (
+        (m_d * R**2 / 2 + m * yG**2 + m * l**2 * S**2 / 12) * phidd
+        + 2 * m * yG * yGd * phid
+        + m * l**2 * S * C * thd * phid / 6
+        - M_phi
+    )
+    e_th = (
+        m * l**2 * thdd / 12
+        - m * l**2 * S * C * phid**2 / 12
+        + c * thd
+        + k * th
+        - (M_theta - l / 2 * l1 * C - l / 2 * l2 * S)
+    )
     e_yG = m * yGdd - m * yG * phid**2 - l1
     e_zG = m * zGdd + m * g - l2
     # printed: y_G'' = (l/2) theta'' C - (l/2) theta'^2 S,
     #          z_G'' = (l/2) theta'' S + (l/2) theta'^2 C
-    con = [yGdd - (l / 2 * thdd * C - l / 2 * thd**2 * S),
-           zGdd - (l / 2 * thdd * S + l / 2 * thd**2 * C)]
+    con = [
+        yGdd - (l / 2 * thdd * C - l / 2 * thd**2 * S),
+        zGdd - (l / 2 * thdd * S + l / 2 * thd**2 * C),
+    ]
     return [e_phi, e_th, e_yG, e_zG], con
 
 
-PRINTED = {"exercise_6_1": _printed_6_1, "exercise_6_2": _printed_6_2,
-           "exercise_6_4": _printed_6_4}
+PRINTED = {"exercise_6_1": _printed_6_1, "exercise_6_2": _printed_6_2, "exercise_6_4": _printed_6_4}
 
 
 @pytest.mark.parametrize("formulation", FORMS)
@@ -140,9 +158,10 @@ def test_formulations_agree_symbolically(name):
 
 # ---- (b) equivalence with minimal coordinates -------------------------------------------------
 
+
 def _minimal_6_1() -> Model:
     """Exercise 6.1 in the single coordinate theta (Exercises 4.3 / 5.1)."""
-    m, m_p, l, k, c, F, g = (p.symbol for p in ex1.PARAMETERS)
+    m, m_p, l, k, c, F, _g = (p.symbol for p in ex1.PARAMETERS)
     (th,), (w,) = symbols("theta"), symbols("theta_dot")
     q, N = (th,), (w,)
     S, C = sp.sin(th), sp.cos(th)
@@ -150,57 +169,104 @@ def _minimal_6_1() -> Model:
     block = particle("block", m_p, vec(0, l * C, 0), q, N)
     vA, vB = rate(vec(l * S, 0, 0), q, N), rate(vec(0, l * C, 0), q, N)
     return Model(
-        name="exercise_6_1_minimal", source="Exercises 4.3/5.1 (test)", title="6.1 in theta",
-        parameters=ex1.PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(bar, block),
+        name="exercise_6_1_minimal",
+        source="Exercises 4.3/5.1 (test)",
+        title="6.1 in theta",
+        parameters=ex1.PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(bar, block),
         gravity=ex1.GRAVITY,
         loads=(Force("damper_A", vA, -c * vA), Force("F_on_P", vB, vec(0, -F, 0))),
-        potential=k * (l * S)**2 / 2, formulations=("lagrange",),
-        initial_q=(ex1.THETA0,), initial_u=(ex1.THETA_DOT0,))
+        potential=k * (l * S) ** 2 / 2,
+        formulations=("lagrange",),
+        initial_q=(ex1.THETA0,),
+        initial_u=(ex1.THETA_DOT0,),
+    )
 
 
 def _minimal_6_2() -> Model:
     """Exercise 6.2 in the two coordinates (x, theta) (Exercises 4.4 / 5.2)."""
-    m1, m2, l, k, c, F, g = (p.symbol for p in ex2.PARAMETERS)
+    m1, m2, l, k, c, F, _g = (p.symbol for p in ex2.PARAMETERS)
     x, th = symbols("x theta")
     xd, w = symbols("x_dot theta_dot")
     q, N = (x, th), (xd, w)
     block = particle("block", m1, vec(x, 0, 0), q, N)
-    bar = planar_body("bar", m2, m2 * l**2 / 12,
-                      vec(x + l / 2 * sp.sin(th), l / 2 * sp.cos(th), 0), sp.pi / 2 - th, q, N)
+    bar = planar_body(
+        "bar",
+        m2,
+        m2 * l**2 / 12,
+        vec(x + l / 2 * sp.sin(th), l / 2 * sp.cos(th), 0),
+        sp.pi / 2 - th,
+        q,
+        N,
+    )
     v = vec(xd, 0, 0)
     return Model(
-        name="exercise_6_2_minimal", source="Exercises 4.4/5.2 (test)", title="6.2 in (x, theta)",
-        parameters=ex2.PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(block, bar),
+        name="exercise_6_2_minimal",
+        source="Exercises 4.4/5.2 (test)",
+        title="6.2 in (x, theta)",
+        parameters=ex2.PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(block, bar),
         gravity=ex2.GRAVITY,
         loads=(Force("damper", v, vec(-c * xd, 0, 0)), Force("F", v, vec(F, 0, 0))),
-        potential=k * x**2 / 2, formulations=("lagrange",),
-        initial_q=(ex2.X0, ex2.THETA0), initial_u=(ex2.X_DOT0, ex2.THETA_DOT0))
+        potential=k * x**2 / 2,
+        formulations=("lagrange",),
+        initial_q=(ex2.X0, ex2.THETA0),
+        initial_u=(ex2.X_DOT0, ex2.THETA_DOT0),
+    )
 
 
 def _minimal_6_4() -> Model:
     """Exercise 6.4 in the two coordinates (phi, theta), the same assumed geometry."""
-    m_d, R, m, l, k, c, M_phi, M_theta, g = (p.symbol for p in ex4.PARAMETERS)
+    m_d, R, m, l, k, c, M_phi, M_theta, _g = (p.symbol for p in ex4.PARAMETERS)
     phi, th = symbols("phi theta")
     phid, thd = symbols("phi_dot theta_dot")
     q, N = (phi, th), (phid, thd)
-    disk = Body("disk", m_d, v_G=vec(0, 0, 0),
-                inertia=sp.diag(m_d * R**2 / 4, m_d * R**2 / 4, m_d * R**2 / 2),
-                omega=vec(0, 0, phid), r_G=vec(0, 0, 0), R=rot_z(phi))
+    disk = Body(
+        "disk",
+        m_d,
+        v_G=vec(0, 0, 0),
+        inertia=sp.diag(m_d * R**2 / 4, m_d * R**2 / 4, m_d * R**2 / 2),
+        omega=vec(0, 0, phid),
+        r_G=vec(0, 0, 0),
+        R=rot_z(phi),
+    )
     r_G = rot_z(phi) * vec(0, R + l / 2 * sp.sin(th), -l / 2 * sp.cos(th))
-    bar = Body("bar", m, v_G=rate(r_G, q, N, T_SYM),
-               inertia=sp.diag(m * l**2 / 12, m * l**2 / 12, 0),
-               omega=vec(thd, phid * sp.sin(th), phid * sp.cos(th)), r_G=r_G,
-               R=rot_z(phi) * rot_x(th))
+    bar = Body(
+        "bar",
+        m,
+        v_G=rate(r_G, q, N, T_SYM),
+        inertia=sp.diag(m * l**2 / 12, m * l**2 / 12, 0),
+        omega=vec(thd, phid * sp.sin(th), phid * sp.cos(th)),
+        r_G=r_G,
+        R=rot_z(phi) * rot_x(th),
+    )
     rel = vec(thd, 0, 0)
     return Model(
-        name="exercise_6_4_minimal", source="Exercise 6.4 (test)", title="6.4 in (phi, theta)",
-        parameters=ex4.PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(disk, bar),
+        name="exercise_6_4_minimal",
+        source="Exercise 6.4 (test)",
+        title="6.4 in (phi, theta)",
+        parameters=ex4.PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(disk, bar),
         gravity=ex4.GRAVITY,
-        loads=(Torque("M_phi", vec(0, 0, phid), vec(0, 0, M_phi)),
-               Torque("M_theta", rel, vec(M_theta, 0, 0)),
-               Torque("damper_P", rel, vec(-c * thd, 0, 0))),
-        potential=k * th**2 / 2, formulations=("lagrange",),
-        initial_q=(ex4.PHI0, ex4.THETA0), initial_u=(ex4.PHI_DOT0, ex4.THETA_DOT0))
+        loads=(
+            Torque("M_phi", vec(0, 0, phid), vec(0, 0, M_phi)),
+            Torque("M_theta", rel, vec(M_theta, 0, 0)),
+            Torque("damper_P", rel, vec(-c * thd, 0, 0)),
+        ),
+        potential=k * th**2 / 2,
+        formulations=("lagrange",),
+        initial_q=(ex4.PHI0, ex4.THETA0),
+        initial_u=(ex4.PHI_DOT0, ex4.THETA_DOT0),
+    )
 
 
 def _elimination_6_1(dyn):
@@ -211,30 +277,45 @@ def _elimination_6_1(dyn):
     S, C = sp.sin(th), sp.cos(th)
     lam = sp.solve([dyn[0], dyn[1]], [l1, l2], dict=True)[0]
     e = dyn[2].subs(lam)
-    e = e.subs({xdd: l * (a * C - w**2 * S), ydd: -l * (a * S + w**2 * C),
-                xd: l * C * w, yd: -l * S * w}).subs({x: l * S, y: l * C})
+    e = e.subs(
+        {xdd: l * (a * C - w**2 * S), ydd: -l * (a * S + w**2 * C), xd: l * C * w, yd: -l * S * w}
+    ).subs({x: l * S, y: l * C})
     return [e]
 
 
 def _elimination_6_2(dyn):
     l, th, w, a = _s("l theta theta_dot theta_dot_dot")
     xG, yG, xGd, yGd, xGdd, yGdd, l1, l2 = _s(
-        "x_G y_G x_G_dot y_G_dot x_G_dot_dot y_G_dot_dot lambda1 lambda2")
+        "x_G y_G x_G_dot y_G_dot x_G_dot_dot y_G_dot_dot lambda1 lambda2"
+    )
     S, C = sp.sin(th), sp.cos(th)
     lam = sp.solve([dyn[2], dyn[3]], [l1, l2], dict=True)[0]
-    sub = {xGdd: l / 2 * (a * C - w**2 * S), yGdd: -l / 2 * (a * S + w**2 * C),
-           xGd: l / 2 * C * w, yGd: -l / 2 * S * w, xG: l / 2 * S, yG: l / 2 * C}
+    sub = {
+        xGdd: l / 2 * (a * C - w**2 * S),
+        yGdd: -l / 2 * (a * S + w**2 * C),
+        xGd: l / 2 * C * w,
+        yGd: -l / 2 * S * w,
+        xG: l / 2 * S,
+        yG: l / 2 * C,
+    }
     return [dyn[0].subs(sub), dyn[1].subs(lam).subs(sub)]
 
 
 def _elimination_6_4(dyn):
     R, l, th, w, a = _s("R l theta theta_dot theta_dot_dot")
     yG, zG, yGd, zGd, yGdd, zGdd, l1, l2 = _s(
-        "y_G z_G y_G_dot z_G_dot y_G_dot_dot z_G_dot_dot lambda1 lambda2")
+        "y_G z_G y_G_dot z_G_dot y_G_dot_dot z_G_dot_dot lambda1 lambda2"
+    )
     S, C = sp.sin(th), sp.cos(th)
     lam = sp.solve([dyn[2], dyn[3]], [l1, l2], dict=True)[0]
-    sub = {yGdd: l / 2 * (a * C - w**2 * S), zGdd: l / 2 * (a * S + w**2 * C),
-           yGd: l / 2 * C * w, zGd: l / 2 * S * w, yG: R + l / 2 * S, zG: -l / 2 * C}
+    sub = {
+        yGdd: l / 2 * (a * C - w**2 * S),
+        zGdd: l / 2 * (a * S + w**2 * C),
+        yGd: l / 2 * C * w,
+        zGd: l / 2 * S * w,
+        yG: R + l / 2 * S,
+        zG: -l / 2 * C,
+    }
     return [dyn[0].subs(sub), dyn[1].subs(lam).subs(sub)]
 
 
@@ -242,17 +323,26 @@ def _hand_6_1():
     """The single equation of Exercises 4.3/5.1 for the assumed geometry (docstring)."""
     m, m_p, l, k, c, F, g, th, w, a = _s("m m_p l k c F g theta theta_dot theta_dot_dot")
     S, C = sp.sin(th), sp.cos(th)
-    return [(m * l**2 / 3 + m_p * l**2 * S**2) * a + m_p * l**2 * S * C * w**2
-            + c * l**2 * C**2 * w + k * l**2 * S * C - (m / 2 + m_p) * g * l * S - F * l * S]
+    return [
+        (m * l**2 / 3 + m_p * l**2 * S**2) * a
+        + m_p * l**2 * S * C * w**2
+        + c * l**2 * C**2 * w
+        + k * l**2 * S * C
+        - (m / 2 + m_p) * g * l * S
+        - F * l * S
+    ]
 
 
 def _hand_6_2():
     """The two equations of Exercises 4.4/5.2 for the assumed geometry (docstring)."""
     m1, m2, l, k, c, F, g, th, x, xd, w, xdd, a = _s(
-        "m1 m2 l k c F g theta x x_dot theta_dot x_dot_dot theta_dot_dot")
+        "m1 m2 l k c F g theta x x_dot theta_dot x_dot_dot theta_dot_dot"
+    )
     S, C = sp.sin(th), sp.cos(th)
-    return [(m1 + m2) * xdd + m2 * l / 2 * (C * a - S * w**2) + c * xd + k * x - F,
-            m2 * l**2 / 3 * a + m2 * l / 2 * C * xdd + m2 * g * l / 2 * S]
+    return [
+        (m1 + m2) * xdd + m2 * l / 2 * (C * a - S * w**2) + c * xd + k * x - F,
+        m2 * l**2 / 3 * a + m2 * l / 2 * C * xdd + m2 * g * l / 2 * S,
+    ]
 
 
 # name -> (minimal model, elimination, hand-written part (b) or None, index of the minimal
@@ -290,6 +380,7 @@ def test_accelerations_equal_minimal_model(name):
 
 # ---- (e) work-energy balance of the exercises --------------------------------------------------
 
+
 def _load_power(model: Model) -> sp.Expr:
     """sum F.v over the declared loads (computed here, independently of the core)."""
     P = sp.Integer(0)
@@ -318,16 +409,18 @@ class _EnergyRate:
     def __init__(self, model: Model, params: dict):
         E = kinetic_energy(model) + potential_energy(model)
         ud = sp.symbols(f"ud0:{len(model.speeds)}", real=True)
-        dE = sp.diff(E, model.t) + sum(sp.diff(E, q) * k for q, k in zip(model.coordinates,
-                                                                           model.kinematics))
-        dE += sum(sp.diff(E, u) * a for u, a in zip(model.speeds, ud))
+        dE = sp.diff(E, model.t) + sum(
+            sp.diff(E, q) * k for q, k in zip(model.coordinates, model.kinematics, strict=False)
+        )
+        dE += sum(sp.diff(E, u) * a for u, a in zip(model.speeds, ud, strict=False))
         pv = {p.symbol: params[p.name] for p in model.parameters}
         args = [*model.coordinates, *model.speeds, *ud, model.t]
         self.dE = sp.lambdify(args, dE.xreplace(pv), "math")
         self.P = sp.lambdify(args, _load_power(model).xreplace(pv), "math")
         # a scale for the comparison: the sum of the magnitudes of the terms of dE/dt
-        self.scale = sp.lambdify(args, sum(abs(t) for t in sp.Add.make_args(sp.expand(
-            dE.xreplace(pv)))), "math")
+        self.scale = sp.lambdify(
+            args, sum(abs(t) for t in sp.Add.make_args(sp.expand(dE.xreplace(pv)))), "math"
+        )
 
     def __call__(self, q, u, ud, t=0.0):
         args = [*q, *u, *ud, t]
@@ -356,6 +449,7 @@ def test_energy_rate_equals_load_power(name):
 
 
 # ---- (c) knife edge / Chaplygin sled ------------------------------------------------------------
+
 
 def test_knife_edge_is_not_exact_as_written():
     (row,) = classify(models.get("knife_edge"))
@@ -406,8 +500,9 @@ def test_knife_edge_constraint_force_does_no_work_and_energy_is_conserved():
 
     q0, u0 = np.array(nm.model.initial_q), np.array(nm.model.initial_u)
     K0 = nm.energy(q0, u0)[0]
-    sol = solve_ivp(rhs, (0.0, 5.0), np.concatenate([q0, u0]), method="DOP853",
-                    rtol=1e-12, atol=1e-12)
+    sol = solve_ivp(
+        rhs, (0.0, 5.0), np.concatenate([q0, u0]), method="DOP853", rtol=1e-12, atol=1e-12
+    )
     assert sol.success
     K_end = nm.energy(sol.y[:3, -1], sol.y[3:, -1])[0]
     # DOP853 at rtol = atol = 1e-12 over 5 s: the global error stays near 1e-10 of K (the
@@ -421,13 +516,17 @@ def test_knife_edge_constraint_force_does_no_work_and_energy_is_conserved():
 
 # ---- (d) pendulum with a moving support ---------------------------------------------------------
 
+
 @pytest.mark.parametrize("formulation", FORMS)
 def test_moving_support_energy_rate_equals_constraint_power(formulation):
     model = models.get("pendulum_moving_support")
     nm = NumericModel(model, formulation)
     rate_of = _EnergyRate(model, nm.params)
-    cs_a0 = sp.lambdify([*model.coordinates, model.t], _a0(model).xreplace(
-        {p.symbol: nm.params[p.name] for p in model.parameters}), "math")
+    cs_a0 = sp.lambdify(
+        [*model.coordinates, model.t],
+        _a0(model).xreplace({p.symbol: nm.params[p.name] for p in model.parameters}),
+        "math",
+    )
     rng = np.random.default_rng(65)
     powers = []
     for _ in range(N_STATES):
@@ -473,5 +572,8 @@ def test_moving_support_matches_the_angle_equation():
 
 def test_moving_support_is_rheonomic_configuration_constraint():
     (row,) = classify(models.get("pendulum_moving_support"))
-    assert (row["kind"], row["holonomic"], row["time"]) == ("configuration", "holonomic",
-                                                            "rheonomic")
+    assert (row["kind"], row["holonomic"], row["time"]) == (
+        "configuration",
+        "holonomic",
+        "rheonomic",
+    )

@@ -26,12 +26,13 @@ Tolerances (relative to max(1, max|reference value|)):
   holds light bodies of 1e-12 relative mass/inertia that the in-code model lacks (pendulum rod,
   Example 3's frame F, Exercise 6.1's slider A, Exercise 6.4's axial inertia): ~1e-12.
 """
+
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
-from functools import lru_cache
+from functools import cache
 
 import mujoco
 import numpy as np
@@ -50,17 +51,21 @@ TOL_INCODE = 1e-11
 MJ, PIN = MujocoAdapter(), PinocchioAdapter()
 
 # (reference model, engine variant, MJCF file stem)
-TREES = [("pendulum_angle", None, "pendulum_angle"),
-         ("slider_crank_free", None, "slider_crank_free"),
-         ("double_pendulum_3d", "tree", "double_pendulum_3d_tree"),
-         ("frame_bar", None, "frame_bar"),
-         ("top_euler", None, "top_euler"),
-         ("exercise_6_2", None, "exercise_6_2"),
-         ("exercise_6_4", None, "exercise_6_4")]
-LOOPS = [("slider_crank", None, "slider_crank"),
-         ("slider_crank_split", None, "slider_crank_split"),
-         ("exercise_6_1", None, "exercise_6_1"),
-         ("top_cartesian", None, "top_cartesian")]  # free body + body-based connect to world
+TREES = [
+    ("pendulum_angle", None, "pendulum_angle"),
+    ("slider_crank_free", None, "slider_crank_free"),
+    ("double_pendulum_3d", "tree", "double_pendulum_3d_tree"),
+    ("frame_bar", None, "frame_bar"),
+    ("top_euler", None, "top_euler"),
+    ("exercise_6_2", None, "exercise_6_2"),
+    ("exercise_6_4", None, "exercise_6_4"),
+]
+LOOPS = [
+    ("slider_crank", None, "slider_crank"),
+    ("slider_crank_split", None, "slider_crank_split"),
+    ("exercise_6_1", None, "exercise_6_1"),
+    ("top_cartesian", None, "top_cartesian"),
+]  # free body + body-based connect to world
 
 
 # ---- helpers ---------------------------------------------------------------------------------
@@ -73,12 +78,12 @@ def rel(x, ref) -> float:
     return maxabs(np.asarray(x, float) - np.asarray(ref, float)) / max(1.0, maxabs(ref))
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference(name: str) -> NumericModel:
     return NumericModel(get(name))
 
 
-@lru_cache(maxsize=None)
+@cache
 def engines(name: str, variant):
     return MJ.build(name, None, variant), PIN.build(name, None, variant)
 
@@ -119,16 +124,16 @@ def to_parsed(pm, mm, qpos, qvel):
         j = _mj_joint(mm, pm.names[jid])
         a, b, iq, iv = mm.jnt_qposadr[j], mm.jnt_dofadr[j], jm.idx_q, jm.idx_v
         if kind == "JointModelSpherical":
-            w, x, y, z = qpos[a:a + 4]
-            q[iq:iq + 4] = [x, y, z, w]
-            v[iv:iv + 3] = qvel[b:b + 3]
+            w, x, y, z = qpos[a : a + 4]
+            q[iq : iq + 4] = [x, y, z, w]
+            v[iv : iv + 3] = qvel[b : b + 3]
         elif kind == "JointModelFreeFlyer":
-            w, x, y, z = qpos[a + 3:a + 7]
-            q[iq:iq + 3], q[iq + 3:iq + 7] = qpos[a:a + 3], [x, y, z, w]
-            v[iv:iv + 3] = _quat_R([x, y, z, w]).T @ qvel[b:b + 3]
-            v[iv + 3:iv + 6] = qvel[b + 3:b + 6]
+            w, x, y, z = qpos[a + 3 : a + 7]
+            q[iq : iq + 3], q[iq + 3 : iq + 7] = qpos[a : a + 3], [x, y, z, w]
+            v[iv : iv + 3] = _quat_R([x, y, z, w]).T @ qvel[b : b + 3]
+            v[iv + 3 : iv + 6] = qvel[b + 3 : b + 6]
         else:
-            q[iq:iq + jm.nq], v[iv:iv + jm.nv] = qpos[a:a + jm.nq], qvel[b:b + jm.nv]
+            q[iq : iq + jm.nq], v[iv : iv + jm.nv] = qpos[a : a + jm.nq], qvel[b : b + jm.nv]
     return q, v
 
 
@@ -139,11 +144,11 @@ def to_mujoco_acc(pm, mm, q, v, a):
         jm, kind = pm.joints[jid], pm.joints[jid].shortname()
         b, iq, iv = mm.jnt_dofadr[_mj_joint(mm, pm.names[jid])], jm.idx_q, jm.idx_v
         if kind == "JointModelFreeFlyer":
-            R = _quat_R(q[iq + 3:iq + 7])
-            out[b:b + 3] = R @ (a[iv:iv + 3] + np.cross(v[iv + 3:iv + 6], v[iv:iv + 3]))
-            out[b + 3:b + 6] = a[iv + 3:iv + 6]
+            R = _quat_R(q[iq + 3 : iq + 7])
+            out[b : b + 3] = R @ (a[iv : iv + 3] + np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3]))
+            out[b + 3 : b + 6] = a[iv + 3 : iv + 6]
         else:
-            out[b:b + jm.nv] = a[iv:iv + jm.nv]
+            out[b : b + jm.nv] = a[iv : iv + jm.nv]
     return out
 
 
@@ -153,12 +158,12 @@ def to_parsed_tau(pm, mm, qfrc):
     for jid in range(1, pm.njoints):
         jm, kind = pm.joints[jid], pm.joints[jid].shortname()
         b, iv = mm.jnt_dofadr[_mj_joint(mm, pm.names[jid])], jm.idx_v
-        assert kind != "JointModelFreeFlyer" or maxabs(qfrc[b:b + 6]) == 0.0
-        tau[iv:iv + jm.nv] = qfrc[b:b + jm.nv]
+        assert kind != "JointModelFreeFlyer" or maxabs(qfrc[b : b + 6]) == 0.0
+        tau[iv : iv + jm.nv] = qfrc[b : b + jm.nv]
     return tau
 
 
-@lru_cache(maxsize=None)
+@cache
 def parsed(stem: str, constraints: bool):
     """The parsed model (gravity set by hand from the file's <option gravity>), its data and,
     for the loops, its RigidConstraintModels with their data (initConstraintDynamics done)."""
@@ -183,10 +188,10 @@ def _structure_matches(pm, mm):
     assert pm.nv == mm.nv
     names = [mujoco.mj_id2name(mm, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(mm.njnt)]
     parsed_names = []
-    for n, jm in zip(pm.names[1:], pm.joints[1:]):
+    for n, jm in zip(pm.names[1:], pm.joints[1:], strict=False):
         if jm.shortname() == "JointModelComposite":  # its MuJoCo joints, consecutive
             j0 = _mj_joint(mm, n)
-            parsed_names += names[j0:j0 + jm.nv]
+            parsed_names += names[j0 : j0 + jm.nv]
         else:
             parsed_names.append(n)
     assert parsed_names == names
@@ -202,8 +207,10 @@ def test_parser_ignores_option_gravity():
     for stem in ("slider_crank", "exercise_6_2", "pendulum_angle"):
         pm = pin.buildModelFromMJCF(str(MJCF_DIR / f"{stem}.xml"))
         assert np.array_equal(pm.gravity.linear, [0.0, 0.0, -9.81]), stem
-        assert not np.array_equal(mujoco.MjModel.from_xml_path(
-            str(MJCF_DIR / f"{stem}.xml")).opt.gravity, [0.0, 0.0, -9.81])
+        assert not np.array_equal(
+            mujoco.MjModel.from_xml_path(str(MJCF_DIR / f"{stem}.xml")).opt.gravity,
+            [0.0, 0.0, -9.81],
+        )
 
 
 # ======================================================================================
@@ -238,8 +245,10 @@ def test_tree_parsed_model_agrees(name, variant, stem):
         assert rel(acc_ref, nm.forward(q, u).accelerations) <= TOL_INCODE, (stem, q, u)
 
 
-@pytest.mark.parametrize("name,stem,joint", [("exercise_6_2", "exercise_6_2", "x"),
-                                             ("exercise_6_4", "exercise_6_4", "theta")])
+@pytest.mark.parametrize(
+    "name,stem,joint",
+    [("exercise_6_2", "exercise_6_2", "x"), ("exercise_6_4", "exercise_6_4", "theta")],
+)
 def test_parser_drops_joint_springs_and_aba_ignores_damping(name, stem, joint):
     """Joint stiffness is not parsed (no such field in pin.Model) and joint damping is parsed
     into model.damping but aba does not apply it: aba with tau = qfrc_applied alone differs
@@ -258,13 +267,16 @@ def test_parser_drops_joint_springs_and_aba_ignores_damping(name, stem, joint):
         passive = to_parsed_tau(pm, emj.m, emj.d.qfrc_passive)
         assert maxabs(passive) > 1e-3
         a_loads = pin.aba(pm, pd, qp, vp, to_parsed_tau(pm, emj.m, emj.d.qfrc_applied)).copy()
-        a_all = pin.aba(pm, pd, qp, vp, to_parsed_tau(pm, emj.m, emj.d.qfrc_applied
-                                                     + emj.d.qfrc_passive)).copy()
+        a_all = pin.aba(
+            pm, pd, qp, vp, to_parsed_tau(pm, emj.m, emj.d.qfrc_applied + emj.d.qfrc_passive)
+        ).copy()
         M = pin.crba(pm, pd, qp)
         M = np.triu(M) + np.triu(M, 1).T
         assert maxabs(M @ (a_all - a_loads) - passive) <= 1e-12 * (1 + maxabs(passive))
-        assert rel(to_mujoco_acc(pm, emj.m, qp, vp, a_all),
-                   fm.raw["engine_accelerations"]) <= TOL_SAME_FILE
+        assert (
+            rel(to_mujoco_acc(pm, emj.m, qp, vp, a_all), fm.raw["engine_accelerations"])
+            <= TOL_SAME_FILE
+        )
 
 
 # ======================================================================================
@@ -314,8 +326,7 @@ def test_loop_parsed_model_agrees(name, variant, stem):
 # ======================================================================================
 def _in_subprocess(code: str) -> subprocess.CompletedProcess:
     """Run parser calls that read uninitialized memory or crash away from pytest's process."""
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
 
 
 def test_free_bodies_second_one_dropped_and_connects_silently_rebound():
@@ -332,11 +343,17 @@ def test_free_bodies_second_one_dropped_and_connects_silently_rebound():
         f"m, cs = pin.buildModelAndLegacyConstraintsFromMJCF({str(path)!r})\n"
         "print(json.dumps({'nq': m.nq, 'nv': m.nv, 'names': list(m.names),\n"
         "  'joints': [j.shortname() for j in m.joints[1:]],\n"
-        "  'pairs': [[c.joint1_id, c.joint2_id] for c in cs]}))\n")
+        "  'pairs': [[c.joint1_id, c.joint2_id] for c in cs]}))\n"
+    )
     assert res.returncode == 0, res.stderr
     out = json.loads(res.stdout.strip().splitlines()[-1])
-    assert out == {"nq": 7, "nv": 6, "names": ["universe", "link1"],
-                   "joints": ["JointModelFreeFlyer"], "pairs": [[0, 1], [1, 0]]}
+    assert out == {
+        "nq": 7,
+        "nv": 6,
+        "names": ["universe", "link1"],
+        "joints": ["JointModelFreeFlyer"],
+        "pairs": [[0, 1], [1, 0]],
+    }
     mm = mujoco.MjModel.from_xml_path(str(path))
     assert mm.nv == 12 and mm.neq == 2  # what MuJoCo reads from the same file
 
@@ -359,7 +376,8 @@ def test_site_connect_to_a_world_site_crashes_the_parser():
         "p = pathlib.Path(tempfile.mkdtemp()) / 'top.xml'\n"
         f"p.write_text({site_based!r})\n"
         "pin.buildModelAndLegacyConstraintsFromMJCF(str(p))\n"
-        "print('parsed')\n")
+        "print('parsed')\n"
+    )
     assert res.returncode < 0 and "parsed" not in res.stdout, (res.returncode, res.stdout)
 
 
@@ -375,8 +393,10 @@ def test_light_rod_pendulum_parses_but_is_ill_conditioned_for_constraintDynamics
     emj, _ = engines("pendulum_xy", None)
     pm, pd, cms, cds = parsed("pendulum_xy", True)
     _structure_matches(pm, emj.m)
-    assert [j.shortname() for j in pm.joints[1:]] == ["JointModelComposite",
-                                                     "JointModelRevoluteUnaligned"]
+    assert [j.shortname() for j in pm.joints[1:]] == [
+        "JointModelComposite",
+        "JointModelRevoluteUnaligned",
+    ]
     nm = reference("pendulum_xy")
     prox = pin.ProximalSettings(*PROX_REDUNDANT)
     worst = 0.0

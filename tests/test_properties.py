@@ -8,20 +8,21 @@ floats by tests/strategies.py, so a failure shrinks to a small case near the ini
 - the energy rate equals the power of the applied loads plus that of the constraint forces
   (which is zero unless the constraints move: rheonomic rows, Eq. 4's a0).
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
-import scipy.linalg
-from hypothesis import example, given, strategies as st
-
 import pytest
+import scipy.linalg
+from hypothesis import example, given
+from hypothesis import strategies as st
 
+from crosscheck.sampling import draw_instance
 from reference import NumericModel, models
 from reference.constraints import is_rheonomic
 from reference.errors import SingularSystemError
-from crosscheck.sampling import draw_instance
 
 from .strategies import Instance, build, instances
 
@@ -91,8 +92,9 @@ def test_work_energy_balance(name, formulation, data):
 def test_energy_rate_check_can_fail():
     """The balance detects a wrong force: the slider-crank's torque power counted twice."""
     base = _numeric("slider_crank", "lagrange")
-    nm, q, u, t = build(base, Instance((1.0,) * len(base.model.parameters), 0.0,
-                                       (0.1, 0.0), (0.2, 0.0)))
+    nm, q, u, t = build(
+        base, Instance((1.0,) * len(base.model.parameters), 0.0, (0.1, 0.0), (0.2, 0.0))
+    )
     nm = NumericModel(nm.model, "lagrange", {"T": 2.0})
     pb = nm.power_balance(q, u, t)
     assert abs(pb["dE_dt"] - 2 * pb["load_power"]) > 1e-3 * abs(pb["load_power"])
@@ -104,10 +106,22 @@ _THETA12 = _DP.initial_q[1]  # link 1's second 3-1-3 angle: sin(theta12) = 0 is 
 
 
 @given(instance=instances(_DP))
-@example(instance=Instance((1.0,) * len(_DP.parameters), 0.0,
-                           (0.0, (1e-7 - _THETA12) / 0.3, 0.0, 0.0, 0.0, 0.0), (0.5,) * 12))
-@example(instance=Instance((1.0,) * len(_DP.parameters), 0.0,
-                           (0.0, (2e-5 - _THETA12) / 0.3, 0.0, 0.0, 0.0, 0.0), (-0.5,) * 12))
+@example(
+    instance=Instance(
+        (1.0,) * len(_DP.parameters),
+        0.0,
+        (0.0, (1e-7 - _THETA12) / 0.3, 0.0, 0.0, 0.0, 0.0),
+        (0.5,) * 12,
+    )
+)
+@example(
+    instance=Instance(
+        (1.0,) * len(_DP.parameters),
+        0.0,
+        (0.0, (2e-5 - _THETA12) / 0.3, 0.0, 0.0, 0.0, 0.0),
+        (-0.5,) * 12,
+    )
+)
 def test_example_4_dynamics_near_the_gimbal_pose(instance):
     """Example 4's speeds are body angular velocities, so its dynamics have no singularity at
     sin(theta2) = 0 (gimbal lock of the 3-1-3 angles); the derivation's chain rule through
@@ -131,7 +145,7 @@ def test_example_4_at_the_exact_gimbal_pose_is_refused(monkeypatch, backend, rat
     q = np.array([0.1, 0.0, 0.2, 0.3, 0.1, 0.2])
     u = np.full(nm.n, rate)
     for call in (nm.forward, nm.matrices):
-        with pytest.raises(SingularSystemError, match="not defined .* gimbal lock"):
+        with pytest.raises(SingularSystemError, match=r"not defined .* gimbal lock"):
             call(q, u, 0.0)
 
 

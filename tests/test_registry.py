@@ -1,4 +1,5 @@
 """Every registered model loads, validates, and carries what the CLI contract needs."""
+
 from __future__ import annotations
 
 import pytest
@@ -17,13 +18,25 @@ def test_every_registered_model_loads(name):
 
 
 def test_unknown_model_lists_valid_names():
-    with pytest.raises(ModelInputError, match="valid: .*pendulum_xy"):
+    with pytest.raises(ModelInputError, match=r"valid: .*pendulum_xy"):
         models.get("no_such_model")
 
 
 def test_every_system_of_the_unit_is_modelled():
     sources = " | ".join(models.get(n).source for n in models.names())
-    for place in ["Example 1(a)", "Example 1(b)", "Example 2(a)", "Example 2(b)", "Exercise 6.3",
-                  "Example 3", "Example 4", "Exercise 6.1", "Exercise 6.2", "Exercise 6.4",
-                  "6.5", "6.6", "Exercise 6.7"]:
+    for place in [
+        "Example 1(a)",
+        "Example 1(b)",
+        "Example 2(a)",
+        "Example 2(b)",
+        "Exercise 6.3",
+        "Example 3",
+        "Example 4",
+        "Exercise 6.1",
+        "Exercise 6.2",
+        "Exercise 6.4",
+        "6.5",
+        "6.6",
+        "Exercise 6.7",
+    ]:
         assert place in sources, f"no model declares source {place!r}"

@@ -6,6 +6,7 @@ passing, failing and skipped rows. The trajectory "series" and the bench rows th
 cannot afford to measure are written here in the documented formats and say so in their labels.
 The slow test opens the page in headless Chromium, as a reader would.
 """
+
 from __future__ import annotations
 
 import base64
@@ -29,8 +30,9 @@ VERSION_KEYS = ("python", "numpy", "scipy", "sympy", "pin", "mujoco")
 def crosscheck(*argv, check=True):
     p = subprocess.run(CLI + [str(a) for a in argv], capture_output=True, text=True, timeout=600)
     if check and p.returncode not in (0, 1):
-        raise AssertionError(f"crosscheck {' '.join(map(str, argv))} -> {p.returncode}\n"
-                             f"{p.stdout}\n{p.stderr}")
+        raise AssertionError(
+            f"crosscheck {' '.join(map(str, argv))} -> {p.returncode}\n{p.stdout}\n{p.stderr}"
+        )
     return p
 
 
@@ -45,9 +47,18 @@ def results_of(tmp_path_factory, kind: str) -> Path:
     if kind not in _RUNS:
         out = tmp_path_factory.mktemp(kind)
         extra = ["--perturb", "pinocchio:m2=1e-6"] if kind == "faulty" else []
-        p = crosscheck("run", "slider_crank", "--engines", "pinocchio", "--states", "2",
-                       "--instantaneous",
-                       *extra, "--out", out)
+        p = crosscheck(
+            "run",
+            "slider_crank",
+            "--engines",
+            "pinocchio",
+            "--states",
+            "2",
+            "--instantaneous",
+            *extra,
+            "--out",
+            out,
+        )
         assert p.returncode == (1 if kind == "faulty" else 0), p.stdout + p.stderr
         _RUNS[kind] = out / "results.json"
     return _RUNS[kind]
@@ -62,37 +73,84 @@ def synthetic_series(model: str) -> list[dict]:
     """Trajectory series in the results.json format (labels say they are test data)."""
     t = [0.01 * i for i in range(201)]
     out = []
-    for engine, label, scale in (("reference", "test data: DOP853 rtol=1e-10", 0.0),
-                                 ("pinocchio", "test data: RK4 h=1e-3", 1e-8)):
-        out.append({"model": model, "engine": engine, "formulation": "lagrange", "label": label,
-                    "t": t, "state_error": [scale * x for x in t],
-                    "residual": [1e-15 + scale * x * x for x in t],
-                    "energy": [3.0 + 0.1 * scale * x for x in t]})
+    for engine, label, scale in (
+        ("reference", "test data: DOP853 rtol=1e-10", 0.0),
+        ("pinocchio", "test data: RK4 h=1e-3", 1e-8),
+    ):
+        out.append(
+            {
+                "model": model,
+                "engine": engine,
+                "formulation": "lagrange",
+                "label": label,
+                "t": t,
+                "state_error": [scale * x for x in t],
+                "residual": [1e-15 + scale * x * x for x in t],
+                "energy": [3.0 + 0.1 * scale * x for x in t],
+            }
+        )
     return out
 
 
 def synthetic_bench(model: str) -> dict:
     """bench.json in the format `crosscheck bench` writes, with round numbers to check ratios."""
-    fwd = [("reference", "single", 1, 10.0), ("reference", "batched", 10000, 0.5),
-           ("pinocchio", "engine:pinocchio", 1, 4.0), ("mujoco", "engine:mujoco", 1, 20.0)]
+    fwd = [
+        ("reference", "single", 1, 10.0),
+        ("reference", "batched", 10000, 0.5),
+        ("pinocchio", "engine:pinocchio", 1, 4.0),
+        ("mujoco", "engine:mujoco", 1, 20.0),
+    ]
     wp = []
     for method, cost in (("projection", 1.0), ("baumgarte", 2.0)):
         for k, tol in enumerate((1e-6, 1e-8, 1e-10)):
-            wp.append({"model": model, "engine": "reference", "method": method,
-                       "integrator": "DOP853", "setting": tol, "setting_kind": "rtol=atol",
-                       "wall_s": 0.01 * cost * (k + 1), "error": 10 * tol, "residual": tol / 10,
-                       "energy_drift": tol, "nfev": 100 * (k + 1)})
-    return {"meta": {"command": "crosscheck bench (test data)", "date": "2026-01-01T00:00:00Z",
-                     "versions": {k: "test" for k in VERSION_KEYS},
-                     "machine": {"platform": "test", "processor": "x86_64", "cpus": 2}},
-            "forward": [{"model": model, "engine": e, "formulation": "lagrange", "path": p,
-                         "batch": b, "us_per_state": us, "us_per_state_min": us * 0.9}
-                        for e, p, b, us in fwd],
-            "work_precision": wp,
-            "stress": [{"scene": "test_scene", "what": "test data", "status": "flagged",
-                        "reasons": ["a stated reason"], "wall_s": 0.1}],
-            "targets": {"test_target": {"statement": "test data", "met": False,
-                                        "reason": "a stated reason"}}}
+            wp.append(
+                {
+                    "model": model,
+                    "engine": "reference",
+                    "method": method,
+                    "integrator": "DOP853",
+                    "setting": tol,
+                    "setting_kind": "rtol=atol",
+                    "wall_s": 0.01 * cost * (k + 1),
+                    "error": 10 * tol,
+                    "residual": tol / 10,
+                    "energy_drift": tol,
+                    "nfev": 100 * (k + 1),
+                }
+            )
+    return {
+        "meta": {
+            "command": "crosscheck bench (test data)",
+            "date": "2026-01-01T00:00:00Z",
+            "versions": {k: "test" for k in VERSION_KEYS},
+            "machine": {"platform": "test", "processor": "x86_64", "cpus": 2},
+        },
+        "forward": [
+            {
+                "model": model,
+                "engine": e,
+                "formulation": "lagrange",
+                "path": p,
+                "batch": b,
+                "us_per_state": us,
+                "us_per_state_min": us * 0.9,
+            }
+            for e, p, b, us in fwd
+        ],
+        "work_precision": wp,
+        "stress": [
+            {
+                "scene": "test_scene",
+                "what": "test data",
+                "status": "flagged",
+                "reasons": ["a stated reason"],
+                "wall_s": 0.1,
+            }
+        ],
+        "targets": {
+            "test_target": {"statement": "test data", "met": False, "reason": "a stated reason"}
+        },
+    }
 
 
 @pytest.fixture(scope="module")
@@ -103,8 +161,15 @@ def full_report(runs, tmp_path_factory):
     results["series"] = synthetic_series("slider_crank")
     (root / "results.json").write_text(json.dumps(results))
     (root / "bench.json").write_text(json.dumps(synthetic_bench("slider_crank")))
-    p = crosscheck("report", "--results", root / "results.json", "--bench", root / "bench.json",
-                   "--out", root / "site")
+    p = crosscheck(
+        "report",
+        "--results",
+        root / "results.json",
+        "--bench",
+        root / "bench.json",
+        "--out",
+        root / "site",
+    )
     assert p.returncode == 0, p.stderr
     return {"dir": root / "site", "results": results, "root": root}
 
@@ -164,8 +229,8 @@ def test_every_record_is_a_row_and_failing_rows_stay_marked(full_report):
     rows = check_rows(page)
     records = full_report["results"]["records"]
     assert len(rows) == len(records)
-    for row, rec in zip(rows, records):  # same order as results.json
-        expected = ("SKIP" if rec["skipped"] else "PASS" if rec["passed"] else "FAIL")
+    for row, rec in zip(rows, records, strict=False):  # same order as results.json
+        expected = "SKIP" if rec["skipped"] else "PASS" if rec["passed"] else "FAIL"
         assert row["cells"][0] == expected
         assert row["cells"][2] == rec["engine"] and row["cells"][4] == rec["quantity"]
         if expected == "FAIL":
@@ -183,7 +248,9 @@ def test_every_record_is_a_row_and_failing_rows_stay_marked(full_report):
 def test_html_is_self_contained_and_every_figure_is_an_svg(full_report):
     page = parse_page(full_report["dir"] / "index.html")
     # one inline script, and only it: a link to a folded model section unfolds it
-    assert page.scripts == 1 and "<script src" not in (full_report["dir"] / "index.html").read_text()
+    assert (
+        page.scripts == 1 and "<script src" not in (full_report["dir"] / "index.html").read_text()
+    )
     external = [u for u in page.urls if not (u.startswith("data:") or u.startswith("#"))]
     assert external == [], external
     assert "http://" not in (full_report["dir"] / "index.html").read_text().split("<svg")[0]
@@ -195,7 +262,7 @@ def test_html_is_self_contained_and_every_figure_is_an_svg(full_report):
     for img in page.images:
         prefix = "data:image/svg+xml;base64,"
         assert img["src"].startswith(prefix)
-        svg = base64.b64decode(img["src"][len(prefix):])
+        svg = base64.b64decode(img["src"][len(prefix) :])
         root = ET.fromstring(svg)
         assert root.tag.endswith("svg")
         assert len(list(root.iter())) > 50  # axes, ticks, lines: not an empty picture
@@ -204,12 +271,14 @@ def test_html_is_self_contained_and_every_figure_is_an_svg(full_report):
 def test_footer_has_the_commands_machine_and_versions(full_report):
     html = (full_report["dir"] / "index.html").read_text()
     meta = full_report["results"]["meta"]
-    footer = html[html.index('<footer id="footer">'):]
+    footer = html[html.index('<footer id="footer">') :]
     assert meta["command"] in footer
     assert "crosscheck bench (test data)" in footer
     site = full_report["dir"]
-    assert (f"crosscheck report --results {full_report['root'] / 'results.json'} --bench "
-            f"{full_report['root'] / 'bench.json'} --out {site}") in footer
+    assert (
+        f"crosscheck report --results {full_report['root'] / 'results.json'} --bench "
+        f"{full_report['root'] / 'bench.json'} --out {site}"
+    ) in footer
     assert meta["machine"]["platform"] in footer
     for key in VERSION_KEYS:
         assert f"<td>{key}</td>" in footer
@@ -236,8 +305,11 @@ def test_trajectories_work_precision_and_other_bench_sections(full_report):
 def test_markdown_has_the_tables_and_the_regenerate_commands(full_report):
     md = (full_report["dir"] / "report.md").read_text()
     records = full_report["results"]["records"]
-    rows = [line for line in md.splitlines()
-            if line.startswith("| PASS") or line.startswith("| FAIL") or line.startswith("| SKIP")]
+    rows = [
+        line
+        for line in md.splitlines()
+        if line.startswith("| PASS") or line.startswith("| FAIL") or line.startswith("| SKIP")
+    ]
     assert len(rows) == len(records)
     assert sum(r.startswith("| FAIL") for r in rows) == sum(r["passed"] is False for r in records)
     assert full_report["results"]["meta"]["command"] in md
@@ -250,7 +322,7 @@ def test_junit_has_one_case_per_record_with_reasons(full_report):
     records = full_report["results"]["records"]
     cases = list(root.iter("testcase"))
     assert len(cases) == len(records) == int(root.get("tests"))
-    for case, rec in zip(cases, records):
+    for case, rec in zip(cases, records, strict=False):
         assert case.get("classname") == f"crosscheck.{rec['model']}.{rec['engine']}"
         failure, skipped = case.find("failure"), case.find("skipped")
         if rec["skipped"]:
@@ -267,6 +339,7 @@ def test_junit_has_one_case_per_record_with_reasons(full_report):
 
 def test_report_is_deterministic(full_report):
     from crosscheck.report import generate
+
     site, root = full_report["dir"], full_report["root"]
     before = {p.name: p.read_bytes() for p in site.iterdir()}
     generate(str(root / "results.json"), str(root / "bench.json"), str(site))
@@ -278,6 +351,7 @@ def test_report_is_deterministic(full_report):
 
 def test_clean_run_without_series_or_bench_says_so(runs, tmp_path):
     from crosscheck.cli import main
+
     shutil.copy(runs["clean"], tmp_path / "results.json")
     assert main(["report", "--results", str(tmp_path / "results.json")]) == 0
     html = (tmp_path / "index.html").read_text()  # default --out: beside the results
@@ -287,21 +361,27 @@ def test_clean_run_without_series_or_bench_says_so(runs, tmp_path):
     assert f"All {executed} executed checks pass ({skipped} skipped)" in html
     assert "No trajectory was run" in html
     assert "Work-precision" not in html  # no bench given, none beside the results
-    assert "FAIL" not in "".join(r["cells"][0] for r in check_rows(parse_page(
-        tmp_path / "index.html")))
+    assert "FAIL" not in "".join(
+        r["cells"][0] for r in check_rows(parse_page(tmp_path / "index.html"))
+    )
 
 
-@pytest.mark.parametrize("setup,needle", [
-    (lambda d: None, "not found"),
-    (lambda d: (d / "results.json").write_text("{not json"), "not valid JSON"),
-    (lambda d: (d / "results.json").write_text('{"meta": {}}'), "no \"records\" list"),
-    (lambda d: (d / "results.json").write_text('[1, 2]'), "JSON object"),
-])
+@pytest.mark.parametrize(
+    "setup,needle",
+    [
+        (lambda d: None, "not found"),
+        (lambda d: (d / "results.json").write_text("{not json"), "not valid JSON"),
+        (lambda d: (d / "results.json").write_text('{"meta": {}}'), 'no "records" list'),
+        (lambda d: (d / "results.json").write_text("[1, 2]"), "JSON object"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, setup, needle):
     from crosscheck.cli import main
+
     setup(tmp_path)
-    code = main(["report", "--results", str(tmp_path / "results.json"),
-                 "--out", str(tmp_path / "o")])
+    code = main(
+        ["report", "--results", str(tmp_path / "results.json"), "--out", str(tmp_path / "o")]
+    )
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and needle in err and err.startswith("crosscheck: error:")
@@ -309,10 +389,19 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, setup, needle):
 
 
 # ---- in a browser --------------------------------------------------------------------------
-CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
-                  "--no-first-run", "--disable-background-networking",
-                  "--disable-component-update", "--disable-sync", "--hide-scrollbars",
-                  "--enable-logging=stderr", "--v=0"]
+CHROMIUM_FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--hide-scrollbars",
+    "--enable-logging=stderr",
+    "--v=0",
+]
 
 # Injected into a copy of the page only (the report itself has no script): records script
 # errors, console errors and warnings, and resources that fail to load, and on `load` writes
@@ -347,8 +436,12 @@ PROBE = """<script>
 
 def _chromium(args, tmp: Path):
     with tempfile.TemporaryDirectory(dir=tmp) as profile:
-        p = subprocess.run([CHROMIUM, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *args],
-                           capture_output=True, text=True, timeout=180)
+        p = subprocess.run(
+            [CHROMIUM, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *args],
+            capture_output=True,
+            text=True,
+            timeout=180,
+        )
     return p
 
 
@@ -362,13 +455,23 @@ def _console_lines(stderr: str) -> list[str]:
 def test_report_renders_in_headless_chromium(tmp_path):
     """The README's flow: run, bench, report; then open index.html from disk in Chromium."""
     if not os.path.exists(CHROMIUM):
-        pytest.skip(f"{CHROMIUM} not installed (Debian package `chromium`: apt-get install -y "
-                    f"chromium); the browser check needs it")
+        pytest.skip(
+            f"{CHROMIUM} not installed (Debian package `chromium`: apt-get install -y "
+            f"chromium); the browser check needs it"
+        )
     out = tmp_path / "out"
-    assert crosscheck("run", "slider_crank", "--engines", "pinocchio", "--states", "2",
-                      "--out", out).returncode == 0
-    assert crosscheck("bench", "slider_crank", "--quick", "--engines", "pinocchio",
-                      "--out", out).returncode == 0
+    assert (
+        crosscheck(
+            "run", "slider_crank", "--engines", "pinocchio", "--states", "2", "--out", out
+        ).returncode
+        == 0
+    )
+    assert (
+        crosscheck(
+            "bench", "slider_crank", "--quick", "--engines", "pinocchio", "--out", out
+        ).returncode
+        == 0
+    )
     assert crosscheck("report", "--results", out / "results.json", "--out", out).returncode == 0
     index = out / "index.html"
     html = index.read_text()
@@ -379,15 +482,16 @@ def test_report_renders_in_headless_chromium(tmp_path):
     assert shot.exists(), p.stderr[-2000:]
     assert _console_lines(p.stderr) == []
 
-    from matplotlib.image import imread
     import numpy as np
+    from matplotlib.image import imread
+
     img = imread(shot)[..., :3]
     assert img.shape[0] == 3000 and img.shape[1] == 1280
     gray = img.mean(axis=2)
     assert gray.std() > 0.05, "the screenshot is blank"
     assert (gray < 0.9).mean() > 0.02, "almost nothing is drawn"
     # the agreement plot draws Pinocchio's points in its colour (#1f77b4) inside the viewport
-    pin = np.array([0x1f, 0x77, 0xb4]) / 255
+    pin = np.array([0x1F, 0x77, 0xB4]) / 255
     assert (np.abs(img - pin).max(axis=2) < 0.06).sum() > 30, "no plot rendered in view"
 
     probed = tmp_path / "probed.html"
@@ -396,6 +500,7 @@ def test_report_renders_in_headless_chromium(tmp_path):
     dom = p.stdout
     assert 'id="probe"' in dom, p.stderr[-2000:]
     import html as html_mod
+
     data = json.loads(html_mod.unescape(dom.split('id="probe">', 1)[1].split("</pre>", 1)[0]))
     assert data["errors"] == []
     alts = [i["alt"] for i in data["images"]]
@@ -408,14 +513,20 @@ def test_report_renders_in_headless_chromium(tmp_path):
 
 def _details_open(html: str) -> dict[str, bool]:
     import re
-    return {m: "open" in attrs for attrs, m in re.findall(
-        r'<details class="model"([^>]*)><summary><h2 id="model-([^"]+)"', html)}
+
+    return {
+        m: "open" in attrs
+        for attrs, m in re.findall(
+            r'<details class="model"([^>]*)><summary><h2 id="model-([^"]+)"', html
+        )
+    }
 
 
 def test_long_pages_fold_passing_models_and_never_a_failing_one(runs, tmp_path):
     """More than UNFOLDED_MODELS models: a passing model's section is folded to its summary
     line (name, verdict), a model with a failing check stays open."""
     from crosscheck.report_html import UNFOLDED_MODELS
+
     faulty = json.loads(runs["faulty"].read_text())
     clean = json.loads(runs["clean"].read_text())["records"]
     others = ["pendulum_xy", "knife_edge", "frame_bar", "exercise_6_1"][:UNFOLDED_MODELS]
@@ -432,6 +543,7 @@ def test_trajectory_caption_names_only_the_panels_drawn_and_the_balance_where_no
     from crosscheck import plots
     from crosscheck.report_content import energy_heading
     from crosscheck.report_html import _trajectory_caption
+
     ss = synthetic_series("pendulum_angle")
     for s in ss:
         s["residual"] = [0.0] * len(s["t"])  # no constraints: nothing to draw
@@ -454,6 +566,7 @@ def test_series_energy_error_is_the_records_definition():
     """The report's energy column and the records use one definition (comparison.py)."""
     from crosscheck.comparison import energy_drift, work_energy_balance
     from crosscheck.report_content import series_stats
+
     s = synthetic_series("slider_crank")[1]
     assert series_stats(s)["energy"] == energy_drift(s["energy"])
     s["work"] = [0.5 * (e - s["energy"][0]) for e in s["energy"]]

@@ -1,5 +1,6 @@
 """`crosscheck sensitivity` on the three cross-check models: every parameter an engine's model
 uses is caught below 1e-8 relative; one it does not use is reported with that reason."""
+
 from __future__ import annotations
 
 import json
@@ -34,8 +35,10 @@ def test_unused_parameter_is_named():
 
 
 def test_command_writes_json(tmp_path, capsys):
-    assert main(["sensitivity", "pendulum_angle", "--engines", "pinocchio",
-                 "--out", str(tmp_path)]) == 0
+    assert (
+        main(["sensitivity", "pendulum_angle", "--engines", "pinocchio", "--out", str(tmp_path)])
+        == 0
+    )
     doc = json.loads((tmp_path / "sensitivity.json").read_text())
     assert {t["parameter"] for t in doc["thresholds"]} == {"m", "L", "g"}
     assert "pendulum_angle" in capsys.readouterr().out

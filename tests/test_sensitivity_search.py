@@ -1,4 +1,5 @@
 """The decade search of `crosscheck sensitivity`: smallest caught decade, bounded cost."""
+
 from __future__ import annotations
 
 import math
@@ -14,7 +15,7 @@ def test_finds_the_smallest_caught_decade(true_k):
 
     def evaluate(rel):
         calls.append(rel)
-        return "m/e/instantaneous/accelerations" if rel >= 10.0 ** true_k * 0.999 else ""
+        return "m/e/instantaneous/accelerations" if rel >= 10.0**true_k * 0.999 else ""
 
     k, below, name, n = threshold(evaluate)
     assert k == true_k and name.endswith("accelerations")
@@ -29,6 +30,11 @@ def test_nothing_caught_is_reported_with_the_reason():
 
 
 def test_an_unused_parameter_is_not_searched():
-    t = search("m", "e", "L", lambda rel: pytest.fail("must not evaluate"),
-               unused_reason="the engine's model has no L")
+    t = search(
+        "m",
+        "e",
+        "L",
+        lambda rel: pytest.fail("must not evaluate"),
+        unused_reason="the engine's model has no L",
+    )
     assert t.caught_at is None and t.reason == "the engine's model has no L"

@@ -12,6 +12,7 @@
 - the command's exit codes: 0 clean, 1 outside tolerance or faulted, 2 bad input (one line).
 Throughput is measured by `crosscheck sweep --bench`, not here.
 """
+
 from __future__ import annotations
 
 import json
@@ -45,6 +46,7 @@ def local_run():
 @pytest.mark.parametrize("name", ["slider_crank", "top_cartesian", "pendulum_moving_support"])
 def test_sample_is_the_property_tests_instance(name):
     from tests.test_properties import _instance
+
     base = S.base_model(name)
     for i in (0, 7):
         s, nm, t, q, u = draw_sample(base, 5, i)
@@ -53,8 +55,12 @@ def test_sample_is_the_property_tests_instance(name):
         assert nm.params == nm2.params and t == t2
         assert np.array_equal(q, q2) and np.array_equal(u, u2)
     # the seed depends on (seed, model, index) only, and each of them changes it
-    seeds = {sample_seed(5, name, 0), sample_seed(6, name, 0), sample_seed(5, name, 1),
-             sample_seed(5, name + "_", 0)}
+    seeds = {
+        sample_seed(5, name, 0),
+        sample_seed(6, name, 0),
+        sample_seed(5, name, 1),
+        sample_seed(5, name + "_", 0),
+    }
     assert len(seeds) == 4
 
 
@@ -75,8 +81,13 @@ def test_with_params_equals_the_constructor():
 def test_batched_reference_with_per_sample_parameters_equals_scalar(name):
     base = S.base_model(name)
     draws = [draw_sample(base, 2, i) for i in range(6)]
-    UD, LAM, errs = S.reference_batch(base, [d[1] for d in draws], [d[2] for d in draws],
-                                      [d[3] for d in draws], [d[4] for d in draws])
+    UD, LAM, errs = S.reference_batch(
+        base,
+        [d[1] for d in draws],
+        [d[2] for d in draws],
+        [d[3] for d in draws],
+        [d[4] for d in draws],
+    )
     assert errs == [None] * 6
     for j, (_, nm, t, q, u) in enumerate(draws):
         fw = nm.forward(q, u, t)
@@ -100,16 +111,28 @@ def test_batched_reference_isolates_a_singular_sample():
     assert np.array_equal(UD[2], S.reference_batch(base, nms[2:], [0.0], Q[2:], U[2:])[0][0])
 
 
-@pytest.mark.parametrize("name,engine", [
-    ("slider_crank", "mujoco"), ("slider_crank", "pinocchio"), ("exercise_6_1", "mujoco"),
-    ("top_cartesian", "pinocchio")])
+@pytest.mark.parametrize(
+    "name,engine",
+    [
+        ("slider_crank", "mujoco"),
+        ("slider_crank", "pinocchio"),
+        ("exercise_6_1", "mujoco"),
+        ("top_cartesian", "pinocchio"),
+    ],
+)
 def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
     """A sweep sample's values (compare_at_state) = run's records (engine_records) on that
     single state (these models are scleronomic, so run's t = 0 and the sample's t give the
     same numbers), each against the same tolerance."""
-    from crosscheck.comparison import (build, compare_at_state, engine_records,
-                                       reference_answer, tolerance)
+    from crosscheck.comparison import (
+        build,
+        compare_at_state,
+        engine_records,
+        reference_answer,
+        tolerance,
+    )
     from crosscheck.engines.registry import get_engine
+
     base = S.base_model(name)
     _, nm, t, q, u = draw_sample(base, 4, 1)
     ad = get_engine(engine)
@@ -131,7 +154,9 @@ def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
 def test_identical_for_worker_counts_and_chunk_sizes(local_run):
     cfg, a = local_run
     assert a["status"]["complete"] and a["status"]["completed"] == {
-        "pendulum_xy": 8, "slider_crank_split": 8}
+        "pendulum_xy": 8,
+        "slider_crank_split": 8,
+    }
     b = S.campaign(cfg, workers=2, chunk=5)
     assert b["meta"]["executor"]["kind"] == "processes"
     _same(a, b)
@@ -151,9 +176,12 @@ def test_identical_for_worker_counts_and_chunk_sizes(local_run):
 def test_dask_cluster_equals_local_run(local_run):
     distributed = pytest.importorskip("distributed")
     cfg, a = local_run
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         b = S.campaign(cfg, dask=client, chunk=3)
     assert b["meta"]["executor"]["kind"] == "dask"
     _same(a, b)
@@ -173,9 +201,26 @@ def test_worst_case_reproduces_bit_for_bit(tmp_path, capsys):
     command reruns the worst alone and gives the same error, and `crosscheck eval` gives the
     reference at that case."""
     out = tmp_path / "campaign"
-    code = main(["sweep", "slider_crank", "--samples", "6", "--seed", "9", "--engines",
-                 "mujoco", "--perturb", "mujoco:m2=1e-6", "--workers", "1", "--worst", "6",
-                 "--out", str(out)])
+    code = main(
+        [
+            "sweep",
+            "slider_crank",
+            "--samples",
+            "6",
+            "--seed",
+            "9",
+            "--engines",
+            "mujoco",
+            "--perturb",
+            "mujoco:m2=1e-6",
+            "--workers",
+            "1",
+            "--worst",
+            "6",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 1
     capsys.readouterr()
     res = json.loads((out / "sweep.json").read_text())
@@ -188,8 +233,9 @@ def test_worst_case_reproduces_bit_for_bit(tmp_path, capsys):
     assert main(argv[1:]) == 1
     capsys.readouterr()
     again = json.loads((tmp_path / "again" / "sweep.json").read_text())
-    assert again["status"]["completed_ranges"] == {"slider_crank": [[worst["index"],
-                                                                     worst["index"] + 1]]}
+    assert again["status"]["completed_ranges"] == {
+        "slider_crank": [[worst["index"], worst["index"] + 1]]
+    }
     for r in again["results"]:
         if r.get("skipped"):
             continue
@@ -245,6 +291,7 @@ class _FlakyAdapter:
 
 def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monkeypatch):
     from reference.errors import OffManifoldError
+
     real_adapter, real_draw = S._adapter, S.draw_sample
 
     def adapter(engine):
@@ -257,6 +304,7 @@ def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monk
         return real_draw(base, seed, index)
 
     from crosscheck import sweep_campaign, sweep_worker
+
     for mod in (S, sweep_worker, sweep_campaign):  # the worker draws and builds; the plan builds
         monkeypatch.setattr(mod, "_adapter", adapter)
     monkeypatch.setattr(sweep_worker, "draw_sample", draw)
@@ -264,8 +312,9 @@ def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monk
     res = S.campaign(cfg, workers=1, chunk=4)
     st = res["status"]
     assert st["complete"] and st["completed"] == {"pendulum_xy": 10} and not st["passed"]
-    params = {i: real_draw(S.base_model("pendulum_xy"), 1, i)[1].params
-              for i in range(10) if i != 2}
+    params = {
+        i: real_draw(S.base_model("pendulum_xy"), 1, i)[1].params for i in range(10) if i != 2
+    }
     build = sorted(i for i, p in params.items() if p["m"] > 1.5)
     evaluate = sorted(i for i, p in params.items() if p["m"] <= 1.5 and p["L"] < 0.8)
     assert build and evaluate  # the seed exercises both
@@ -273,8 +322,11 @@ def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monk
     got: dict = {}
     for f in recs:
         got.setdefault((f["engine"], f["stage"]), []).append(f["index"])
-    assert got == {("pinocchio", "build"): build, ("pinocchio", "evaluate"): evaluate,
-                   ("reference", "draw"): [2]}
+    assert got == {
+        ("pinocchio", "build"): build,
+        ("pinocchio", "evaluate"): evaluate,
+        ("reference", "draw"): [2],
+    }
     for f in recs:
         assert f["sample_seed"] == sample_seed(1, "pendulum_xy", f["index"])
         assert f"--index {f['index']} --samples 1" in f["reproduce"]
@@ -294,15 +346,18 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
     I_33 > I_11 + I_22, against the triangle inequality) is a recorded build fault with
     MuJoCo's message; the campaign completes and does not pass."""
     import crosscheck.sampling as sampling
+
     draw = sampling.random_params
 
     def non_physical(model, rng):
         p = draw(model, rng)
         p["I1_33"] = 3.0 * (p["I1_11"] + p["I1_22"])
         return p
+
     monkeypatch.setattr(sampling, "random_params", non_physical)
-    res = S.campaign(S.Campaign(["double_pendulum_3d"], samples=2, seed=0, engines=("mujoco",)),
-                     workers=1)
+    res = S.campaign(
+        S.Campaign(["double_pendulum_3d"], samples=2, seed=0, engines=("mujoco",)), workers=1
+    )
     groups = res["faults"]["groups"]
     assert {g["variant"] for g in groups} == {"free", "tree"}
     for g in groups:
@@ -313,15 +368,17 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
 def test_drawn_inertias_stay_physical():
     """The generator draws each inertia on its own but keeps every body physical (second
     moments, rejection for shared parameters), so MuJoCo accepts every draw."""
-    res = S.campaign(S.Campaign(["double_pendulum_3d", "frame_bar"], samples=6, seed=0,
-                                engines=("mujoco",)), workers=1)
+    res = S.campaign(
+        S.Campaign(["double_pendulum_3d", "frame_bar"], samples=6, seed=0, engines=("mujoco",)),
+        workers=1,
+    )
     assert not res["faults"]["groups"], res["faults"]["groups"]
 
 
 # ---- interrupted campaigns ------------------------------------------------------------------
 @pytest.mark.parametrize("workers", [1, 2])
 def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
-    cfg, full = local_run
+    _cfg, full = local_run
     merged = []
 
     def interrupt(res):
@@ -329,8 +386,12 @@ def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
         if len(merged) == 2:
             raise KeyboardInterrupt
 
-    res = S.campaign(S.Campaign(["pendulum_xy"], samples=8, seed=11), workers=workers, chunk=2,
-                     on_chunk=interrupt)
+    res = S.campaign(
+        S.Campaign(["pendulum_xy"], samples=8, seed=11),
+        workers=workers,
+        chunk=2,
+        on_chunk=interrupt,
+    )
     st = res["status"]
     assert st["stopped"] == "interrupted" and not st["complete"]
     assert not st["passed"] and st["verdict"] == "incomplete"  # issue 15 item 6
@@ -339,8 +400,7 @@ def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
     assert done == st["completed"]["pendulum_xy"] >= 4  # the two merged chunks, maybe more
     assert done < 8 or workers == 2
     # what it completed is exactly what a full campaign says about those samples
-    ref = {(r["engine"], r["quantity"]): r for r in full["results"]
-           if r["model"] == "pendulum_xy"}
+    ref = {(r["engine"], r["quantity"]): r for r in full["results"] if r["model"] == "pendulum_xy"}
     for r in res["results"]:
         if r.get("skipped"):
             continue
@@ -353,8 +413,20 @@ def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
 
 
 def test_time_budget_stops_and_says_so(tmp_path, capsys):
-    code = main(["sweep", "pendulum_xy", "--samples", "100000", "--max-seconds", "1",
-                 "--workers", "1", "--out", str(tmp_path)])
+    code = main(
+        [
+            "sweep",
+            "pendulum_xy",
+            "--samples",
+            "100000",
+            "--max-seconds",
+            "1",
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     out = capsys.readouterr().out
     res = json.loads((tmp_path / "sweep.json").read_text())
     st = res["status"]
@@ -370,13 +442,36 @@ def test_time_budget_stops_and_says_so(tmp_path, capsys):
 
 # ---- command line ---------------------------------------------------------------------------
 def test_cli_clean_campaign_exits_0_and_writes_the_contract(tmp_path, capsys):
-    code = main(["sweep", "pendulum_xy", "--samples", "4", "--seed", "2", "--engines",
-                 "pinocchio", "--workers", "1", "--out", str(tmp_path)])
+    code = main(
+        [
+            "sweep",
+            "pendulum_xy",
+            "--samples",
+            "4",
+            "--seed",
+            "2",
+            "--engines",
+            "pinocchio",
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0 and "4 of 4 samples, 0 outside tolerance, 0 faults" in out
     res = json.loads((tmp_path / "sweep.json").read_text())
-    for key in ("command", "versions", "machine", "date", "seed", "samples", "seeding",
-                "sampler", "executor"):
+    for key in (
+        "command",
+        "versions",
+        "machine",
+        "date",
+        "seed",
+        "samples",
+        "seeding",
+        "sampler",
+        "executor",
+    ):
         assert key in res["meta"]
     r = next(r for r in res["results"] if r["quantity"] == "accelerations")
     assert set(r["quantiles"]) == {str(p) for p in S.QUANTILES}
@@ -386,22 +481,25 @@ def test_cli_clean_campaign_exits_0_and_writes_the_contract(tmp_path, capsys):
     assert sum(h["counts"]) + h["zero"] + h["below"] + h["above"] + h["nonfinite"] == 4
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["nope"], "unknown model"),
-    (["pendulum_xy", "--engines", "bullet"], "unknown engine"),
-    (["pendulum_xy", "--samples", "0"], "--samples: 0 must be at least 1"),
-    (["pendulum_xy", "--samples", "ten"], "not a whole number"),
-    (["pendulum_xy", "--seed", "-1"], "--seed: -1 must be at least 0"),
-    (["pendulum_xy", "--workers", "0"], "--workers: 0 must be at least 1"),
-    (["pendulum_xy", "--workers", "2", "--dask", "tcp://127.0.0.1:1"], "not both"),
-    (["pendulum_xy", "--max-seconds", "0"], "seconds > 0"),
-    (["pendulum_xy", "--chunk", "0"], "--chunk: 0 must be at least 1"),
-    (["pendulum_xy", "--perturb", "mujoco:nope=1"], "has no parameter 'nope'"),
-    (["pendulum_xy", "--perturb", "mujoco-m=1"], "expected ENGINE:PARAM=REL"),
-    (["pendulum_xy", "--engines", "pinocchio", "--perturb", "mujoco:m=1"], "not in --engines"),
-    (["frame_bar", "--formulation", "lagrange"], "does not declare formulation"),
-    (["pendulum_xy", "--dask", "local:x"], "expected local or local:K"),
-])
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["nope"], "unknown model"),
+        (["pendulum_xy", "--engines", "bullet"], "unknown engine"),
+        (["pendulum_xy", "--samples", "0"], "--samples: 0 must be at least 1"),
+        (["pendulum_xy", "--samples", "ten"], "not a whole number"),
+        (["pendulum_xy", "--seed", "-1"], "--seed: -1 must be at least 0"),
+        (["pendulum_xy", "--workers", "0"], "--workers: 0 must be at least 1"),
+        (["pendulum_xy", "--workers", "2", "--dask", "tcp://127.0.0.1:1"], "not both"),
+        (["pendulum_xy", "--max-seconds", "0"], "seconds > 0"),
+        (["pendulum_xy", "--chunk", "0"], "--chunk: 0 must be at least 1"),
+        (["pendulum_xy", "--perturb", "mujoco:nope=1"], "has no parameter 'nope'"),
+        (["pendulum_xy", "--perturb", "mujoco-m=1"], "expected ENGINE:PARAM=REL"),
+        (["pendulum_xy", "--engines", "pinocchio", "--perturb", "mujoco:m=1"], "not in --engines"),
+        (["frame_bar", "--formulation", "lagrange"], "does not declare formulation"),
+        (["pendulum_xy", "--dask", "local:x"], "expected local or local:K"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, argv, needle):
     try:  # argument rules refuse at parse time (SystemExit), the registries in the command
         code = main(["sweep", *argv, "--out", str(tmp_path)])

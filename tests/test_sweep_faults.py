@@ -1,6 +1,7 @@
 """Campaigns under faults (issue 15 item 12): an interrupted sweep resumes from its finished
 chunks and ends identical to an uninterrupted one, recomputing nothing it finished; a Dask
 worker process killed mid-campaign changes nothing in the results."""
+
 from __future__ import annotations
 
 import json
@@ -46,8 +47,14 @@ def test_resume_computes_only_what_is_missing(tmp_path, undisturbed):
     assert len(list((tmp_path / STORE).glob("*-*.json"))) == 3
     cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
     computed = []
-    res = S.campaign(cfg, workers=1, chunk=CHUNK, store=ChunkStore(tmp_path, cfg), resume=True,
-                     on_chunk=lambda r: computed.append((r["model"], r["start"])))
+    res = S.campaign(
+        cfg,
+        workers=1,
+        chunk=CHUNK,
+        store=ChunkStore(tmp_path, cfg),
+        resume=True,
+        on_chunk=lambda r: computed.append((r["model"], r["start"])),
+    )
     assert res["meta"]["resumed"]["chunks"] == 3
     assert res["meta"]["resumed"]["samples"] == sum(c for *_, c in merged)
     assert not {(m, s) for m, s, _ in merged} & set(computed)  # nothing finished recomputed
@@ -70,18 +77,35 @@ def test_cli_resume_ends_identical_to_an_uninterrupted_run(tmp_path, capsys, und
 
 
 def test_an_interrupted_cli_sweep_says_how_to_resume(tmp_path, capsys):
-    code = main(["sweep", "pendulum_xy", "--samples", "100000", "--max-seconds", "1",
-                 "--workers", "1", "--engines", "pinocchio", "--out", str(tmp_path)])
+    code = main(
+        [
+            "sweep",
+            "pendulum_xy",
+            "--samples",
+            "100000",
+            "--max-seconds",
+            "1",
+            "--workers",
+            "1",
+            "--engines",
+            "pinocchio",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     out = capsys.readouterr().out
     assert code in (1, 4) and f"crosscheck sweep --resume {tmp_path}" in out
     assert list((tmp_path / STORE).glob("*-*.json"))
 
 
-@pytest.mark.parametrize("argv,fragment", [
-    (["--samples", "9"], "continues the campaign stored there (samples 8)"),
-    (["pendulum_xy"], "(models ['pendulum_xy', 'slider_crank_split'])"),
-    (["--bench"], "give one of them"),
-])
+@pytest.mark.parametrize(
+    "argv,fragment",
+    [
+        (["--samples", "9"], "continues the campaign stored there (samples 8)"),
+        (["pendulum_xy"], "(models ['pendulum_xy', 'slider_crank_split'])"),
+        (["--bench"], "give one of them"),
+    ],
+)
 def test_resume_refuses_a_different_campaign(tmp_path, capsys, argv, fragment):
     _interrupted(tmp_path, after=1)
     before = sorted(p.name for p in (tmp_path / STORE).iterdir())
@@ -98,9 +122,12 @@ def test_a_killed_dask_worker_changes_nothing(undisturbed):
     distributed = pytest.importorskip("distributed")
     cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED)
     killed = []
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         pids = client.run(os.getpid)
 
         def kill_a_busy_worker(_res):

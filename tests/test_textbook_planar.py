@@ -2,6 +2,7 @@
 
 Examples 1 and 2 and Note 2 / Exercise 6.3, for every formulation each model declares.
 """
+
 from __future__ import annotations
 
 import pytest
@@ -22,7 +23,7 @@ def _equations(model_name, formulation):
 
 def _assert_same(derived, printed):
     assert len(derived) == len(printed)
-    for k, (d, p) in enumerate(zip(derived, printed)):
+    for k, (d, p) in enumerate(zip(derived, printed, strict=False)):
         diff = sp.simplify(sp.expand_trig(sp.expand(d - p)))
         assert diff == 0, f"equation {k + 1}: derived - printed = {diff}"
 
@@ -41,7 +42,8 @@ def test_example_1a(formulation):
 @pytest.mark.parametrize("formulation", FORMS)
 def test_example_1b(formulation):
     m, g, x, y, xd, yd, xdd, ydd, lam = map(
-        _sym, ["m", "g", "x", "y", "x_dot", "y_dot", "x_dot_dot", "y_dot_dot", "lambda1"])
+        _sym, ["m", "g", "x", "y", "x_dot", "y_dot", "x_dot_dot", "y_dot_dot", "lambda1"]
+    )
     dyn, con = _equations("pendulum_xy", formulation)
     _assert_same(dyn, [m * xdd - lam * x, m * ydd - m * g - lam * y])
     _assert_same(con, [x * xdd + y * ydd + xd**2 + yd**2])
@@ -50,17 +52,38 @@ def test_example_1b(formulation):
 def test_example_1b_eliminated_form_has_plus_gx():
     """docs/textbook.md: eliminating lambda gives y x'' - x y'' + g x = 0 (the extracted text's
     '- g x' contradicts its own recipe)."""
-    m, g, x, y, xdd, ydd, lam = map(
-        _sym, ["m", "g", "x", "y", "x_dot_dot", "y_dot_dot", "lambda1"])
+    m, g, x, y, xdd, ydd, _lam = map(
+        _sym, ["m", "g", "x", "y", "x_dot_dot", "y_dot_dot", "lambda1"]
+    )
     dyn, _ = _equations("pendulum_xy", "lagrange")
     eliminated = sp.expand((y * dyn[0] - x * dyn[1]) / m)
     assert sp.simplify(eliminated - (y * xdd - x * ydd + g * x)) == 0
 
 
 def _ex2_printed(constrained: bool):
-    s = {n: _sym(n) for n in ["m1", "m2", "m3", "l1", "l2", "r1", "r2", "I_G1", "I_G2", "g", "T",
-                              "theta1", "theta2", "theta1_dot", "theta2_dot",
-                              "theta1_dot_dot", "theta2_dot_dot", "lambda1"]}
+    s = {
+        n: _sym(n)
+        for n in [
+            "m1",
+            "m2",
+            "m3",
+            "l1",
+            "l2",
+            "r1",
+            "r2",
+            "I_G1",
+            "I_G2",
+            "g",
+            "T",
+            "theta1",
+            "theta2",
+            "theta1_dot",
+            "theta2_dot",
+            "theta1_dot_dot",
+            "theta2_dot_dot",
+            "lambda1",
+        ]
+    }
     th1, th2 = s["theta1"], s["theta2"]
     w1, w2, a1, a2 = s["theta1_dot"], s["theta2_dot"], s["theta1_dot_dot"], s["theta2_dot_dot"]
     m1, m2, m3, l1, l2, r1, r2 = (s[k] for k in ["m1", "m2", "m3", "l1", "l2", "r1", "r2"])
@@ -68,10 +91,21 @@ def _ex2_printed(constrained: bool):
     C1, S1, C2, S2 = sp.cos(th1), sp.sin(th1), sp.cos(th2), sp.sin(th2)
     C21, S21 = sp.cos(th2 - th1), sp.sin(th2 - th1)
     k = m2 * r2 + m3 * l2
-    e1 = ((s["I_G1"] + m1 * r1**2 + (m2 + m3) * l1**2) * a1 + k * l1 * C21 * a2
-          - k * l1 * S21 * w2**2 + (m1 * r1 + (m2 + m3) * l1) * g * C1 - T - lam * l1 * C1)
-    e2 = (k * l1 * C21 * a1 + (s["I_G2"] + m2 * r2**2 + m3 * l2**2) * a2
-          + k * l1 * S21 * w1**2 + k * g * C2 - lam * l2 * C2)
+    e1 = (
+        (s["I_G1"] + m1 * r1**2 + (m2 + m3) * l1**2) * a1
+        + k * l1 * C21 * a2
+        - k * l1 * S21 * w2**2
+        + (m1 * r1 + (m2 + m3) * l1) * g * C1
+        - T
+        - lam * l1 * C1
+    )
+    e2 = (
+        k * l1 * C21 * a1
+        + (s["I_G2"] + m2 * r2**2 + m3 * l2**2) * a2
+        + k * l1 * S21 * w1**2
+        + k * g * C2
+        - lam * l2 * C2
+    )
     con = l1 * C1 * a1 + l2 * C2 * a2 - l1 * S1 * w1**2 - l2 * S2 * w2**2
     return [e1, e2], [con]
 
@@ -94,10 +128,32 @@ def test_example_2b(formulation):
 
 @pytest.mark.parametrize("formulation", FORMS)
 def test_exercise_6_3(formulation):
-    s = {n: _sym(n) for n in ["m1", "m2", "m3", "l1", "l2", "r1", "r2", "I_G1", "I_G2", "g", "T",
-                              "theta1", "theta2", "theta1_dot", "theta2_dot", "x_dot",
-                              "theta1_dot_dot", "theta2_dot_dot", "x_dot_dot",
-                              "lambda1", "lambda2"]}
+    s = {
+        n: _sym(n)
+        for n in [
+            "m1",
+            "m2",
+            "m3",
+            "l1",
+            "l2",
+            "r1",
+            "r2",
+            "I_G1",
+            "I_G2",
+            "g",
+            "T",
+            "theta1",
+            "theta2",
+            "theta1_dot",
+            "theta2_dot",
+            "x_dot",
+            "theta1_dot_dot",
+            "theta2_dot_dot",
+            "x_dot_dot",
+            "lambda1",
+            "lambda2",
+        ]
+    }
     C1, S1 = sp.cos(s["theta1"]), sp.sin(s["theta1"])
     C2, S2 = sp.cos(s["theta2"]), sp.sin(s["theta2"])
     m1, m2, m3, l1, l2, r1, r2, g = (s[k] for k in ["m1", "m2", "m3", "l1", "l2", "r1", "r2", "g"])
@@ -107,7 +163,9 @@ def test_exercise_6_3(formulation):
     printed = [  # coordinate order (theta1, x, theta2)
         (s["I_G1"] + m1 * r1**2) * a1 + m1 * g * r1 * C1 - s["T"] - l1 * (L2 * C1 - L1 * S1),
         (m2 + m3) * xdd - m2 * r2 * S2 * a2 - m2 * r2 * C2 * w2**2 + L1,
-        (s["I_G2"] + m2 * r2**2) * a2 - m2 * r2 * S2 * xdd + m2 * g * r2 * C2
+        (s["I_G2"] + m2 * r2**2) * a2
+        - m2 * r2 * S2 * xdd
+        + m2 * g * r2 * C2
         - l2 * (L1 * S2 - L2 * C2),
     ]
     # f1 = l1 C1 - l2 C2 - x and f2 = l1 S1 - l2 S2, differentiated twice

@@ -1,4 +1,5 @@
 """crosscheck.check / assert_passes: the Python API for users' test suites (issue 11 item 8)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -13,11 +14,11 @@ DATA = Path(__file__).parent / "data"
 
 
 def test_check_a_file_returns_its_records():
-    records = crosscheck.check(DATA / "fourbar_connect.xml", engines=["pinocchio", "mujoco"],
-                               states=2)
+    records = crosscheck.check(
+        DATA / "fourbar_connect.xml", engines=["pinocchio", "mujoco"], states=2
+    )
     assert {r["model"] for r in records} == {"fourbar_connect"}
-    acc = [r for r in records if r["quantity"] == "accelerations" and r["check"] ==
-           "instantaneous"]
+    acc = [r for r in records if r["quantity"] == "accelerations" and r["check"] == "instantaneous"]
     assert {r["engine"] for r in acc} == {"pinocchio", "mujoco"}
     assert all(r["passed"] for r in acc)
 
@@ -31,6 +32,7 @@ def test_assert_passes_fails_with_the_worst_record():
     # a Model object whose mass differs from the file's: the engines (loading the MJCF) and
     # the reference (this Model) disagree, and the message names the worst record
     from crosscheck.user_models import load_model_file, register_all
+
     register_all(load_model_file(DATA / "pendulum_hinge.xml"))
     good = models.get("pendulum_hinge")
     src = models.user_source("pendulum_hinge")
@@ -46,5 +48,6 @@ def test_assert_passes_fails_with_the_worst_record():
 
 def test_check_refuses_an_unknown_name():
     from reference.errors import ModelInputError
+
     with pytest.raises(ModelInputError, match="unknown model"):
         crosscheck.check("no_such_model")
