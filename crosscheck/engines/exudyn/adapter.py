@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ...compare import Tolerance
-from ..base import Capabilities, EngineAdapter, EngineUnsupported
+from ..base import Capabilities, EngineAdapter, lookup_builder, resolve_params
 from .base import INTEGRATORS, ExudynModel
 from .exercises import Exercise61, Exercise62, Exercise64
 from .planar import (
@@ -58,13 +58,6 @@ EXUDYN_EXACT = Tolerance(
           "1e-6 parameter fault")
 
 
-def _resolve(model_name: str, params: dict | None) -> dict[str, float]:
-    from reference.models import get
-    from reference.numeric import resolve_parameters
-
-    return resolve_parameters(get(model_name), params)
-
-
 class ExudynAdapter(EngineAdapter):
     """EngineAdapter for Exudyn 1.13 (see the module docstring)."""
 
@@ -81,14 +74,8 @@ class ExudynAdapter(EngineAdapter):
 
     def build(self, model_name: str, params: dict[str, float] | None = None,
               variant: str | None = None):
-        if model_name in _UNSUPPORTED:
-            raise EngineUnsupported(_UNSUPPORTED[model_name])
-        if model_name not in _MODELS:
-            raise EngineUnsupported(
-                f"exudyn adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
-        if variant is not None:
-            raise EngineUnsupported(f"{model_name}: exudyn has a single variant here")
-        return _MODELS[model_name](model_name, _resolve(model_name, params))
+        builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)
+        return builder(model_name, resolve_params(model_name, params))
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return EXUDYN_EXACT

@@ -31,14 +31,14 @@ the reference writes it, e.g. +g Y for the Y-down pendulum), so no axis is flipp
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
 import exudyn as exu
 
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from ..base import (EngineForward, EngineModel, EngineTrajectory, EngineUnsupported,
+                    check_state)
 
 __all__ = ["DEFAULT_EPSILON", "INTEGRATORS", "RICHARDSON_EPSILON", "ExudynModel"]
 
@@ -191,22 +191,8 @@ class ExudynModel(EngineModel):
 
     # ---- EngineModel ---------------------------------------------------------------------
     def _check(self, q, u=None, t: float = 0.0):
-        from reference.errors import ModelInputError
-
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.size != self.nq_ref:
-            raise ModelInputError(f"{self.model_name} (exudyn): expected {self.nq_ref} "
-                                  f"coordinates, got {q.size}")
-        if u is not None:
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.size != self.n_ref:
-                raise ModelInputError(f"{self.model_name} (exudyn): expected {self.n_ref} "
-                                      f"speeds, got {u.size}")
-        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-                and math.isfinite(t)):
-            raise ModelInputError(f"{self.model_name} (exudyn): state contains NaN or "
-                                  "infinite values")
-        return q, u
+        """Sizes and finiteness of a reference state, as the reference checks them."""
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
 
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         q, u = self._check(q, u, t)

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import time
 from typing import Any, Optional, Sequence
 
 import numpy as np
 import opensim as osim
 
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from ..base import (EngineForward, EngineModel, EngineTrajectory, EngineUnsupported,
+                    check_state)
 
 __all__ = ["INTEGRATORS", "FIXED_STEP", "OsimModel", "custom_joint", "point_body", "vec3"]
 
@@ -171,22 +171,8 @@ class OsimModel(EngineModel):
         return out[self._q_index] if out.size == self.nq_e else out[self._u_index]
 
     def _check(self, q, u=None, t: float = 0.0):
-        from reference.errors import ModelInputError
-
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.size != self.nq_ref:
-            raise ModelInputError(f"{self.model_name} (opensim): expected {self.nq_ref} "
-                                  f"coordinates, got {q.size}")
-        if u is not None:
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.size != self.n_ref:
-                raise ModelInputError(f"{self.model_name} (opensim): expected {self.n_ref} "
-                                      f"speeds, got {u.size}")
-        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-                and math.isfinite(t)):
-            raise ModelInputError(f"{self.model_name} (opensim): state contains NaN or "
-                                  "infinite values")
-        return q, u
+        """Sizes and finiteness of a reference state, as the reference checks them."""
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
 
     # ---- the EngineModel interface -----------------------------------------------------------
     def forward(self, q, u, t: float = 0.0) -> EngineForward:

@@ -4,7 +4,6 @@ matrix, trajectories. The conventions are in the package's adapter docstring."""
 from __future__ import annotations
 
 import hashlib
-import math
 import time
 from typing import Optional
 
@@ -13,7 +12,7 @@ from scipy.integrate import solve_ivp
 
 import pinocchio as pin
 
-from ..base import EngineForward, EngineModel, EngineTrajectory
+from ..base import EngineForward, EngineModel, EngineTrajectory, check_state
 
 # scipy's error-controlled integrators the trajectories use (solve_ivp methods)
 INTEGRATORS = ("DOP853",)
@@ -349,22 +348,7 @@ class PinEngineModel(EngineModel):
     # ---- the EngineModel interface ---------------------------------------------------------
     def _check(self, q, u=None, t: float = 0.0):
         """Sizes and finiteness of a reference state, as the reference checks them."""
-        from reference.errors import ModelInputError
-
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.size != self.nq_ref:
-            raise ModelInputError(f"{self.model_name} (pinocchio): expected {self.nq_ref} "
-                                  f"coordinates, got {q.size}")
-        if u is not None:
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.size != self.n_ref:
-                raise ModelInputError(f"{self.model_name} (pinocchio): expected {self.n_ref} "
-                                      f"speeds, got {u.size}")
-        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-                and math.isfinite(t)):
-            raise ModelInputError(f"{self.model_name} (pinocchio): state contains NaN or "
-                                  f"infinite values")
-        return q, u
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
 
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         q, u = self._check(q, u, t)
