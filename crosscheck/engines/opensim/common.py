@@ -20,8 +20,10 @@ Simbody's internal ordering.
 from __future__ import annotations
 
 import hashlib
-import json
+import os
+import tempfile
 import time
+from xml.etree import ElementTree
 from typing import Any, Optional, Sequence
 
 import numpy as np
@@ -46,6 +48,11 @@ INTEGRATORS = {
     "ExplicitEuler": osim.Manager.IntegratorMethod_ExplicitEuler,
 }
 FIXED_STEP = ("ExplicitEuler",)
+
+# XML elements of a model that do not enter its dynamics (left out of the fingerprint): the
+# assembled starting configuration (coordinates' default values) and the display geometry
+_NOT_DYNAMICS = {"default_value", "default_speed_value", "FrameGeometry", "attached_geometry",
+                 "Appearance"}
 
 
 def vec3(x=0.0, y=0.0, z=0.0) -> osim.Vec3:
@@ -255,10 +262,22 @@ class OsimModel(EngineModel):
         return call
 
     def fingerprint(self) -> str:
-        """The class (the engine model's topology) and every parameter value it was built from:
-        the model is built in code from exactly these numbers."""
-        blob = json.dumps([type(self).__name__, sorted(self.params.items())])
-        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+        """Digest of the built model as OpenSim writes it back (Model.printToXML): every
+        body's mass, mass centre and inertia, every joint's type, coordinates' axes and
+        functions and its offset frames, the constraints, the forces and prescribed motions,
+        gravity. Left out: what is not dynamics (coordinates' default values, the display
+        geometry) and the parameter dict itself, so a parameter the built model does
+        not contain leaves the digest unchanged."""
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "model.osim")
+            self.model.printToXML(path)
+            root = ElementTree.parse(path).getroot()  # comments are dropped by the parser
+        for parent in list(root.iter()):
+            for child in list(parent):
+                if child.tag in _NOT_DYNAMICS:
+                    parent.remove(child)
+        blob = type(self).__name__.encode() + ElementTree.tostring(root)
+        return hashlib.sha256(blob).hexdigest()[:16]
 
     # ---- trajectories ------------------------------------------------------------------------
     def simulate(self, q0, u0, t_eval: Sequence[float], *, integrator: str = "RungeKuttaMerson",
