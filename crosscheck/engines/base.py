@@ -286,7 +286,8 @@ def lookup_builder(engine: str, table: ModelTable, model_name: str, variant: Opt
     return entry[key]
 
 
-def check_state(where: str, nq: int, n: int, q, u=None, t: float = 0.0):
+def check_state(where: str, nq: int, n: int, q: Any, u: Any = None, t: float = 0.0
+                ) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """A reference state's sizes and finiteness, checked as the reference checks them;
     ``where`` names the model and engine in the error. Returns (q, u) as flat float arrays."""
     from reference.errors import ModelInputError
