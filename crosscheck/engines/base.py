@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Callable, ClassVar, Optional, Sequence
 
 import math
 
@@ -23,8 +23,8 @@ import numpy as np
 from ..compare import EXACT_KKT, Tolerance
 
 __all__ = ["Capabilities", "EngineAdapter", "EngineForward", "EngineModel", "EngineTrajectory",
-           "EngineUnsupported", "ModelTable", "check_state", "lookup_builder",
-           "resolve_params", "table_variants"]
+           "EngineUnsupported", "ModelTable", "TableAdapter", "check_state", "is_user_model",
+           "lookup_builder", "resolve_params", "table_variants"]
 
 
 class EngineUnsupported(Exception):
@@ -252,6 +252,13 @@ def resolve_params(model_name: str, params: Optional[dict]) -> dict[str, float]:
     return resolve_parameters(get(model_name), params)
 
 
+def is_user_model(table: ModelTable, model_name: str) -> bool:
+    """A model loaded from a user's file (reference.models.user_names), not in the table."""
+    from reference.models import user_names
+
+    return model_name not in table and model_name in user_names()
+
+
 def table_variants(table: ModelTable, model_name: str) -> tuple[Optional[str], ...]:
     """The variants of a model in an adapter's table; (None,) for a single engine model."""
     entry = table.get(model_name)
@@ -303,3 +310,32 @@ def check_state(where: str, nq: int, n: int, q: Any, u: Any = None, t: float = 0
             and math.isfinite(t)):
         raise ModelInputError(f"{where}: state contains NaN or infinite values")
     return q, u
+
+
+class TableAdapter(EngineAdapter):
+    """An adapter whose engine models are one ModelTable: ``model_table`` (reference model ->
+    builder(model_name, params), or {variant: builder}), ``refused`` (reference model -> why
+    the engine cannot express it) and ``user_files`` (it also builds the models loaded from
+    users' files; its build() then handles them before the table)."""
+
+    model_table: ClassVar[ModelTable] = {}
+    refused: ClassVar[dict[str, str]] = {}
+    user_files: ClassVar[bool] = False
+
+    def models(self) -> tuple[str, ...]:
+        from reference.models import user_names
+
+        return (*self.model_table, *(user_names() if self.user_files else ()))
+
+    def unsupported(self) -> dict[str, str]:
+        return dict(self.refused)
+
+    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
+        return table_variants(self.model_table, model_name)
+
+    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
+              variant: Optional[str] = None) -> EngineModel:
+        builder = lookup_builder(self.name, self.model_table, model_name, variant,
+                                 self.refused)
+        model: EngineModel = builder(model_name, resolve_params(model_name, params))
+        return model

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ...compare import Tolerance
-from ..base import Capabilities, EngineAdapter, lookup_builder, resolve_params
+from ..base import Capabilities, TableAdapter
 from .base import INTEGRATORS, ExudynModel
 from .exercises import Exercise61, Exercise62, Exercise64
 from .planar import (
@@ -58,24 +58,16 @@ EXUDYN_EXACT = Tolerance(
           "1e-6 parameter fault")
 
 
-class ExudynAdapter(EngineAdapter):
+class ExudynAdapter(TableAdapter):
     """EngineAdapter for Exudyn 1.13 (see the module docstring)."""
 
     name = "exudyn"
     distribution = "exudyn"
     capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=True,
                                 integrators=tuple(INTEGRATORS))
+    model_table = _MODELS
+    refused = _UNSUPPORTED
 
-    def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
-
-    def build(self, model_name: str, params: dict[str, float] | None = None,
-              variant: str | None = None):
-        builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)
-        return builder(model_name, resolve_params(model_name, params))
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return EXUDYN_EXACT

@@ -82,8 +82,8 @@ from typing import Optional
 import numpy as np
 
 from ...compare import Tolerance
-from ..base import (Capabilities, EngineAdapter, EngineUnsupported, lookup_builder, resolve_params,
-                    single_variant, table_variants)
+from ..base import (Capabilities, EngineUnsupported, TableAdapter, is_user_model, lookup_builder,
+                    resolve_params, single_variant, table_variants)
 from .exercises import Exercise61, Exercise62, Exercise64
 from .machinery import INTEGRATORS, LIGHT, MJCF_DIR, MUJOCO_EXACT, SOLIMP, SOLREF
 from .planar import (FrameBar, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
@@ -126,11 +126,6 @@ _UNSUPPORTED = {
 }
 
 
-def _is_user_model(model_name: str) -> bool:
-    from reference.models import user_names
-    return model_name in user_names()
-
-
 def mjcf(model_name: str, params: Optional[dict] = None, variant: Optional[str] = None,
          solref=SOLREF, solimp=SOLIMP) -> str:
     """The MJCF text MuJoCo is given for a reference model (parameters resolved as in build)."""
@@ -154,7 +149,7 @@ def write_mjcf(directory=MJCF_DIR) -> list[Path]:
     return out
 
 
-class MujocoAdapter(EngineAdapter):
+class MujocoAdapter(TableAdapter):
     """EngineAdapter for MuJoCo 4.0 (one generated MJCF per model; see the module docstring).
 
     solref/solimp apply to every equality constraint; the instantaneous answer at a consistent
@@ -171,22 +166,16 @@ class MujocoAdapter(EngineAdapter):
     def __init__(self, solref=SOLREF, solimp=SOLIMP):
         self.solref, self.solimp = tuple(solref), tuple(solimp)
 
-    def models(self) -> tuple[str, ...]:
-        from reference.models import user_names
-        return (*_MODELS, *user_names())
+    model_table = _MODELS
+    refused = _UNSUPPORTED
+    user_files = True
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return MUJOCO_EXACT
 
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
-
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
-        return table_variants(_MODELS, model_name)
-
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):
-        if model_name not in _MODELS and _is_user_model(model_name):
+        if is_user_model(_MODELS, model_name):
             from .user_file import UserFileModel
             single_variant(self.name, model_name, variant, "a user's file")
             return UserFileModel(model_name, params)

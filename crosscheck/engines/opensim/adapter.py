@@ -14,10 +14,9 @@ coordinate couplers), and the models not yet mapped, each with its reason.
 """
 from __future__ import annotations
 
-from typing import Callable, Optional
+from typing import Callable
 
-from ..base import (Capabilities, EngineAdapter, lookup_builder, resolve_params,
-                    table_variants)
+from ..base import Capabilities, TableAdapter
 from ...compare import EXACT_KKT, Tolerance
 from .common import FIXED_STEP, INTEGRATORS, OsimModel
 from .exercises import Exercise61, Exercise62, Exercise64
@@ -71,7 +70,7 @@ OPENSIM_DOUBLE_PENDULUM = Tolerance(
            "is 5x that")
 
 
-class OpenSimAdapter(EngineAdapter):
+class OpenSimAdapter(TableAdapter):
     """EngineAdapter for OpenSim 4.6 (models built in code; see the module docstring)."""
 
     name = "opensim"
@@ -81,21 +80,9 @@ class OpenSimAdapter(EngineAdapter):
                                 adaptive_integrators=tuple(i for i in INTEGRATORS
                                                            if i not in FIXED_STEP))
 
-    def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
+    model_table = _MODELS
+    refused = _UNSUPPORTED
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         """EXACT_KKT (1e-11) except the measured floor of the 3-D double pendulum."""
         return OPENSIM_DOUBLE_PENDULUM if model_name == "double_pendulum_3d" else EXACT_KKT
-
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
-        """Engine variants of a model (the first is build's default); (None,) for one."""
-        return table_variants(_MODELS, model_name)
-
-    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
-              variant: Optional[str] = None):
-        builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)
-        return builder(model_name, resolve_params(model_name, params))

@@ -74,8 +74,8 @@ from __future__ import annotations
 
 from typing import Optional
 
-from ..base import (Capabilities, EngineAdapter, lookup_builder, resolve_params, single_variant,
-                    table_variants)
+from ..base import (Capabilities, TableAdapter, is_user_model, lookup_builder, resolve_params,
+                    single_variant)
 from .exercises import Exercise61, Exercise62, Exercise64
 from .machinery import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
 from .planar import (FrameBar, KnifeEdge, MovingSupport, PendulumAngle, PendulumXY, SliderCrank,
@@ -113,12 +113,7 @@ _MODELS = {
 _UNSUPPORTED: dict[str, str] = {}
 
 
-def _user_names() -> list[str]:
-    from reference.models import user_names
-    return user_names()
-
-
-class PinocchioAdapter(EngineAdapter):
+class PinocchioAdapter(TableAdapter):
     """EngineAdapter for Pinocchio 4.1 (models built in code; see the module docstring)."""
 
     name = "pinocchio"
@@ -129,20 +124,13 @@ class PinocchioAdapter(EngineAdapter):
                                 nonholonomic=True, integrators=INTEGRATORS, variants=True,
                                 adaptive_integrators=INTEGRATORS)
 
-    def models(self) -> tuple[str, ...]:
-        from reference.models import user_names
-        return (*_MODELS, *user_names())
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
-
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
-        """Engine variants of a model (the first is build's default); (None,) for one."""
-        return table_variants(_MODELS, model_name)
+    model_table = _MODELS
+    refused = _UNSUPPORTED
+    user_files = True
 
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):
-        if model_name not in _MODELS and model_name in _user_names():
+        if is_user_model(_MODELS, model_name):
             from .user_file import UserFilePinModel
             single_variant(self.name, model_name, variant, "a user's file")
             return UserFilePinModel(model_name, params)
