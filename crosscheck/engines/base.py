@@ -9,14 +9,17 @@ Callers never probe for methods: they read the adapter's ``capabilities`` (what 
 do at all) and, per built model, the optional answers (``mass_matrix`` returns None with
 ``mass_matrix_note`` saying why). Everything a capability promises is checked for every
 registered engine on every model it claims by tests/test_engine_contract.py.
+
+What every adapter would otherwise write again is here once: TableAdapter (models, variants
+and build from a table of engine models, through lookup_builder and resolve_params) and
+check_state (a reference state's sizes and finiteness, as the reference checks them).
 """
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, Optional, Sequence
-
-import math
 
 import numpy as np
 
