@@ -18,8 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crosscheck.engines.base import EngineAdapter, EngineUnsupported
+from crosscheck.comparison import build
+from crosscheck.engines.base import EngineAdapter, EngineUnsupported, resolve_params
 from crosscheck.engines.exudyn import ExudynAdapter
+from crosscheck.engines.exudyn.trajectory import ExudynIntegrationError
+from crosscheck.perturb import check_perturb_changes
 from crosscheck.sampling import random_consistent_state, random_params
 from reference.errors import ModelInputError
 from reference.integrate import simulate as reference_simulate
@@ -264,13 +267,79 @@ def test_frame_bar_bearing_moment_is_newton_euler():
 
 @pytest.mark.parametrize("name", MODELS)
 def test_fingerprint_follows_the_physics(name):
-    """Same parameters: same digest; one parameter changed by 1e-6: a different digest."""
+    """Same parameters: same digest; a nonzero parameter changed by 1e-6: a different digest
+    (every nonzero parameter of every model is in its built system)."""
     params = random_params(get(name), np.random.default_rng(1))
     a, b = ADAPTER.build(name, params), ADAPTER.build(name, params)
     assert a.fingerprint() == b.fingerprint()
-    key = min(params)
-    changed = ADAPTER.build(name, dict(params, **{key: params[key] * (1 + 1e-6)}))
-    assert changed.fingerprint() != a.fingerprint()
+    for key in (k for k, v in params.items() if v != 0.0):
+        changed = ADAPTER.build(name, dict(params, **{key: params[key] * (1 + 1e-6)}))
+        assert changed.fingerprint() != a.fingerprint(), key
+
+
+def test_fingerprint_reads_the_built_system():
+    """The digest is of the system Exudyn holds (read back item by item), not of the
+    parameter dict: an entry the system does not use leaves it unchanged; a mass changed in
+    the built system changes it."""
+    params = resolve_params("slider_crank", None)
+    em = ADAPTER.build("slider_crank", params)
+    before = em.fingerprint()
+    assert type(em)("slider_crank", dict(params, unused=1.0)).fingerprint() == before
+    body = next(i for i in range(em.mbs.systemData.NumberOfObjects())
+                if "mass" in em.mbs.GetObject(i))
+    em.mbs.ModifyObject(body, {"mass": em.mbs.GetObject(body)["mass"] * (1 + 1e-12)})
+    assert em.fingerprint() != before
+
+
+def test_perturbation_that_changes_nothing_is_refused():
+    """--perturb exudyn:T=... on the slider-crank (T = 0: no torque load in the system) is
+    refused with the reason; exudyn:m2=1e-6 changes the rod's mass and is accepted."""
+    with pytest.raises(ModelInputError, match="does not change exudyn's model"):
+        check_perturb_changes(["slider_crank"], ["exudyn"], {"exudyn": {"T": 1e-6}})
+    check_perturb_changes(["slider_crank"], ["exudyn"], {"exudyn": {"m2": 1e-6}})
+
+
+@pytest.mark.parametrize("name,param", [("pendulum_angle", "L"), ("knife_edge", "a"),
+                                        ("pendulum_moving_support", "a"),
+                                        ("slider_crank", "l2"), ("top_euler", "L")])
+def test_maps_use_the_nominal_geometry(name, param):
+    """A perturbation changes the engine's physics only: with a length 1e-3 off, the state
+    maps are the nominal model's (the same engine state, the exact round trip) while the
+    answer differs."""
+    params, nm, t, q, u = _instances(name, 1, seed=7)[0]
+    bad = dict(params, **{param: params[param] * (1 + 1e-3)})
+    nominal, perturbed = build(ADAPTER, name, params, None), build(ADAPTER, name, bad, None,
+                                                                   nominal=params)
+    nominal.time = perturbed.time = t
+    qe, ve = perturbed.to_engine_state(q, u)
+    qn, vn = nominal.to_engine_state(q, u)
+    assert np.array_equal(qe, qn) and np.array_equal(ve, vn)
+    q2, u2 = perturbed.from_engine_state(qe, ve)
+    assert scaled_error(q2, q) < STATE_MAP_RTOL and scaled_error(u2, u) < STATE_MAP_RTOL
+    assert scaled_error(perturbed.forward(q, u, t).accelerations,
+                        nominal.forward(q, u, t).accelerations) > 1e-6
+
+
+def test_solver_output_is_silenced_and_failures_keep_their_reason(capfd, monkeypatch):
+    """Exudyn's console writing is off during a trajectory: neither its "DYNAMIC SOLVER
+    FAILED" banner nor its memory-allocation note reaches stdout, and a failure still raises
+    with the solver's reason."""
+    import exudyn.solver
+
+    m = get("slider_crank")
+    em = ADAPTER.build("slider_crank")
+    with pytest.raises(ExudynIntegrationError, match="did not converge .* at t = "):
+        em.simulate(m.initial_q, m.initial_u, [0.0, 0.5], integrator="generalized-alpha",
+                    timestep=0.25)
+    # Exudyn notes allocations per step above a threshold; at 1 it fires on any run with
+    # Python user functions (the knife edge's row)
+    monkeypatch.setattr(exudyn.solver, "solverCheckMemoryAllocationsThreshold", 1)
+    k = get("knife_edge")
+    tr = ADAPTER.build("knife_edge").simulate(k.initial_q, k.initial_u, [0.0, 0.01],
+                                              integrator="generalized-alpha", timestep=1e-3)
+    assert tr.failure is None
+    out = capfd.readouterr().out
+    assert "SOLVER FAILED" not in out and "memory allocations" not in out
 
 
 def test_angles_read_with_atan2_are_continuous_along_a_trajectory():

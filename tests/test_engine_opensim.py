@@ -21,9 +21,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from crosscheck.engines.base import EngineAdapter, EngineUnsupported
+from crosscheck.comparison import build
+from crosscheck.engines.base import EngineAdapter, EngineUnsupported, resolve_params
 from crosscheck.engines.opensim import OpenSimAdapter
 from crosscheck.engines.opensim.common import INTEGRATORS
+from crosscheck.perturb import check_perturb_changes
 from crosscheck.sampling import random_consistent_state
 from reference.errors import ModelInputError
 from reference.models import get, names
@@ -202,6 +204,49 @@ def test_perturbed_parameter_breaks_agreement():
                 for q, u in states("slider_crank", 4))
     assert worst > 100 * EXACT
     assert bad.fingerprint() != engine("slider_crank").fingerprint()
+
+
+def test_fingerprint_reads_the_built_model():
+    """The digest is of the model OpenSim writes back (its XML), not of the parameter dict: an
+    entry the model does not use leaves it unchanged; a body's mass changed in the built
+    model changes it; every nonzero parameter of the slider-crank is in the model."""
+    params = resolve_params("slider_crank", None)
+    em = ADAPTER.build("slider_crank", params)
+    before = em.fingerprint()
+    assert type(em)("slider_crank", dict(params, unused=1.0)).fingerprint() == before
+    for key in (k for k, v in params.items() if v != 0.0):
+        changed = ADAPTER.build("slider_crank", dict(params, **{key: params[key] * (1 + 1e-6)}))
+        assert changed.fingerprint() != before, key
+    body = em.model.getBodySet().get("rod")
+    body.setMass(body.getMass() * (1 + 1e-12))
+    assert em.fingerprint() != before
+
+
+def test_perturbation_that_changes_nothing_is_refused():
+    """--perturb opensim:T=... on the slider-crank (T = 0: no torque in the model) is refused
+    with the reason; opensim:m2=1e-6 changes the rod's mass and is accepted."""
+    with pytest.raises(ModelInputError, match="does not change opensim's model"):
+        check_perturb_changes(["slider_crank"], ["opensim"], {"opensim": {"T": 1e-6}})
+    check_perturb_changes(["slider_crank"], ["opensim"], {"opensim": {"m2": 1e-6}})
+
+
+@pytest.mark.parametrize("model_name,param", [("top_cartesian", "L"),
+                                              ("pendulum_moving_support", "a")])
+def test_maps_use_the_nominal_geometry(model_name, param):
+    """A perturbation changes the engine's physics only: with a length 1e-3 off, the state
+    and multiplier maps are the nominal model's (the exact round trip) while the answer
+    differs."""
+    params = resolve_params(model_name, PARAMS.get(model_name))
+    bad = dict(params, **{param: params[param] * (1 + 1e-3)})
+    nominal = build(ADAPTER, model_name, params, None)
+    perturbed = build(ADAPTER, model_name, bad, None, nominal=params)
+    for q, u in states(model_name, 2):
+        qe, ve = perturbed.to_engine_state(q, u)
+        q2, u2 = perturbed.from_engine_state(qe, ve)
+        assert np.max(np.abs(q2 - q)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(q)))
+        assert np.max(np.abs(u2 - u)) <= STATE_MAP_ATOL * max(1.0, np.max(np.abs(u)))
+        got, ref = perturbed.forward(q, u), nominal.forward(q, u)
+        assert rel_err(got.accelerations, ref.accelerations) > 1e-6
 
 
 @pytest.mark.slow

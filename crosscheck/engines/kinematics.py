@@ -9,6 +9,7 @@ the engine's own routines.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -45,3 +46,50 @@ def eps_rates(eps, omega) -> np.ndarray:
 def eps_ddot(eps, eps_dot, omega, omega_dot) -> np.ndarray:
     """eps'' = (E(eps')^T omega + E(eps)^T omega') / 2."""
     return 0.5 * (E(eps_dot).T @ omega + E(eps).T @ omega_dot)
+
+
+# ---- state maps every engine writes the same way ------------------------------------------
+class IdentityMaps:
+    """Engine coordinates and speeds are the reference's, same order and meaning (a mixin
+    before the engine's model class)."""
+
+    def to_engine_state(self, q, u):
+        return np.array(q, float).reshape(-1), np.array(u, float).reshape(-1)
+
+    def from_engine_state(self, qe, ve):
+        return np.array(qe, float).reshape(-1), np.array(ve, float).reshape(-1)
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return np.array(ae, float).reshape(-1)
+
+
+class LinearMaps:
+    """Engine coordinates q_e = P q and speeds v_e = P u with one constant matrix P (a mixin
+    before the engine's model class, which sets ``_P`` and its inverse ``_Pinv``)."""
+
+    _P: Any
+    _Pinv: Any
+
+    def to_engine_state(self, q, u):
+        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
+
+    def from_engine_state(self, qe, ve):
+        return self._Pinv @ np.asarray(qe, float), self._Pinv @ np.asarray(ve, float)
+
+    def _acc_to_reference(self, qe, ve, ae):
+        return self._Pinv @ np.asarray(ae, float)
+
+
+def frame_bar_to_engine(q, u) -> tuple[np.ndarray, np.ndarray]:
+    """Example 3: (phi, theta) and the bar's body-fixed omega (w1, w2, w3) -> the engine's
+    hinge angles and rates (phi, theta), phi' = -sin(theta) w1 + cos(theta) w3, theta' = w2."""
+    phi, th = (float(v) for v in q)
+    w1, w2, w3 = (float(v) for v in u)
+    return np.array([phi, th]), np.array([-math.sin(th) * w1 + math.cos(th) * w3, w2])
+
+
+def frame_bar_from_engine(qe, ve) -> tuple[np.ndarray, np.ndarray]:
+    """The inverse of frame_bar_to_engine: omega = (-sin(theta) phi', theta', cos(theta) phi')."""
+    th = float(qe[1])
+    return (np.array(qe, float).copy(),
+            np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ...compare import Tolerance
-from ..base import Capabilities, EngineAdapter, EngineUnsupported
+from ..base import Capabilities, TableAdapter
 from .base import INTEGRATORS, ExudynModel
 from .exercises import Exercise61, Exercise62, Exercise64
 from .planar import (
@@ -58,37 +58,16 @@ EXUDYN_EXACT = Tolerance(
           "1e-6 parameter fault")
 
 
-def _resolve(model_name: str, params: dict | None) -> dict[str, float]:
-    from reference.models import get
-    from reference.numeric import resolve_parameters
-
-    return resolve_parameters(get(model_name), params)
-
-
-class ExudynAdapter(EngineAdapter):
+class ExudynAdapter(TableAdapter):
     """EngineAdapter for Exudyn 1.13 (see the module docstring)."""
 
     name = "exudyn"
     distribution = "exudyn"
     capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=True,
                                 integrators=tuple(INTEGRATORS))
+    model_table = _MODELS
+    refused = _UNSUPPORTED
 
-    def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
-
-    def build(self, model_name: str, params: dict[str, float] | None = None,
-              variant: str | None = None):
-        if model_name in _UNSUPPORTED:
-            raise EngineUnsupported(_UNSUPPORTED[model_name])
-        if model_name not in _MODELS:
-            raise EngineUnsupported(
-                f"exudyn adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
-        if variant is not None:
-            raise EngineUnsupported(f"{model_name}: exudyn has a single variant here")
-        return _MODELS[model_name](model_name, _resolve(model_name, params))
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return EXUDYN_EXACT

@@ -26,19 +26,22 @@ raw["plain_accelerations"] / raw["plain_multipliers"] keep Exudyn's answer at it
 relativeEpsilon 1e-7 (the figures of both are in docs/engines/exudyn.md).
 
 Coordinates. Engine states q_e are total coordinates (Exudyn stores them relative to the
-nodes' reference coordinates, which are zero except the Euler parameters' (1, 0, 0, 0)); the engine world is the reference model's own frame (gravity as
-the reference writes it, e.g. +g Y for the Y-down pendulum), so no axis is flipped in any map.
+nodes' reference coordinates, which are zero except the Euler parameters' (1, 0, 0, 0)); the
+engine world is the reference model's own frame (gravity as the reference writes it, e.g. +g Y
+for the Y-down pendulum), so no axis is flipped in any map.
 """
 from __future__ import annotations
 
-import math
+import hashlib
+import json
 from collections.abc import Sequence
 
 import numpy as np
 
 import exudyn as exu
 
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from ..base import (EngineForward, EngineModel, EngineTrajectory, EngineUnsupported,
+                    check_state)
 
 __all__ = ["DEFAULT_EPSILON", "INTEGRATORS", "RICHARDSON_EPSILON", "ExudynModel"]
 
@@ -191,22 +194,8 @@ class ExudynModel(EngineModel):
 
     # ---- EngineModel ---------------------------------------------------------------------
     def _check(self, q, u=None, t: float = 0.0):
-        from reference.errors import ModelInputError
-
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.size != self.nq_ref:
-            raise ModelInputError(f"{self.model_name} (exudyn): expected {self.nq_ref} "
-                                  f"coordinates, got {q.size}")
-        if u is not None:
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.size != self.n_ref:
-                raise ModelInputError(f"{self.model_name} (exudyn): expected {self.n_ref} "
-                                      f"speeds, got {u.size}")
-        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-                and math.isfinite(t)):
-            raise ModelInputError(f"{self.model_name} (exudyn): state contains NaN or "
-                                  "infinite values")
-        return q, u
+        """Sizes and finiteness of a reference state, as the reference checks them."""
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
 
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         q, u = self._check(q, u, t)
@@ -270,30 +259,34 @@ class ExudynModel(EngineModel):
         return simulate(self, q0, u0, np.asarray(t_eval, float), integrator, float(timestep))
 
     def fingerprint(self) -> str:
-        """Digest of the built system: every node, object, marker and load as Exudyn reports
-        it (masses, inertias, positions, stiffnesses, load vectors; user functions by name),
-        plus the parameters the user functions close over (the knife edge's a, the support's
-        a and Omega)."""
-        import hashlib
-        import json
-
-        mbs, sd = self.mbs, self.mbs.systemData
-
-        def clean(v):
-            if callable(v):
-                return getattr(v, "__qualname__", type(v).__name__)
-            if isinstance(v, np.ndarray):
-                return v.tolist()
-            if isinstance(v, dict):
-                return {k: clean(x) for k, x in v.items() if k != "visualization"}
-            if isinstance(v, (list, tuple)):
-                return [clean(x) for x in v]
-            return v if isinstance(v, (int, float, str, bool, type(None))) else str(v)
-
-        blob = {"model": self.model_name, "params": self.params, "gravity": list(self.gravity),
-                "nodes": [clean(mbs.GetNode(i)) for i in range(sd.NumberOfNodes())],
-                "objects": [clean(mbs.GetObject(i)) for i in range(sd.NumberOfObjects())],
-                "markers": [clean(mbs.GetMarker(i)) for i in range(sd.NumberOfMarkers())],
-                "loads": [clean(mbs.GetLoad(i)) for i in range(sd.NumberOfLoads())]}
+        """Digest of the built system as Exudyn reports it back (mbs.GetNode / GetObject /
+        GetMarker / GetLoad: masses, inertias, positions, stiffnesses, load vectors) and of
+        the Python user functions it holds, by name and the numbers they close over (the
+        knife edge's a, the support's a and Omega). The parameter dict is not in it: a
+        parameter the built system does not contain leaves the digest unchanged."""
+        sd = self.mbs.systemData
+        items = {kind: [_plain(get(i)) for i in range(count())] for kind, get, count in (
+            ("nodes", self.mbs.GetNode, sd.NumberOfNodes),
+            ("objects", self.mbs.GetObject, sd.NumberOfObjects),
+            ("markers", self.mbs.GetMarker, sd.NumberOfMarkers),
+            ("loads", self.mbs.GetLoad, sd.NumberOfLoads))}
+        blob = {"model": type(self).__name__, "gravity": list(self.gravity), **items}
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
 
+
+def _plain(v):
+    """An Exudyn item dictionary as JSON-able data: arrays as lists, visualization left out,
+    a user function as its name and the numbers it closes over (its parameters)."""
+    if callable(v):
+        cells = [c.cell_contents for c in getattr(v, "__closure__", None) or ()]
+        return {"function": getattr(v, "__qualname__", type(v).__name__),
+                "closes_over": [_plain(c) for c in cells
+                                if isinstance(c, (int, float, np.ndarray))]}
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, dict):
+        return {k: _plain(x) for k, x in v.items()
+                if k != "visualization" and not k.startswith("V")}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v if isinstance(v, (int, float, str, bool, type(None))) else str(v)

@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-import exudyn as exu
 from exudyn.itemInterface import (
     LoadCoordinate,
     MarkerBodyRigid,
@@ -134,13 +133,13 @@ class Exercise61(ExudynModel):
                 np.array([xd / 2, yd / 2, thd, 0.0, yd]))
 
     def from_engine_state(self, qe, ve):
-        h = self.params["l"] / 2
+        h = self.map_params["l"] / 2
         s, c = math.sin(qe[2]), math.cos(qe[2])
         return (np.array([qe[0] + h * c, qe[4], qe[2] + math.pi / 2]),
                 np.array([ve[0] - h * s * ve[2], ve[4], ve[2]]))
 
     def _acc_to_reference(self, qe, ve, ae):
-        h = self.params["l"] / 2
+        h = self.map_params["l"] / 2
         s, c = math.sin(qe[2]), math.cos(qe[2])
         return np.array([ae[0] - h * (s * ae[2] + c * ve[2] ** 2), ae[4], ae[2]])
 
@@ -149,7 +148,7 @@ class Exercise61(ExudynModel):
         n_a = lam[list(sd.GetObjectLTGAE(self.slide))]
         F_B = lam[list(sd.GetObjectLTGAE(self.hinge_B))]
         q, u = self.from_engine_state(qe, ve)
-        F_A = np.array([-self.params["k"] * q[0] - self.params["c"] * u[0], n_a[0]])
+        F_A = np.array([-self.map_params["k"] * q[0] - self.map_params["c"] * u[0], n_a[0]])
         return F_A, F_B
 
     def _multipliers(self, qe, ve, ae, lam_e):
@@ -206,7 +205,6 @@ class Exercise64(ExudynModel):
     def _build(self):
         from exudyn.itemInterface import (
             LoadTorqueVector,
-            MarkerBodyRigid,
             ObjectConnectorTorsionalSpringDamper,
             ObjectJointRevoluteZ,
         )
@@ -222,9 +220,7 @@ class Exercise64(ExudynModel):
         mbs = self.mbs
 
         def frame(body, pos, rot=None):
-            rot = np.eye(3) if rot is None else np.asarray(rot)
-            return mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(
-                rotation=rot.tolist(), translation=list(pos))))
+            return items.rigid_frame(self, body, pos, rot)
 
         self.axis = mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
             frame(g0, [0, 0, 0]), frame(disk, [0, 0, 0])]))
@@ -297,6 +293,8 @@ class Exercise64(ExudynModel):
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         Ad, _ = self._frames(qe)
+        # the engine's own momentum balance (its mass and gravity): a check of the engine's
+        # pin force against its accelerations, not a map
         m, g = self.params["m"], np.asarray(self.gravity)
         raw["pin_force_momentum"] = (Ad.T @ (m * (np.asarray(ae[7:10]) - g)))[1:3]
 

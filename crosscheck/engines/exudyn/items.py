@@ -2,9 +2,13 @@
 coordinates, so every ODE2 coordinate is an absolute position or angle)."""
 from __future__ import annotations
 
+import numpy as np
+
+import exudyn as exu
 from exudyn.itemInterface import (
     LoadMassProportional,
     MarkerBodyMass,
+    MarkerBodyRigid,
     MarkerBodyPosition,
     MarkerNodeCoordinate,
     NodePoint2D,
@@ -56,6 +60,14 @@ def hinge_2d(model, marker0: int, marker1: int) -> int:
     """ObjectJointRevolute2D: 2 multipliers; the force on marker1's body is -lam, on
     marker0's body +lam (world axes), measured in tests/test_engine_exudyn.py."""
     return model.mbs.AddObject(ObjectJointRevolute2D(markerNumbers=[marker0, marker1]))
+
+
+def rigid_frame(model, body: int, pos, rot=None) -> int:
+    """A rigid-body marker (a frame) at local position ``pos`` of a body (or the ground), its
+    axes ``rot`` (body components; default the body's axes): what 3-D joints connect."""
+    rot = np.eye(3) if rot is None else np.asarray(rot)
+    return model.mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(
+        rotation=rot.tolist(), translation=list(pos))))
 
 
 def coordinate_marker(model, node: int, index: int) -> int:

@@ -50,7 +50,7 @@ class PendulumXY(ExudynModel):
         return np.array(ae, float)
 
     def _multipliers(self, qe, ve, ae, lam_e):
-        return np.array([-lam_e[0] / self.params["L"]])
+        return np.array([-lam_e[0] / self.map_params["L"]])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         raw["rod_tension"] = float(lam_e[0])
@@ -79,7 +79,7 @@ class PendulumAngle(ExudynModel):
                                     items.point(self, self.body, 0.0, -p["L"]))
 
     def to_engine_state(self, q, u):
-        L, th, w = self.params["L"], float(q[0]), float(u[0])
+        L, th, w = self.map_params["L"], float(q[0]), float(u[0])
         s, c = math.sin(th), math.cos(th)
         return np.array([L * s, L * c, -th]), np.array([L * c * w, -L * s * w, -w])
 
@@ -111,9 +111,9 @@ class _SliderCrankBase(ExudynModel):
     # -1 from C to B (Exercise 6.3's theta2 = Example 2's + pi)
     rod_direction = 1.0
 
-    def _rod_b_to_g(self) -> float:
-        """Distance B -> G2 along B -> C (Example 2's r2)."""
-        return self.params["r2"]
+    def _rod_b_to_g(self, p) -> float:
+        """Distance B -> G2 along B -> C (Example 2's r2) with the parameter values p."""
+        return p["r2"]
 
     def _build(self):
         p = self.params
@@ -122,7 +122,7 @@ class _SliderCrankBase(ExudynModel):
         _, crank = items.rigid_body_2d(self, p["m1"], p["I_G1"])
         _, rod = items.rigid_body_2d(self, p["m2"], p["I_G2"])
         slider_node, slider = items.point_mass_2d(self, p["m3"])
-        r1, l1, l2, b = p["r1"], p["l1"], p["l2"], self._rod_b_to_g()
+        r1, l1, l2, b = p["r1"], p["l1"], p["l2"], self._rod_b_to_g(p)
         d = self.rod_direction
         self.hinge_A = items.hinge_2d(self, items.point(self, g0), items.point(self, crank, -r1))
         self.hinge_B = items.hinge_2d(self, items.point(self, crank, l1 - r1),
@@ -140,8 +140,8 @@ class _SliderCrankBase(ExudynModel):
     def _engine_from_angles(self, th1, w1, th2, w2, psi):
         """Engine state from Example 2's crank and rod angles (rod angle B -> C) and the rod
         body's angle psi (th2 or th2 + pi, passed as the reference holds it: no round-off)."""
-        p = self.params
-        r1, l1, l2, b = p["r1"], p["l1"], p["l2"], self._rod_b_to_g()
+        p = self.map_params
+        r1, l1, l2, b = p["r1"], p["l1"], p["l2"], self._rod_b_to_g(p)
         e1, e2 = np.array([math.cos(th1), math.sin(th1)]), np.array([math.cos(th2), math.sin(th2)])
         n1, n2 = np.array([-e1[1], e1[0]]), np.array([-e2[1], e2[0]])
         qe = np.concatenate([r1 * e1, [th1], l1 * e1 + b * e2, [psi], l1 * e1 + l2 * e2])
@@ -152,7 +152,7 @@ class _SliderCrankBase(ExudynModel):
     def _position_rows(self, qe, t):
         """Hinge mismatches at A, B, C (world axes) and, with the guide, y_C."""
         p = self.params
-        r1, l1, l2, b, d = p["r1"], p["l1"], p["l2"], self._rod_b_to_g(), self.rod_direction
+        r1, l1, l2, b, d = p["r1"], p["l1"], p["l2"], self._rod_b_to_g(p), self.rod_direction
         e1 = np.array([math.cos(qe[2]), math.sin(qe[2])])
         ep = np.array([math.cos(qe[5]), math.sin(qe[5])])
         g1, g2, c = qe[0:2], qe[3:5], qe[6:8]
@@ -201,8 +201,8 @@ class SliderCrankSplit(_SliderCrankBase):
     guide = True
     rod_direction = -1.0
 
-    def _rod_b_to_g(self):
-        return self.params["l2"] - self.params["r2"]
+    def _rod_b_to_g(self, p):
+        return p["l2"] - p["r2"]
 
     def to_engine_state(self, q, u):
         # Example 2's rod angle B -> C is theta2 - pi; x follows from the angles

@@ -17,7 +17,6 @@ import math
 
 import numpy as np
 
-import exudyn as exu
 from exudyn.itemInterface import NodeRigidBodyEP, ObjectJointSpherical, ObjectRigidBody
 from exudyn.rigidBodyUtilities import (
     EulerParameters2GLocal,
@@ -26,6 +25,7 @@ from exudyn.rigidBodyUtilities import (
 )
 
 from . import items
+from ..kinematics import R313, angles313
 from .base import ExudynModel
 
 __all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
@@ -41,22 +41,6 @@ def _rigid_body_ep(model, mass: float, inertia_diag) -> tuple[int, int]:
     items._gravity(model, b)
     model.masses.append((n, b, mass))
     return n, b
-
-
-def _R313(a, b, c) -> np.ndarray:
-    """The textbook's 3-1-3 matrix (N components -> body components), Example 4."""
-    C1, S1, C2, S2, C3, S3 = (math.cos(a), math.sin(a), math.cos(b), math.sin(b),
-                              math.cos(c), math.sin(c))
-    return np.array([[C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
-                     [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
-                     [S1 * S2, -C1 * S2, C2]])
-
-
-def _angles313(Rnb) -> np.ndarray:
-    """3-1-3 angles of an N -> body matrix on the branch theta2 in [0, pi] (the reference's
-    sampler keeps theta2 in [0.3, pi - 0.3]), theta1, theta3 in (-pi, pi]."""
-    b = math.acos(max(-1.0, min(1.0, Rnb[2, 2])))
-    return np.array([math.atan2(Rnb[2, 0], -Rnb[2, 1]), b, math.atan2(Rnb[0, 2], Rnb[1, 2])])
 
 
 class DoublePendulum3D(ExudynModel):
@@ -94,12 +78,12 @@ class DoublePendulum3D(ExudynModel):
         q, u = np.asarray(q, float), np.asarray(u, float)
         qe, ve = [], []
         for i in range(2):
-            ep = np.asarray(RotationMatrix2EulerParameters(_R313(*q[3 * i:3 * i + 3]).T))
+            ep = np.asarray(RotationMatrix2EulerParameters(R313(*q[3 * i:3 * i + 3]).T))
             ep = ep / np.linalg.norm(ep)
             G = EulerParameters2GLocal(ep)
             qe.append((None, ep))
             ve.append((u[6 + 3 * i:9 + 3 * i], G.T @ u[3 * i:3 * i + 3] / 4))
-        l1, l2 = self.params["l1"], self.params["l2"]
+        l1, l2 = self.map_params["l1"], self.map_params["l2"]
         A1 = EulerParameters2RotationMatrix(qe[0][1])
         A2 = EulerParameters2RotationMatrix(qe[1][1])
         r1 = A1 @ np.array([0.0, -l1 / 2, 0.0])
@@ -112,7 +96,7 @@ class DoublePendulum3D(ExudynModel):
         angles, omegas = [], []
         for i in (0, 7):
             ep = qe[i + 3:i + 7]
-            angles.append(_angles313(EulerParameters2RotationMatrix(ep).T))
+            angles.append(angles313(EulerParameters2RotationMatrix(ep).T))
             omegas.append(EulerParameters2GLocal(ep) @ ve[i + 3:i + 7])
         return (np.concatenate(angles),
                 np.concatenate([omegas[0], omegas[1], ve[0:3], ve[7:10]]))
@@ -206,7 +190,7 @@ class TopEuler(TopCartesian):
         q, u = np.asarray(q, float), np.asarray(u, float)
         ep, ep_t = q[[3, 0, 1, 2]], u[[3, 0, 1, 2]]
         A = EulerParameters2RotationMatrix(ep)
-        lever = np.array([0.0, 0.0, self.params["L"]])
+        lever = np.array([0.0, 0.0, self.map_params["L"]])
         omega = EulerParameters2GLocal(ep) @ ep_t
         return (np.concatenate([A @ lever, ep]),
                 np.concatenate([A @ np.cross(omega, lever), ep_t]))
@@ -268,7 +252,6 @@ class FrameBar(ExudynModel):
     def _build(self):
         from exudyn.itemInterface import (
             LoadTorqueVector,
-            MarkerBodyRigid,
             ObjectJointRevoluteZ,
         )
 
@@ -280,9 +263,7 @@ class FrameBar(ExudynModel):
         mbs = self.mbs
 
         def frame(body, pos, rot=None):
-            rot = np.eye(3) if rot is None else np.asarray(rot)
-            return mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(
-                rotation=rot.tolist(), translation=list(pos))))
+            return items.rigid_frame(self, body, pos, rot)
 
         self.bearing = mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
             frame(g0, [0, 0, 0]), frame(frame_body, [0, 0, 0])]))
@@ -305,7 +286,7 @@ class FrameBar(ExudynModel):
         Af, Ab = _rz(phi), _rz(phi) @ _ry(th)
         pf, pb = (np.asarray(RotationMatrix2EulerParameters(A)) for A in (Af, Ab))
         pf, pb = pf / np.linalg.norm(pf), pb / np.linalg.norm(pb)
-        d = self.params["d"]
+        d = self.map_params["d"]
         r = Af @ np.array([0.0, d, 0.0])
         v = Af @ np.array([-d * phid, 0.0, 0.0])
         wf = np.array([0.0, 0.0, phid])
@@ -327,7 +308,7 @@ class FrameBar(ExudynModel):
         return np.array([-lam[4]])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
-        p = self.params
+        p = self.map_params
         Ab = EulerParameters2RotationMatrix(qe[10:14])
         w = EulerParameters2GLocal(qe[10:14]) @ np.asarray(ve[10:14])
         alpha = EulerParameters2GLocal(qe[10:14]) @ np.asarray(ae[10:14])

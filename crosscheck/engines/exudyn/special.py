@@ -88,20 +88,20 @@ class KnifeEdge(ExudynModel):
                 loadVector=[0.0, 0.0, p["T"]]))
 
     def to_engine_state(self, q, u):
-        a = self.params["a"]
+        a = self.map_params["a"]
         x, y, th = (float(v) for v in q)
         xd, yd, w = (float(v) for v in u)
         s, c = math.sin(th), math.cos(th)
         return np.array([x + a * c, y + a * s, th]), np.array([xd - a * s * w, yd + a * c * w, w])
 
     def from_engine_state(self, qe, ve):
-        a = self.params["a"]
+        a = self.map_params["a"]
         s, c = math.sin(qe[2]), math.cos(qe[2])
         return (np.array([qe[0] - a * c, qe[1] - a * s, qe[2]]),
                 np.array([ve[0] + a * s * ve[2], ve[1] - a * c * ve[2], ve[2]]))
 
     def _acc_to_reference(self, qe, ve, ae):
-        a = self.params["a"]
+        a = self.map_params["a"]
         s, c = math.sin(qe[2]), math.cos(qe[2])
         w2 = ve[2] ** 2
         return np.array([ae[0] + a * (c * w2 + s * ae[2]), ae[1] + a * (s * w2 - c * ae[2]),
@@ -166,12 +166,13 @@ class MovingSupport(ExudynModel):
             offsetUserFunction=lambda mbs, t, item, offset: t,
             offsetUserFunction_t=lambda mbs, t, item, offset: 1.0))
 
-    def _support(self, t):
-        a, om = self.params["a"], self.params["Omega"]
+    def _support(self, t, p):
+        """The support's x_s and x_s' at time t with the parameter values p."""
+        a, om = p["a"], p["Omega"]
         return a * math.sin(om * t), a * om * math.cos(om * t)
 
     def to_engine_state(self, q, u):
-        xs, xsd = self._support(self.time)
+        xs, xsd = self._support(self.time, self.map_params)
         return (np.array([q[0], q[1], xs, 0.0, self.time]),
                 np.array([u[0], u[1], xsd, 0.0, 1.0]))
 
@@ -182,13 +183,13 @@ class MovingSupport(ExudynModel):
         return np.array(ae[:2], float)
 
     def _multipliers(self, qe, ve, ae, lam_e):
-        return np.array([-lam_e[0] / self.params["L"]])
+        return np.array([-lam_e[0] / self.map_params["L"]])
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         raw["rod_tension"] = float(lam_e[0])
         raw["support_acceleration"] = float(ae[2])
 
     def _position_rows(self, qe, t):
-        xs, _ = self._support(qe[4])
+        xs, _ = self._support(qe[4], self.params)
         return np.array([np.hypot(qe[0] - qe[2], qe[1] - qe[3]) - self.params["L"], qe[3],
                          qe[2] - xs, qe[4] - t])

@@ -11,6 +11,7 @@ not the iteration's, is what a work-precision plot shows; the step is never chan
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -27,11 +28,39 @@ __all__ = ["ExudynIntegrationError", "simulate"]
 
 NEWTON_RTOL = 1e-10  # relative; absolute NEWTON_ATOL (Exudyn's defaults 1e-8 / 1e-10)
 NEWTON_ATOL = 1e-12
-GRID_TOL = 1e-9
+GRID_TOL = 1e-9  # an output time within GRID_TOL * timestep of a step counts as on the grid
 
 
 class ExudynIntegrationError(RuntimeError):
-    """Exudyn's solver stopped (its Newton iteration failed at the fixed step)."""  # an output time within GRID_TOL * timestep of a step counts as on the grid
+    """Exudyn's solver stopped (its Newton iteration failed at the fixed step)."""
+
+
+@contextmanager
+def quiet():
+    """Exudyn's console writing (exudyn.Print, config.printToConsole) off for one engine call:
+    SolveDynamic prints a "DYNAMIC SOLVER FAILED" banner before it raises, and a note on
+    "memory allocations in every time step" on models with Python user functions (the knife
+    edge, the moving support: a performance note, not a result). A failure still raises; its
+    reason is read from the solver (``failure_reason``)."""
+    before = exu.config.printToConsole
+    exu.config.printToConsole = False
+    try:
+        yield
+    finally:
+        exu.config.printToConsole = before
+
+
+def failure_reason(solver) -> str:
+    """Why Exudyn's implicit solver stopped, from its convergence flags (what its banner says,
+    without the generic hints)."""
+    conv, it = solver.conv, solver.it
+    why = [text for flag, text in (
+        (conv.newtonSolutionDiverged, "Newton iteration diverged"),
+        (conv.stepReductionFailed, "Newton iteration did not converge at the fixed step"),
+        (conv.linearSolverFailed, f"linear solver failed (row {conv.linearSolverCausingRow})"),
+        (conv.massMatrixNotInvertible, "mass matrix not invertible")) if flag]
+    return (f"{'; '.join(why) or 'stopped'} at t = {it.currentTime:.6g} "
+            f"(residual {conv.residual:.3g})")
 
 
 def _sensors(mbs) -> list[tuple[int, int, int]]:
@@ -72,6 +101,7 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
     t0 = float(t_eval[0]) if t_eval.size else 0.0
     steps = _grid_indices(t_eval, t0, timestep)
     sim = type(model)(model.model_name, model.params, simulation=True)
+    sim.nominal = model.nominal  # the same maps as the model's (nominal values)
     sim.time = t0
     qe0, ve0 = sim.to_engine_state(q0, u0)
     mbs = sim.mbs
@@ -88,11 +118,13 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
     ss.solution.sensors.writePeriod = timestep
     start = time.perf_counter()
     try:
-        mbs.SolveDynamic(ss, solverType=INTEGRATORS[integrator])
-    except Exception as exc:  # Exudyn raises a bare RuntimeError-like "SolveDynamic terminated"
+        with quiet():
+            mbs.SolveDynamic(ss, solverType=INTEGRATORS[integrator], storeSolver=True)
+    except Exception as exc:  # Exudyn raises exudyn.SolverError("SolveDynamic terminated")
+        reason = failure_reason(mbs.sys["dynamicSolver"]) if "dynamicSolver" in mbs.sys else exc
         raise ExudynIntegrationError(
             f"{model.model_name}: Exudyn's {integrator} stopped with timestep {timestep:g} "
-            f"({exc}); its Newton iteration did not converge: use a smaller timestep") from exc
+            f"({reason}): use a smaller timestep") from exc
     wall = time.perf_counter() - start
     # every node's record: rows (time, coordinates...), one row per step from t0
     rec_q = [np.asarray(mbs.GetSensorStoredData(s_q)) for _, s_q, _ in sensors]

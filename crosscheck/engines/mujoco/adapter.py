@@ -82,7 +82,8 @@ from typing import Optional
 import numpy as np
 
 from ...compare import Tolerance
-from ..base import Capabilities, EngineAdapter, EngineUnsupported
+from ..base import (Capabilities, EngineUnsupported, TableAdapter, is_user_model, lookup_builder,
+                    resolve_params, single_variant, table_variants)
 from .exercises import Exercise61, Exercise62, Exercise64
 from .machinery import INTEGRATORS, LIGHT, MJCF_DIR, MUJOCO_EXACT, SOLIMP, SOLREF
 from .planar import (FrameBar, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
@@ -125,18 +126,6 @@ _UNSUPPORTED = {
 }
 
 
-def _is_user_model(model_name: str) -> bool:
-    from reference.models import user_names
-    return model_name in user_names()
-
-
-def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
-    from reference.models import get
-    from reference.numeric import resolve_parameters
-
-    return resolve_parameters(get(model_name), params)
-
-
 def mjcf(model_name: str, params: Optional[dict] = None, variant: Optional[str] = None,
          solref=SOLREF, solimp=SOLIMP) -> str:
     """The MJCF text MuJoCo is given for a reference model (parameters resolved as in build)."""
@@ -148,9 +137,8 @@ def write_mjcf(directory=MJCF_DIR) -> list[Path]:
     out = []
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    for name, cls in _MODELS.items():
-        variants = list(cls) if isinstance(cls, dict) else [None]
-        for v in variants:
+    for name in _MODELS:
+        for v in table_variants(_MODELS, name):
             try:
                 text = mjcf(name, None, v)
             except (EngineUnsupported, ModuleNotFoundError):
@@ -161,7 +149,7 @@ def write_mjcf(directory=MJCF_DIR) -> list[Path]:
     return out
 
 
-class MujocoAdapter(EngineAdapter):
+class MujocoAdapter(TableAdapter):
     """EngineAdapter for MuJoCo 4.0 (one generated MJCF per model; see the module docstring).
 
     solref/solimp apply to every equality constraint; the instantaneous answer at a consistent
@@ -178,46 +166,25 @@ class MujocoAdapter(EngineAdapter):
     def __init__(self, solref=SOLREF, solimp=SOLIMP):
         self.solref, self.solimp = tuple(solref), tuple(solimp)
 
-    def models(self) -> tuple[str, ...]:
-        from reference.models import user_names
-        return (*_MODELS, *user_names())
+    model_table = _MODELS
+    refused = _UNSUPPORTED
+    user_files = True
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return MUJOCO_EXACT
 
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
-
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
-        cls = _MODELS.get(model_name)
-        return tuple(cls) if isinstance(cls, dict) else (None,)
-
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):
-        if model_name in _UNSUPPORTED:
-            raise EngineUnsupported(_UNSUPPORTED[model_name])
-        if model_name not in _MODELS and _is_user_model(model_name):
+        if is_user_model(_MODELS, model_name):
             from .user_file import UserFileModel
-            if variant is not None:
-                raise EngineUnsupported(f"{model_name}: a user's file has a single variant")
+            single_variant(self.name, model_name, variant, "a user's file")
             return UserFileModel(model_name, params)
-        if model_name not in _MODELS:
-            raise EngineUnsupported(
-                f"mujoco adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
-        cls = _MODELS[model_name]
+        builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)
         try:
-            values = _resolve(model_name, params)
+            values = resolve_params(model_name, params)
         except ModuleNotFoundError as exc:
             raise EngineUnsupported(f"{model_name}: reference model not available ({exc})")
-        if isinstance(cls, dict):
-            key = variant or next(iter(cls))
-            if key not in cls:
-                raise EngineUnsupported(
-                    f"{model_name}: unknown mujoco variant {key!r}; valid: {', '.join(cls)}")
-            return cls[key](model_name, values, self.solref, self.solimp)
-        if variant is not None:
-            raise EngineUnsupported(f"{model_name}: mujoco has a single variant here")
-        return cls(model_name, values, self.solref, self.solimp)
+        return builder(model_name, values, self.solref, self.solimp)
 
 
 def agreement(n_states: int = 25, seed: int = 0, models=None) -> list[dict]:

@@ -14,9 +14,9 @@ coordinate couplers), and the models not yet mapped, each with its reason.
 """
 from __future__ import annotations
 
-from typing import Callable, Optional
+from typing import Callable
 
-from ..base import Capabilities, EngineAdapter, EngineUnsupported
+from ..base import Capabilities, TableAdapter
 from ...compare import EXACT_KKT, Tolerance
 from .common import FIXED_STEP, INTEGRATORS, OsimModel
 from .exercises import Exercise61, Exercise62, Exercise64
@@ -70,14 +70,7 @@ OPENSIM_DOUBLE_PENDULUM = Tolerance(
            "is 5x that")
 
 
-def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
-    from reference.models import get
-    from reference.numeric import resolve_parameters
-
-    return resolve_parameters(get(model_name), params)
-
-
-class OpenSimAdapter(EngineAdapter):
+class OpenSimAdapter(TableAdapter):
     """EngineAdapter for OpenSim 4.6 (models built in code; see the module docstring)."""
 
     name = "opensim"
@@ -87,36 +80,9 @@ class OpenSimAdapter(EngineAdapter):
                                 adaptive_integrators=tuple(i for i in INTEGRATORS
                                                            if i not in FIXED_STEP))
 
-    def models(self) -> tuple[str, ...]:
-        return tuple(_MODELS)
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
+    model_table = _MODELS
+    refused = _UNSUPPORTED
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         """EXACT_KKT (1e-11) except the measured floor of the 3-D double pendulum."""
         return OPENSIM_DOUBLE_PENDULUM if model_name == "double_pendulum_3d" else EXACT_KKT
-
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
-        """Engine variants of a model (the first is build's default); (None,) for one."""
-        cls = _MODELS.get(model_name)
-        return tuple(cls) if isinstance(cls, dict) else (None,)
-
-    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
-              variant: Optional[str] = None):
-        if model_name in _UNSUPPORTED:
-            raise EngineUnsupported(_UNSUPPORTED[model_name])
-        if model_name not in _MODELS:
-            raise EngineUnsupported(
-                f"opensim adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
-        cls = _MODELS[model_name]
-        values = _resolve(model_name, params)
-        if isinstance(cls, dict):  # several engine variants of one reference model
-            key = variant or next(iter(cls))
-            if key not in cls:
-                raise EngineUnsupported(
-                    f"{model_name}: unknown opensim variant {key!r}; valid: {', '.join(cls)}")
-            return cls[key](model_name, values)
-        if variant is not None:
-            raise EngineUnsupported(f"{model_name}: opensim has a single variant here")
-        return cls(model_name, values)

@@ -20,15 +20,17 @@ Simbody's internal ordering.
 from __future__ import annotations
 
 import hashlib
-import json
-import math
+import os
+import tempfile
 import time
+from xml.etree import ElementTree
 from typing import Any, Optional, Sequence
 
 import numpy as np
 import opensim as osim
 
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from ..base import (EngineForward, EngineModel, EngineTrajectory, EngineUnsupported,
+                    check_state)
 
 __all__ = ["INTEGRATORS", "FIXED_STEP", "OsimModel", "custom_joint", "point_body", "vec3"]
 
@@ -46,6 +48,11 @@ INTEGRATORS = {
     "ExplicitEuler": osim.Manager.IntegratorMethod_ExplicitEuler,
 }
 FIXED_STEP = ("ExplicitEuler",)
+
+# XML elements of a model that do not enter its dynamics (left out of the fingerprint): the
+# assembled starting configuration (coordinates' default values) and the display geometry
+_NOT_DYNAMICS = {"default_value", "default_speed_value", "FrameGeometry", "attached_geometry",
+                 "Appearance"}
 
 
 def vec3(x=0.0, y=0.0, z=0.0) -> osim.Vec3:
@@ -171,22 +178,8 @@ class OsimModel(EngineModel):
         return out[self._q_index] if out.size == self.nq_e else out[self._u_index]
 
     def _check(self, q, u=None, t: float = 0.0):
-        from reference.errors import ModelInputError
-
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.size != self.nq_ref:
-            raise ModelInputError(f"{self.model_name} (opensim): expected {self.nq_ref} "
-                                  f"coordinates, got {q.size}")
-        if u is not None:
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.size != self.n_ref:
-                raise ModelInputError(f"{self.model_name} (opensim): expected {self.n_ref} "
-                                      f"speeds, got {u.size}")
-        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-                and math.isfinite(t)):
-            raise ModelInputError(f"{self.model_name} (opensim): state contains NaN or "
-                                  "infinite values")
-        return q, u
+        """Sizes and finiteness of a reference state, as the reference checks them."""
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
 
     # ---- the EngineModel interface -----------------------------------------------------------
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
@@ -269,10 +262,22 @@ class OsimModel(EngineModel):
         return call
 
     def fingerprint(self) -> str:
-        """The class (the engine model's topology) and every parameter value it was built from:
-        the model is built in code from exactly these numbers."""
-        blob = json.dumps([type(self).__name__, sorted(self.params.items())])
-        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+        """Digest of the built model as OpenSim writes it back (Model.printToXML): every
+        body's mass, mass centre and inertia, every joint's type, coordinates' axes and
+        functions and its offset frames, the constraints, the forces and prescribed motions,
+        gravity. Left out: what is not dynamics (coordinates' default values, the display
+        geometry) and the parameter dict itself, so a parameter the built model does
+        not contain leaves the digest unchanged."""
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "model.osim")
+            self.model.printToXML(path)
+            root = ElementTree.parse(path).getroot()  # comments are dropped by the parser
+        for parent in list(root.iter()):
+            for child in list(parent):
+                if child.tag in _NOT_DYNAMICS:
+                    parent.remove(child)
+        blob = type(self).__name__.encode() + ElementTree.tostring(root)
+        return hashlib.sha256(blob).hexdigest()[:16]
 
     # ---- trajectories ------------------------------------------------------------------------
     def simulate(self, q0, u0, t_eval: Sequence[float], *, integrator: str = "RungeKuttaMerson",

@@ -13,6 +13,7 @@ import math
 import numpy as np
 import opensim as osim
 
+from ..kinematics import IdentityMaps
 from .common import OsimModel, custom_joint, lamina, point_body, vec3
 
 __all__ = ["Exercise61", "Exercise62", "Exercise64"]
@@ -59,18 +60,7 @@ def _prescribed(model, name, body, force=None, torque=None, in_ground=True) -> N
     model.addForce(f)
 
 
-class _Identity:
-    def to_engine_state(self, q, u):
-        return np.array(q, float).copy(), np.array(u, float).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return np.array(ae, float).copy()
-
-
-class Exercise61(_Identity, OsimModel):
+class Exercise61(IdentityMaps, OsimModel):
     """Exercise 6.1 (Y up): a massless slider A on a CustomJoint along the exact ground X axis
     (x; SpringGeneralizedForce k, c on it), the block P (point mass m_p) on one along Y (y; a
     PrescribedForce (0, -F, 0) on it), the bar on a PinJoint at A (theta: its body frame's +Y is
@@ -123,7 +113,8 @@ class Exercise61(_Identity, OsimModel):
         F_A, F_B = self.end_forces()
         raw["force_on_bar_at_A"], raw["force_on_bar_at_B"] = F_A, F_B
         qe, ve = raw["engine_q"], raw["engine_v"]
-        raw["spring_damper_force"] = float(-self.params["k"] * qe[0] - self.params["c"] * ve[0])
+        p = self.map_params
+        raw["spring_damper_force"] = float(-p["k"] * qe[0] - p["c"] * ve[0])
 
 
 class Exercise62(OsimModel):

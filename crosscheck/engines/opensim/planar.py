@@ -12,6 +12,7 @@ import math
 import numpy as np
 import opensim as osim
 
+from ..kinematics import IdentityMaps, LinearMaps
 from .common import OsimModel, custom_joint, lamina, point_body, vec3
 
 __all__ = ["MovingSupport", "PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree",
@@ -32,20 +33,7 @@ def _torque(model, name, body, T) -> None:
     model.addForce(f)
 
 
-class _Identity:
-    """Engine coordinates and speeds are the reference's, same order and meaning."""
-
-    def to_engine_state(self, q, u):
-        return np.array(q, float).copy(), np.array(u, float).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return np.array(ae, float).copy()
-
-
-class PendulumAngle(_Identity, OsimModel):
+class PendulumAngle(IdentityMaps, OsimModel):
     """Example 1(a). PinJoint at the ground origin; the bob (point mass m) sits L below the
     joint at theta = 0 (child frame at (0, L, 0) in the bob's frame), so the engine angle is
     the reference's theta and the bob is at (L sin, -L cos) = (x_ref, -y_ref). No constraints."""
@@ -59,7 +47,7 @@ class PendulumAngle(_Identity, OsimModel):
         self.model.addJoint(_pin("theta", self.model.getGround(), (0, 0, 0), bob, (0, p["L"], 0)))
 
 
-class PendulumXY(OsimModel):
+class PendulumXY(LinearMaps, OsimModel):
     """Example 1(b). The bob on a CustomJoint with two translations along the exact ground X and
     Y axes (coordinates x_e, y_e); y_ref = -y_e. The rod is a ConstantDistanceConstraint between
     the ground origin and the bob (length L).
@@ -73,7 +61,7 @@ class PendulumXY(OsimModel):
     """
 
     nq_ref = n_ref = 2
-    _P = np.diag([1.0, -1.0])
+    _P = _Pinv = np.diag([1.0, -1.0])  # P P = I
 
     def _build(self):
         p = self.params
@@ -85,15 +73,6 @@ class PendulumXY(OsimModel):
         self.model.addConstraint(osim.ConstantDistanceConstraint(
             self.model.getGround(), vec3(), bob, vec3(), float(p["L"])))
         self.defaults = {"y": -p["L"]}  # an assembled configuration for initSystem
-
-    def to_engine_state(self, q, u):
-        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
-
-    def from_engine_state(self, qe, ve):
-        return self._P @ np.asarray(qe, float), self._P @ np.asarray(ve, float)
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return self._P @ ae
 
     def _multipliers(self, lam_s):
         qe = self._read(self.state.getQ())
@@ -115,7 +94,7 @@ class _SliderCrankBase(OsimModel):
         return crank
 
 
-class _TwoLink(_SliderCrankBase):
+class _TwoLink(LinearMaps, _SliderCrankBase):
     """Crank and rod (hinged at B = (l1, 0, 0) of the crank; its coordinate phi2 = theta2 -
     theta1) with the end mass m3 a point body welded to the rod at C = (l2, 0, 0): it does not
     turn, so a WeldJoint (no coordinate) carries it exactly. q_e = P q_ref."""
@@ -135,15 +114,6 @@ class _TwoLink(_SliderCrankBase):
         self.model.addJoint(osim.WeldJoint("C", rod, vec3(p["l2"]), vec3(), slider, vec3(),
                                            vec3()))
         self.rod, self.slider = rod, slider
-
-    def to_engine_state(self, q, u):
-        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
-
-    def from_engine_state(self, qe, ve):
-        return self._Pinv @ np.asarray(qe, float), self._Pinv @ np.asarray(ve, float)
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return self._Pinv @ ae
 
 
 class SliderCrankFree(_TwoLink):
@@ -176,7 +146,7 @@ class SliderCrank(_TwoLink):
         return np.array([lam_s[1]])
 
 
-class SliderCrankSplit(_Identity, _SliderCrankBase):
+class SliderCrankSplit(IdentityMaps, _SliderCrankBase):
     """Note 2 / Exercise 6.3: crank (theta1); the slider (point mass m3) on a CustomJoint
     translating along the exact ground X axis (x); the rod on a PinJoint at the slider's
     origin C (theta2, its x axis from C to B, mass center (r2, 0, 0)). q_e = q_ref. The
@@ -255,13 +225,14 @@ class MovingSupport(PendulumXY):
         xs.setPrescribedFunction(osim.Sine(float(p["a"]), float(p["Omega"]), 0.0, 0.0))
         xs.setDefaultIsPrescribed(True)
 
-    def _support(self, t):
-        a, W = self.params["a"], self.params["Omega"]
+    def _support(self, t, p):
+        """The support's x_s and x_s' at time t with the parameter values p."""
+        a, W = p["a"], p["Omega"]
         return a * math.sin(W * t), a * W * math.cos(W * t)
 
     def _set_state_on(self, state, qe, ve, t) -> None:
         if len(qe) == 2:
-            xs, xsd = self._support(t)
+            xs, xsd = self._support(t, self.params)  # the engine's prescribed motion
             qe, ve = np.append(qe, xs), np.append(ve, xsd)
         super()._set_state_on(state, qe, ve, t)
 
@@ -276,7 +247,7 @@ class MovingSupport(PendulumXY):
 
     def _multipliers(self, lam_s):
         qe = self._read(self.state.getQ())
-        xs, _ = self._support(self.state.getTime())
+        xs, _ = self._support(self.state.getTime(), self.map_params)
         return np.array([-lam_s[self.rod_index] / math.hypot(qe[0] - xs, qe[1])])
 
     def _extra_raw(self, raw):

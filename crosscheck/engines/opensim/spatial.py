@@ -14,6 +14,7 @@ import math
 import numpy as np
 import opensim as osim
 
+from ..kinematics import R313, angles313, frame_bar_from_engine, frame_bar_to_engine
 from .common import OsimModel, custom_joint, vec3
 from .exercises import _prescribed, reaction
 
@@ -30,22 +31,6 @@ def _rotation(frame, state) -> np.ndarray:
     T = frame.getTransformInGround(state)
     R = T.R()
     return np.array([[R.get(i, j) for j in range(3)] for i in range(3)])
-
-
-def _R313(a, b, c) -> np.ndarray:
-    """The textbook's 3-1-3 matrix (N components -> body components), Example 4."""
-    C1, S1, C2, S2, C3, S3 = (math.cos(a), math.sin(a), math.cos(b), math.sin(b),
-                              math.cos(c), math.sin(c))
-    return np.array([[C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
-                     [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
-                     [S1 * S2, -C1 * S2, C2]])
-
-
-def _angles313(Rnb) -> np.ndarray:
-    """3-1-3 angles of an N -> body matrix, branch theta2 in [0, pi] (the reference's sampler
-    keeps theta2 in [0.3, pi - 0.3])."""
-    b = math.acos(max(-1.0, min(1.0, Rnb[2, 2])))
-    return np.array([math.atan2(Rnb[2, 0], -Rnb[2, 1]), b, math.atan2(Rnb[0, 2], Rnb[1, 2])])
 
 
 def _xyz(R) -> np.ndarray:
@@ -105,7 +90,7 @@ class DoublePendulum3D(OsimModel):
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
-        R1, R2 = _R313(*q[0:3]), _R313(*q[3:6])
+        R1, R2 = R313(*q[0:3]), R313(*q[3:6])
         B1, B2 = R1.T, R2.T
         qe = np.concatenate([_xyz(B1), _xyz(R1 @ B2)])
         ve = np.concatenate([B1 @ u[0:3], R1 @ B2 @ u[3:6] - u[0:3]])
@@ -121,7 +106,7 @@ class DoublePendulum3D(OsimModel):
         w2g = w1g + B1 @ ve[3:6]
         v1 = np.cross(w1g, B1 @ self.rho[0])
         v2 = np.cross(w1g, B1 @ self.rhoA) + np.cross(w2g, B2 @ self.rho[1])
-        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        q = np.concatenate([angles313(B1.T), angles313(B2.T)])
         return q, np.concatenate([B1.T @ w1g, B2.T @ w2g, v1, v2])
 
     def _acc_to_reference(self, qe, ve, ae):
@@ -176,7 +161,7 @@ class DoublePendulum3DFree(DoublePendulum3D):
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
-        B1, B2 = _R313(*q[0:3]).T, _R313(*q[3:6]).T
+        B1, B2 = R313(*q[0:3]).T, R313(*q[3:6]).T
         w1g, w2g = B1 @ u[0:3], B2 @ u[3:6]
         A = B1 @ self.rhoA
         v1 = u[6:9] - np.cross(w1g, B1 @ self.rho[0])
@@ -192,7 +177,7 @@ class DoublePendulum3DFree(DoublePendulum3D):
         w1g, w2g = ve[0:3], ve[6:9]
         vG1 = ve[3:6] + np.cross(w1g, B1 @ self.rho[0])
         vG2 = ve[9:12] + np.cross(w2g, B2 @ self.rho[1])
-        q = np.concatenate([_angles313(B1.T), _angles313(B2.T)])
+        q = np.concatenate([angles313(B1.T), angles313(B2.T)])
         return q, np.concatenate([B1.T @ w1g, B2.T @ w2g, vG1, vG2])
 
     def _multipliers(self, lam_s):
@@ -336,17 +321,17 @@ class TopCartesian(_Top):
 
     def from_engine_state(self, qe, ve):
         eps, eps_dot, _, R = self._reference(qe, ve)
-        x = self.params["L"] * R[:, 2]
+        x = self.map_params["L"] * R[:, 2]
         return np.concatenate([x, eps]), np.concatenate([np.cross(ve, x), eps_dot])
 
     def _acc_to_reference(self, qe, ve, ae):
         a_G = _np(self.top.findStationAccelerationInGround(self.state,
-                                                           vec3(0, 0, self.params["L"])))
+                                                           vec3(0, 0, self.map_params["L"])))
         return np.concatenate([a_G, self._eps_acc(qe, ve)])
 
     def _multipliers(self, lam_s):
         F = self._socket_force()
-        x = _np(self.top.findStationLocationInGround(self.state, vec3(0, 0, self.params["L"])))
+        x = _np(self.top.findStationLocationInGround(self.state, vec3(0, 0, self.map_params["L"])))
         return np.concatenate([F, [2.0 * x @ F]])
 
 
@@ -390,14 +375,10 @@ class FrameBar(OsimModel):
         self.bar = bar
 
     def to_engine_state(self, q, u):
-        phi, th = np.asarray(q, float)
-        w1, w2, w3 = np.asarray(u, float)
-        return np.array([phi, th]), np.array([-math.sin(th) * w1 + math.cos(th) * w3, w2])
+        return frame_bar_to_engine(q, u)
 
     def from_engine_state(self, qe, ve):
-        th = float(qe[1])
-        return (np.array(qe, float).copy(),
-                np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))
+        return frame_bar_from_engine(qe, ve)
 
     def _acc_to_reference(self, qe, ve, ae):
         s = self.state

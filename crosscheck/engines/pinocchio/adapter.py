@@ -74,7 +74,8 @@ from __future__ import annotations
 
 from typing import Optional
 
-from ..base import Capabilities, EngineAdapter, EngineUnsupported
+from ..base import (Capabilities, TableAdapter, is_user_model, lookup_builder, resolve_params,
+                    single_variant)
 from .exercises import Exercise61, Exercise62, Exercise64
 from .machinery import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
 from .planar import (FrameBar, KnifeEdge, MovingSupport, PendulumAngle, PendulumXY, SliderCrank,
@@ -112,20 +113,7 @@ _MODELS = {
 _UNSUPPORTED: dict[str, str] = {}
 
 
-def _resolve(model_name: str, params: Optional[dict]) -> dict[str, float]:
-    """The reference model's parameter values (defaults filled in, names and signs checked)."""
-    from reference.models import get
-    from reference.numeric import resolve_parameters
-
-    return resolve_parameters(get(model_name), params)
-
-
-def _user_names() -> list[str]:
-    from reference.models import user_names
-    return user_names()
-
-
-class PinocchioAdapter(EngineAdapter):
+class PinocchioAdapter(TableAdapter):
     """EngineAdapter for Pinocchio 4.1 (models built in code; see the module docstring)."""
 
     name = "pinocchio"
@@ -136,38 +124,15 @@ class PinocchioAdapter(EngineAdapter):
                                 nonholonomic=True, integrators=INTEGRATORS, variants=True,
                                 adaptive_integrators=INTEGRATORS)
 
-    def models(self) -> tuple[str, ...]:
-        from reference.models import user_names
-        return (*_MODELS, *user_names())
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(_UNSUPPORTED)
-
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
-        """Engine variants of a model (the first is build's default); (None,) for one."""
-        cls = _MODELS.get(model_name)
-        return tuple(cls) if isinstance(cls, dict) else (None,)
+    model_table = _MODELS
+    refused = _UNSUPPORTED
+    user_files = True
 
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):
-        if model_name in _UNSUPPORTED:
-            raise EngineUnsupported(_UNSUPPORTED[model_name])
-        if model_name not in _MODELS and model_name in _user_names():
+        if is_user_model(_MODELS, model_name):
             from .user_file import UserFilePinModel
-            if variant is not None:
-                raise EngineUnsupported(f"{model_name}: a user's file has a single variant")
+            single_variant(self.name, model_name, variant, "a user's file")
             return UserFilePinModel(model_name, params)
-        if model_name not in _MODELS:
-            raise EngineUnsupported(
-                f"pinocchio adapter has no model {model_name!r} (mapped: {', '.join(_MODELS)})")
-        cls = _MODELS[model_name]
-        values = _resolve(model_name, params)
-        if isinstance(cls, dict):  # several engine variants of one reference model
-            key = variant or next(iter(cls))
-            if key not in cls:
-                raise EngineUnsupported(
-                    f"{model_name}: unknown pinocchio variant {key!r}; valid: {', '.join(cls)}")
-            return cls[key](model_name, values)
-        if variant is not None:
-            raise EngineUnsupported(f"{model_name}: pinocchio has a single variant here")
-        return cls(model_name, values)
+        builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)
+        return builder(model_name, resolve_params(model_name, params))

@@ -4,7 +4,6 @@ matrix, trajectories. The conventions are in the package's adapter docstring."""
 from __future__ import annotations
 
 import hashlib
-import math
 import time
 from typing import Optional
 
@@ -13,7 +12,7 @@ from scipy.integrate import solve_ivp
 
 import pinocchio as pin
 
-from ..base import EngineForward, EngineModel, EngineTrajectory
+from ..base import EngineForward, EngineModel, EngineTrajectory, check_state
 
 # scipy's error-controlled integrators the trajectories use (solve_ivp methods)
 INTEGRATORS = ("DOP853",)
@@ -63,6 +62,26 @@ def _prox(settings) -> pin.ProximalSettings:
     return pin.ProximalSettings(float(acc), float(mu), int(it))
 
 
+def check_integrator(integrator: str, rtol: Optional[float]) -> None:
+    """One of INTEGRATORS (scipy's solve_ivp methods, all error-controlled) and its rtol > 0."""
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+    if rtol is None or not rtol > 0:
+        raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+
+
+def ivp_trajectory(sol, rows, integrator: str, rtol, t_start: float,
+                   raw: dict) -> EngineTrajectory:
+    """The EngineTrajectory of a solve_ivp solution (rtol = atol) from its rows, one per output
+    time: (q, u, violation, velocity violation, energy) in reference terms."""
+    Q, U, viol, vviol, E = ([r[k] for r in rows] for k in range(5))
+    return EngineTrajectory(
+        t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
+        velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
+        setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
+        steps=int(sol.nfev), failure=None if sol.success else str(sol.message), raw=raw)
+
+
 class PinEngineModel(EngineModel):
     """Shared machinery; subclasses build the engine model and write the maps."""
 
@@ -100,12 +119,6 @@ class PinEngineModel(EngineModel):
 
     def _tau(self) -> np.ndarray:
         return np.zeros(self.model.nv)
-
-    def to_engine_state(self, q, u):
-        raise NotImplementedError
-
-    def from_engine_state(self, qe, ve):
-        raise NotImplementedError
 
     def _acc_to_reference(self, qe, ve, ae) -> np.ndarray:
         raise NotImplementedError
@@ -349,22 +362,7 @@ class PinEngineModel(EngineModel):
     # ---- the EngineModel interface ---------------------------------------------------------
     def _check(self, q, u=None, t: float = 0.0):
         """Sizes and finiteness of a reference state, as the reference checks them."""
-        from reference.errors import ModelInputError
-
-        q = np.asarray(q, dtype=float).reshape(-1)
-        if q.size != self.nq_ref:
-            raise ModelInputError(f"{self.model_name} (pinocchio): expected {self.nq_ref} "
-                                  f"coordinates, got {q.size}")
-        if u is not None:
-            u = np.asarray(u, dtype=float).reshape(-1)
-            if u.size != self.n_ref:
-                raise ModelInputError(f"{self.model_name} (pinocchio): expected {self.n_ref} "
-                                      f"speeds, got {u.size}")
-        if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-                and math.isfinite(t)):
-            raise ModelInputError(f"{self.model_name} (pinocchio): state contains NaN or "
-                                  f"infinite values")
-        return q, u
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
 
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         q, u = self._check(q, u, t)
@@ -440,10 +438,7 @@ class PinEngineModel(EngineModel):
         violation (position level) and velocity_violation record it per output time, energy
         the engine's K + V; wall_s is the whole call (integration and mapping).
         """
-        if integrator not in INTEGRATORS:
-            raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-        if rtol is None or not rtol > 0:
-            raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+        check_integrator(integrator, rtol)
         t_start = time.perf_counter()
         t_eval = np.asarray(t_eval, dtype=float)
         q0, u0 = self._check(q0, u0)
@@ -459,35 +454,11 @@ class PinEngineModel(EngineModel):
 
         sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), y0, method=integrator, rtol=rtol,
                         atol=rtol, t_eval=t_eval)
-        Q, U, viol, vviol, E = [], [], [], [], []
+        rows = []
         for t, y in zip(sol.t, sol.y.T):
             qe = self._normalize(y[:nq])
             ve = y[nq:]
-            q, u = self.from_engine_state(qe, ve)
-            Q.append(q)
-            U.append(u)
-            viol.append(self.constraint_violation(qe, t))
-            vviol.append(self.velocity_violation(qe, ve, t))
-            E.append(sum(self._energy_engine(qe, ve)))
-        return EngineTrajectory(
-            t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
-            velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
-            setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
-            steps=int(sol.nfev), failure=None if sol.success else str(sol.message),
-            raw={"engine_states": sol.y.T.copy(), "stabilization": "none"})
-
-
-class SameCoordinates:
-    """Engine coordinates and speeds are the reference's, in the same order and meaning."""
-
-    def to_engine_state(self, q, u):
-        return (np.array(q, float).reshape(self.model.nq).copy(),
-                np.array(u, float).reshape(self.model.nv).copy())
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return ae.copy()
-
-
+            rows.append((*self.from_engine_state(qe, ve), self.constraint_violation(qe, t),
+                         self.velocity_violation(qe, ve, t), sum(self._energy_engine(qe, ve))))
+        return ivp_trajectory(sol, rows, integrator, rtol, t_start,
+                              {"engine_states": sol.y.T.copy(), "stabilization": "none"})

@@ -9,10 +9,11 @@ import numpy as np
 
 import pinocchio as pin
 
-from .machinery import PROX_REDUNDANT, Y_UP, PinEngineModel, SameCoordinates, lamina
+from ..kinematics import IdentityMaps, LinearMaps, frame_bar_from_engine, frame_bar_to_engine
+from .machinery import PROX_REDUNDANT, Y_UP, PinEngineModel, lamina
 
 
-class PendulumAngle(SameCoordinates, PinEngineModel):
+class PendulumAngle(IdentityMaps, PinEngineModel):
     """Example 1(a). One hinge RZ at the origin; the bob (mass m, no inertia) at (0, -L, 0) in
     the hinge frame, so the engine angle is the reference's theta (from the downward vertical)
     with positions (L sin, -L cos) = (x_ref, -y_ref). Plain ABA; the reference has no multipliers.
@@ -35,7 +36,7 @@ class PendulumAngle(SameCoordinates, PinEngineModel):
         raw["rod_tension"] = float(self.data.f[1].linear @ Y_UP)
 
 
-class PendulumXY(PinEngineModel):
+class PendulumXY(LinearMaps, PinEngineModel):
     """Example 1(b). Slides PX (x_e) then PY (y_e) carrying the bob; y_ref = -y_e, x_ref = x_e.
     The distance constraint (x^2 + y^2 - L^2)/2 = 0 is the same function in both coordinate
     sets, so with J = [x_e, y_e] and gamma = xdot_e^2 + ydot_e^2 data.lambda_c is the textbook
@@ -43,7 +44,7 @@ class PendulumXY(PinEngineModel):
 
     nq_ref = n_ref = 2
     solver = "kkt"
-    _P = np.diag([1.0, -1.0])  # q_e = P q_ref
+    _P = _Pinv = np.diag([1.0, -1.0])  # q_e = P q_ref, P P = I
 
     def _build(self):
         jx = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
@@ -53,15 +54,6 @@ class PendulumXY(PinEngineModel):
 
     def _kkt_rows(self, qe, ve, t):
         return qe.reshape(1, 2).copy(), np.array([ve @ ve])
-
-    def to_engine_state(self, q, u):
-        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
-
-    def from_engine_state(self, qe, ve):
-        return self._P @ np.asarray(qe, float), self._P @ np.asarray(ve, float)
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return self._P @ ae
 
     def _multipliers(self, qe, ve, ae, lam_e):
         return lam_e.copy()
@@ -95,8 +87,19 @@ class _SliderCrankBase(PinEngineModel):
             pin.SE3.Identity())
         return j1
 
+    def _crank_and_rod(self):
+        """The crank (_crank) and the rod on a hinge at B = (l1, 0, 0) of the crank (its
+        coordinate phi2 = theta2 - theta1); returns the rod's joint."""
+        p = self.params
+        j2 = self.model.addJoint(self._crank(), pin.JointModelRZ(),
+                                 pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])), "phi2")
+        self.model.appendBodyToJoint(
+            j2, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
+            pin.SE3.Identity())
+        return j2
 
-class SliderCrankFree(_SliderCrankBase):
+
+class SliderCrankFree(LinearMaps, _SliderCrankBase):
     """Example 2(a), the slider row removed. Crank hinge (theta1) and rod hinge at B relative to
     the crank (phi2 = theta2 - theta1); the end mass m3 is a point mass fixed on the rod at C
     (it does not turn, so lumping it into the rod body is exact). q_e = P q_ref with
@@ -109,24 +112,10 @@ class SliderCrankFree(_SliderCrankBase):
 
     def _build(self):
         p = self.params
-        j1 = self._crank()
-        j2 = self.model.addJoint(j1, pin.JointModelRZ(),
-                                 pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])), "phi2")
-        self.model.appendBodyToJoint(
-            j2, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
-            pin.SE3.Identity())
+        j2 = self._crank_and_rod()
         self.model.appendBodyToJoint(
             j2, pin.Inertia(p["m3"], np.array([p["l2"], 0.0, 0.0]), np.zeros((3, 3))),
             pin.SE3.Identity())
-
-    def to_engine_state(self, q, u):
-        return self._P @ np.asarray(q, float), self._P @ np.asarray(u, float)
-
-    def from_engine_state(self, qe, ve):
-        return self._Pinv @ np.asarray(qe, float), self._Pinv @ np.asarray(ve, float)
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return self._Pinv @ ae
 
 
 class SliderCrank(_SliderCrankBase):
@@ -162,12 +151,7 @@ class SliderCrank(_SliderCrankBase):
 
     def _build(self):
         p = self.params
-        j1 = self._crank()
-        j2 = self.model.addJoint(j1, pin.JointModelRZ(),
-                                 pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])), "phi2")
-        self.model.appendBodyToJoint(
-            j2, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
-            pin.SE3.Identity())
+        j2 = self._crank_and_rod()
         j3 = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x_slider")
         self.model.appendBodyToJoint(
             j3, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
@@ -203,7 +187,7 @@ class SliderCrank(_SliderCrankBase):
         raw["force_on_rod_at_C"] = lam_e[0:3].copy()
 
 
-class SliderCrankSplit(SameCoordinates, _SliderCrankBase):
+class SliderCrankSplit(IdentityMaps, _SliderCrankBase):
     """Note 2 / Exercise 6.3, coordinates (theta1, x, theta2) with theta2 measured from C to B
     and r2 = |C G2|. Engine tree: crank hinge (theta1), root slide PX (x) carrying m3, rod hinge
     on the slider at C (the slider does not turn, so the rod's hinge angle is the absolute
@@ -282,14 +266,10 @@ class FrameBar(PinEngineModel):
         return np.array([self.params["M_phi"], self.params["M_theta"]])
 
     def to_engine_state(self, q, u):
-        phi, th = np.asarray(q, float)
-        w1, w2, w3 = np.asarray(u, float)
-        return np.array([phi, th]), np.array([-math.sin(th) * w1 + math.cos(th) * w3, w2])
+        return frame_bar_to_engine(q, u)
 
     def from_engine_state(self, qe, ve):
-        th = float(qe[1])
-        return (np.array(qe, float).copy(),
-                np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))
+        return frame_bar_from_engine(qe, ve)
 
     def _acc_to_reference(self, qe, ve, ae):
         pin.forwardKinematics(self.model, self.data, qe, ve, ae)
@@ -307,7 +287,7 @@ class FrameBar(PinEngineModel):
 # ======================================================================================
 
 
-class KnifeEdge(SameCoordinates, PinEngineModel):
+class KnifeEdge(IdentityMaps, PinEngineModel):
     """Knife edge / Chaplygin sled (horizontal plane, no gravity). Engine tree: slides PX (x),
     PY (y) carrying the contact point C, hinge RZ (theta) carrying the sled: mass center at
     (a, 0, 0) on the blade axis, planar-lamina inertia from I_G. q_e = q_ref. The nonholonomic

@@ -230,7 +230,7 @@ class UserFilePinModel(EngineModel):
 
     def _rows(self, qe, ve):
         """J (rows, nv) and gamma = J-dot v of the equality rows (J a + gamma = 0)."""
-        model, data, m = self.model, self.data, self.mj
+        model, data = self.model, self.data
         pin.forwardKinematics(model, data, qe, ve, np.zeros(model.nv))
         pin.computeJointJacobians(model, data, qe)
         pin.updateFramePlacements(model, data)
@@ -346,11 +346,8 @@ class UserFilePinModel(EngineModel):
         constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
         from scipy.integrate import solve_ivp
 
-        from .machinery import INTEGRATORS
-        if integrator not in INTEGRATORS:
-            raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
-        if rtol is None or not rtol > 0:
-            raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+        from .machinery import check_integrator, ivp_trajectory
+        check_integrator(integrator, rtol)
         t_start = time.perf_counter()
         t_eval = np.asarray(t_eval, dtype=float)
         n = len(q0)
@@ -360,21 +357,13 @@ class UserFilePinModel(EngineModel):
 
         sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), np.concatenate([q0, u0]),
                         method=integrator, rtol=rtol, atol=rtol, t_eval=t_eval)
-        Q, U, viol, vviol, E = [], [], [], [], []
+        rows = []
         for y in sol.y.T:
             q, u = y[:n], y[n:]
-            Q.append(q)
-            U.append(u)
-            p, v = self.violation(*self.to_engine_state(q, u))
-            viol.append(p)
-            vviol.append(v)
-            E.append(sum(self.energy(q, u)))
-        return EngineTrajectory(
-            t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
-            velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
-            setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
-            steps=int(sol.nfev), failure=None if sol.success else str(sol.message),
-            raw={"stabilization": "none", "coordinates": "reference (qpos, rates)"})
+            rows.append((q, u, *self.violation(*self.to_engine_state(q, u)),
+                         sum(self.energy(q, u))))
+        return ivp_trajectory(sol, rows, integrator, rtol, t_start,
+                              {"stabilization": "none", "coordinates": "reference (qpos, rates)"})
 
     def mass_matrix(self, q) -> Optional[np.ndarray]:
         if self._quat:
