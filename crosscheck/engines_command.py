@@ -18,7 +18,8 @@ def cmd_engines(args) -> int:
             continue
         caps = r.capabilities or {}
         can = [k for k in ("multipliers", "exact", "rigid_recovery", "mass_matrix",
-                           "nonholonomic", "variants") if caps.get(k)]
+                           "nonholonomic", "variants", "soft_prediction",
+                           "soft_limit") if caps.get(k)]
         integ = ", ".join(caps.get("integrators", [])) or "none"
         print(f"{r.name:10s} {r.distribution} {r.version}  {len(r.models)} models  "
               f"[{', '.join(can)}]  integrators: {integ}")

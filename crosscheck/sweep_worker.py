@@ -165,7 +165,7 @@ def _evaluate_chunk(spec: ChunkSpec, base, drawn: list, ref: dict, perturb: dict
             te = time.perf_counter()
             try:
                 sc = compare_at_state(em, q, u, t, ReferenceAnswer(acc, lam, M_ref, E_ref),
-                                      base.m)
+                                      base.m, _adapter(engine).capabilities)
                 vals, sk, sf = sc.values, sc.skips, sc.soft
             except Exception as exc:  # noqa: BLE001
                 fault(i, s, engine, variant, "evaluate", exc)

@@ -173,7 +173,8 @@ class MujocoAdapter(EngineAdapter):
     rank = 20
     capabilities = Capabilities(multipliers=True, exact=False, rigid_recovery=True,
                                 mass_matrix=True, nonholonomic=False,
-                                integrators=tuple(INTEGRATORS), variants=True)
+                                integrators=tuple(INTEGRATORS), variants=True,
+                                soft_prediction=True, soft_limit=True)
 
     def __init__(self, solref=SOLREF, solimp=SOLIMP):
         self.solref, self.solimp = tuple(solref), tuple(solimp)

@@ -3,6 +3,7 @@ the soft-constraint recovery (forward), energy, mass matrix, trajectories. The
 conventions are in the package's adapter docstring."""
 from __future__ import annotations
 
+import copy
 import hashlib
 import time
 from pathlib import Path
@@ -12,7 +13,7 @@ import mujoco
 import numpy as np
 
 from ...compare import Tolerance
-from ..base import EngineForward, EngineModel, EngineTrajectory
+from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
 
 SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 SOLREF = (0.02, 1.0)
@@ -208,9 +209,43 @@ class MjEngineModel(EngineModel):
     def _post_build(self) -> None:
         pass
 
-    def _fresh_model(self):
-        """A new MjModel of the same model (trajectories run on their own copy)."""
+    def _load_model(self):
+        """A new MjModel compiled from the model's source (XML text or file)."""
         return mujoco.MjModel.from_xml_string(self.xml)
+
+    # solref time constants are divided by this (stiffened(); 1: the model as written)
+    _stiffness = 1.0
+
+    def _fresh_model(self):
+        """A new MjModel of the same model (trajectories run on their own copy), with the
+        soft rows' time constants divided by ``_stiffness``."""
+        m = self._load_model()
+        if self._stiffness != 1.0:
+            m.eq_solref[:, 0] /= self._stiffness
+        return m
+
+    def stiffened(self, factor: float) -> "MjEngineModel":
+        """The same model with every equality's solref time constant divided by factor
+        (damping ratio kept): the soft effect on a trajectory shrinks as the time constant
+        squared (docs/engines/mujoco.md), which the rigid-limit record extrapolates."""
+        if self.m.neq == 0:
+            raise EngineUnsupported("no equality rows: nothing to stiffen")
+        if np.any(self.m.eq_solref[:, 0] <= 0):
+            raise EngineUnsupported("solref given as a direct stiffness (negative): its time "
+                                    "constant cannot be scaled")
+        other = copy.copy(self)
+        other._stiffness = self._stiffness * float(factor)
+        if self.solref:  # the generated models' setting (a user's file keeps its own per row)
+            other.solref = (self.solref[0] / float(factor), *self.solref[1:])
+        other.m = other._fresh_model()
+        other.d = mujoco.MjData(other.m)
+        return other
+
+    def predict_soft(self, q, u, reference_accelerations):
+        """MuJoCo's raw soft answer predicted from the reference's accelerations and the
+        documented solref/solimp impedance (soft_prediction.py)."""
+        from .soft_prediction import predict_for
+        return predict_for(self, q, u, reference_accelerations)
 
     def _applied(self) -> np.ndarray:
         """qfrc_applied: the reference's constant loads as engine generalized forces."""

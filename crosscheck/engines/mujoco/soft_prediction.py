@@ -110,3 +110,55 @@ def predict_for(em, q, u, reference_accelerations) -> tuple[np.ndarray, np.ndarr
     acc = np.asarray(em._acc_to_reference(qe, ve, soft.engine_accelerations), float)
     lam = em._multipliers(qe, ve, soft.engine_accelerations, soft.engine_forces)
     return acc, (None if lam is None else np.asarray(lam, float))
+
+
+def agreement(n_states: int = 200, models=None) -> list[dict]:
+    """MuJoCo's raw soft answer against predict_for over the run's consistent states (the
+    initial state and n_states - 1 seeded random ones, crosscheck.sampling) of every MuJoCo
+    model with soft rows: the worst miss max |raw - predicted| (scaled as compare.scaled_error),
+    the predicted soft effect's range and the judged ratio (compare.soft_prediction), of the
+    accelerations and (lam_*) the multipliers."""
+    from reference.models import get
+    from reference.numeric import NumericModel
+
+    from ...compare import scaled_error, soft_prediction
+    from ...sampling import consistent_states
+    from .adapter import MujocoAdapter
+
+    ad, rows = MujocoAdapter(), []
+    for name in models or ad.models():
+        if name in ad.unsupported():
+            continue
+        nm = NumericModel(get(name))
+        for variant in ad.variants(name):
+            em = ad.build(name, None, variant)
+            if not em.soft_constraints:
+                continue
+            w: dict = {"model": name, "variant": variant}
+            for q, u in consistent_states(nm, n_states):
+                ref, fw = nm.forward(q, u), em.forward(q, u)
+                acc, lam = em.predict_soft(q, u, ref.accelerations)
+                pairs = [("", fw.accelerations, acc, ref.accelerations)]
+                if fw.multipliers is not None and lam is not None:
+                    pairs.append(("lam_", fw.multipliers, lam, ref.multipliers))
+                for key, raw, p, r in pairs:
+                    pred = scaled_error(p, r)
+                    for k, v in (("miss", scaled_error(raw, p)), ("pred_max", pred),
+                                 ("ratio", soft_prediction(raw, r, p - r)[0])):
+                        w[key + k] = max(w.get(key + k, 0.0), v)
+                    w[key + "pred_min"] = min(w.get(key + "pred_min", np.inf), pred)
+            rows.append(w)
+    return rows
+
+
+if __name__ == "__main__":
+    import sys
+
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 200
+    keys = ("miss", "ratio", "pred_min", "pred_max")
+    print(f"{'model':20s} {'variant':8s} " + " ".join(f"{k:>9s}" for k in keys)
+          + " " + " ".join(f"{'lam_' + k:>12s}" for k in keys))
+    for r in agreement(n, sys.argv[2:] or None):
+        print(f"{r['model']:20s} {str(r['variant'] or '-'):8s} "
+              + " ".join(f"{r[k]:9.2e}" for k in keys) + " "
+              + " ".join(f"{r.get('lam_' + k, float('nan')):12.2e}" for k in keys))
