@@ -709,39 +709,7 @@ def test_simulate_constrained_drift(integrator):
     assert maxabs(tr.violation) <= limit
     E = tr.energy
     assert E[0] == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-12)
-
-
-# Energy error of MuJoCo's fixed-step integrators on slider_crank_split over 0.5 s, measured at
-# h = 2, 1, 0.5, 0.25 ms (docs/engines/mujoco.md, "Energy error by integrator and step"):
-# Euler and implicitfast lose max |E - E0| = C h with C = 31.2 J/s (6.24e-2, 3.12e-2, 1.56e-2,
-# 7.83e-3 J: ratio 2.00 per halving, first order); 40 J/s is allowed (1.3x). RK4 loses
-# 1.52e-4 J at every step (the step's C h^4 share is < 1e-7 J): that is the solref damper's
-# dissipation, which falls as tc^2 (3.65e-5 J at tc = 0.01 s, ratio 4.2).
-FIRST_ORDER_ENERGY_C = 40.0  # J/s
-RK4_SOFT_LOSS = 2e-4  # J at tc = 0.02 s (1.52e-4 measured)
-
-
-def _energy_error(integrator, timestep, tc=0.02):
-    em = MujocoAdapter(solref=(tc, 1.0)).build("slider_crank_split")
-    m = get("slider_crank_split")
-    tr = em.simulate(m.initial_q, m.initial_u, np.linspace(0.0, 0.5, 51), integrator=integrator,
-                     timestep=timestep)
-    return maxabs(tr.energy - tr.energy[0])
-
-
-@pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
-def test_first_order_energy_error_halves_with_the_step(integrator):
-    e1, e2 = _energy_error(integrator, 1e-3), _energy_error(integrator, 5e-4)
-    assert 1.8 <= e1 / e2 <= 2.2, (e1, e2)  # order 1: halving the step halves the error
-    assert e1 <= FIRST_ORDER_ENERGY_C * 1e-3, e1
-
-
-def test_rk4_energy_loss_is_the_soft_damper_not_the_step():
-    e1, e2 = _energy_error("RK4", 1e-3), _energy_error("RK4", 5e-4)
-    assert abs(e1 - e2) <= 1e-3 * e1, (e1, e2)  # fourth order: the step no longer matters
-    stiff = _energy_error("RK4", 1e-3, tc=0.01)
-    assert 3.5 <= e1 / stiff <= 5.0, (e1, stiff)  # the damper's share falls as tc^2
-    assert e1 <= RK4_SOFT_LOSS, e1
+    # the energy error's size: tests/test_mujoco_bounds.py (derived from order and step)
 
 
 @pytest.mark.parametrize("name,limit", [("exercise_6_1", 1e-5), ("exercise_6_2", 1e-9),
