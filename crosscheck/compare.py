@@ -44,11 +44,11 @@ SOFT_PREDICTION = Tolerance(
           "accelerations and the documented solref/solimp impedance, never from MuJoCo's "
           "constraint solution (crosscheck/engines/mujoco/soft_prediction.py): they differ by "
           "where MuJoCo's soft solve stops (<= 8.6e-10 scaled), so the judged ratio was <= "
-          "8.6e-6 over 200 states of every MuJoCo model with soft rows (python -m "
-          "crosscheck.engines.mujoco.soft_prediction 200, docs/engines/mujoco.md); 1e-4 "
+          "8.6e-6 over 200 states of every MuJoCo model with soft rows (PYTHONPATH=$PWD python "
+          "scripts/mujoco_soft.py predict 200, docs/engines/mujoco.md); 1e-4 "
           "leaves 11x, and a 0.1 % mass error (a miss ~1e-4 of the answer) fails")
-# Below this predicted (scaled) soft error the solver floor (<= 8.6e-10 measured) is not small against
-# the prediction, so the miss is measured against the floor instead: a state where the
+# Below this predicted (scaled) soft error the solver floor (<= 8.6e-10 measured) is not small
+# against the prediction, so the miss is measured against the floor instead: a state where the
 # constraint forces are small compared with the force scale predicts a tiny soft error, and
 # the ratio would otherwise measure MuJoCo's solver tolerance (seen in a sweep: 6e-5 at a
 # predicted error of ~1e-6 on the slider-crank).

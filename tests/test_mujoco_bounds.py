@@ -62,10 +62,10 @@ def test_rk4_energy_loss_is_the_soft_damper_not_the_step():
 def _with_light_axial_inertia(model, scale: float = 1.0):
     """Exercise 6.4 with the bar's axial inertia that MuJoCo is given (scale x LIGHT m l^2)."""
     sym = {p.name: p.symbol for p in model.parameters}
-    m, l = sym["m"], sym["l"]
+    m, length = sym["m"], sym["l"]
     bar = next(b for b in model.bodies if b.name == "bar")
-    light = dataclasses.replace(bar, inertia=sp.diag(m * l**2 / 12, m * l**2 / 12,
-                                                     scale * LIGHT * m * l**2))
+    light = dataclasses.replace(bar, inertia=sp.diag(m * length**2 / 12, m * length**2 / 12,
+                                                     scale * LIGHT * m * length**2))
     return dataclasses.replace(model, bodies=tuple(light if b is bar else b
                                                    for b in model.bodies))
 

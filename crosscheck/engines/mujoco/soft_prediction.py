@@ -24,8 +24,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
+
+import mujoco
 
 from ..base import EngineUnsupported
 
@@ -67,7 +68,7 @@ def documented_R(m, d) -> np.ndarray:
         e = int(d.efc_id[i])
         if m.eq_type[e] != mujoco.mjtEq.mjEQ_CONNECT:
             raise EngineUnsupported(
-                "soft prediction: only connect rows have a documented diagonal approximation "
+                "only connect rows have a documented diagonal approximation of A "
                 f"here; equality {e} is of type {int(m.eq_type[e])}")
         b1, b2 = _row_bodies(m, e)
         diag = float(m.body_invweight0[b1, 0] + m.body_invweight0[b2, 0])
@@ -87,78 +88,3 @@ def predict(M, J, smooth, aref, R, G, c, reference_accelerations) -> SoftPredict
     K = np.block([[M, -J.T], [J, np.diag(R)]])
     sol = np.linalg.solve(K, np.concatenate([np.zeros(nv), -R * f_r]))
     return SoftPrediction(a_r + sol[:nv], f_r + sol[nv:nv + ne], np.asarray(R, float))
-
-
-def predict_for(em, q, u, reference_accelerations) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted soft (accelerations, multipliers) of a built MuJoCo model at a reference
-    state, in reference coordinates. Reads only model quantities at the state (M, J, smooth
-    forces, aref, solimp, invweights) after mj_forward, never its constraint solution."""
-    from .machinery import dense_efc_J, full_M  # dense views of MuJoCo's data
-
-    m, d = em.m, em.d
-    qe, ve = em.to_engine_state(q, u)
-    em._set(qe, ve)
-    mujoco.mj_forward(m, d)
-    qe, ve = d.qpos.copy(), d.qvel.copy()
-    if d.nefc == 0:
-        raise EngineUnsupported("no equality rows: MuJoCo's answer is not soft here")
-    J, M = dense_efc_J(m, d), full_M(m, d)
-    G = em._affine_gain(lambda z: em._acc_to_reference(qe, ve, z), np.zeros(m.nv))
-    c = np.asarray(em._acc_to_reference(qe, ve, np.zeros(m.nv)), float)
-    soft = predict(M, J, d.qfrc_smooth.copy(), d.efc_aref[:d.nefc].copy(), documented_R(m, d),
-                   G, c, reference_accelerations)
-    acc = np.asarray(em._acc_to_reference(qe, ve, soft.engine_accelerations), float)
-    lam = em._multipliers(qe, ve, soft.engine_accelerations, soft.engine_forces)
-    return acc, (None if lam is None else np.asarray(lam, float))
-
-
-def agreement(n_states: int = 200, models=None) -> list[dict]:
-    """MuJoCo's raw soft answer against predict_for over the run's consistent states (the
-    initial state and n_states - 1 seeded random ones, crosscheck.sampling) of every MuJoCo
-    model with soft rows: the worst miss max |raw - predicted| (scaled as compare.scaled_error),
-    the predicted soft effect's range and the judged ratio (compare.soft_prediction), of the
-    accelerations and (lam_*) the multipliers."""
-    from reference.models import get
-    from reference.numeric import NumericModel
-
-    from ...compare import scaled_error, soft_prediction
-    from ...sampling import consistent_states
-    from .adapter import MujocoAdapter
-
-    ad, rows = MujocoAdapter(), []
-    for name in models or ad.models():
-        if name in ad.unsupported():
-            continue
-        nm = NumericModel(get(name))
-        for variant in ad.variants(name):
-            em = ad.build(name, None, variant)
-            if not em.soft_constraints:
-                continue
-            w: dict = {"model": name, "variant": variant}
-            for q, u in consistent_states(nm, n_states):
-                ref, fw = nm.forward(q, u), em.forward(q, u)
-                acc, lam = em.predict_soft(q, u, ref.accelerations)
-                pairs = [("", fw.accelerations, acc, ref.accelerations)]
-                if fw.multipliers is not None and lam is not None:
-                    pairs.append(("lam_", fw.multipliers, lam, ref.multipliers))
-                for key, raw, p, r in pairs:
-                    pred = scaled_error(p, r)
-                    for k, v in (("miss", scaled_error(raw, p)), ("pred_max", pred),
-                                 ("ratio", soft_prediction(raw, r, p - r)[0])):
-                        w[key + k] = max(w.get(key + k, 0.0), v)
-                    w[key + "pred_min"] = min(w.get(key + "pred_min", np.inf), pred)
-            rows.append(w)
-    return rows
-
-
-if __name__ == "__main__":
-    import sys
-
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 200
-    keys = ("miss", "ratio", "pred_min", "pred_max")
-    print(f"{'model':20s} {'variant':8s} " + " ".join(f"{k:>9s}" for k in keys)
-          + " " + " ".join(f"{'lam_' + k:>12s}" for k in keys))
-    for r in agreement(n, sys.argv[2:] or None):
-        print(f"{r['model']:20s} {str(r['variant'] or '-'):8s} "
-              + " ".join(f"{r[k]:9.2e}" for k in keys) + " "
-              + " ".join(f"{r.get('lam_' + k, float('nan')):12.2e}" for k in keys))
