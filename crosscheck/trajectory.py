@@ -9,7 +9,10 @@
   is not a whole number of ms the largest step below 1 ms that divides it, see step_ladder),
   every run recorded on the reference's output times (output_grid).
 Each run yields records (state error against the reference, constraint drift, velocity drift
-|A u + a0|, energy drift) and a series for the report's plots; a run that does not finish is a
+|A u + a0|, energy drift) and a series for the report's plots; an engine model with soft
+constraint rows (Capabilities.soft_limit) is also run with its regularization's time constant
+halved, and the two runs extrapolated to the rigid limit are judged against the reference
+(``state_error_rigid_limit``, SOFT_LIMIT_*), which sizes its other tolerances too; a run that does not finish is a
 failed record with its reason, and the other runs go on.
 
 State error: max over the output times of max |x - x_ref| / max(max |x_ref|, 1), x = (q, u) in
