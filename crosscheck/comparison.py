@@ -37,7 +37,6 @@ SOFT_ANSWER = ("raw soft answer against the one predicted from the reference's a
 NO_PREDICTION = "the engine does not predict its soft answer independently"
 
 
-
 def rigid_answer(engine: str) -> str:
     """What a soft engine's judged answer is (the records' ``answer`` field)."""
     return f"rigid, recovered from {engine_label(engine)}'s soft solution"
@@ -162,8 +161,8 @@ def _predicted_errors(pairs, predicted) -> list:
     effect the prediction expects (records' predicted_rel_error_max)."""
     if predicted is None:
         return []
-    return [C.scaled_error(p, reference) for (_, _, _, reference), p in zip(pairs, predicted)
-            if p is not None]
+    return [C.scaled_error(p, reference)
+            for (_, _, _, reference), p in zip(pairs, predicted, strict=False) if p is not None]
 
 
 def tolerance(quantity: str, soft: bool, adapter: EngineAdapter,

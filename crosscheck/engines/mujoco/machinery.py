@@ -9,8 +9,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-import mujoco
 import numpy as np
+
+import mujoco
 
 from ...compare import Tolerance
 from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
