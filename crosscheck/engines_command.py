@@ -27,6 +27,8 @@ def cmd_engines(args) -> int:
                 "mass_matrix",
                 "nonholonomic",
                 "variants",
+                "soft_prediction",
+                "soft_limit",
             )
             if caps.get(k)
         ]

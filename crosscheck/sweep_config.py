@@ -35,7 +35,8 @@ QUANTITY_ORDER = ("accelerations", "multipliers", "accelerations_soft_vs_predict
 SOFT_ERROR_REASON = (
     "MuJoCo's raw (soft) answer against the rigid reference: the error its impedance "
     "d = 0.9999 makes by design (~1e-4 relative); reported, not judged here -- the "
-    "*_soft_vs_predicted quantity holds it to the error the impedance predicts")
+    "*_soft_vs_predicted quantity holds it to the answer predicted from the reference's "
+    "and the documented impedance")
 REFERENCE = "reference"
 
 

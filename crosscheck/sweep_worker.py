@@ -170,7 +170,15 @@ def _evaluate_chunk(
                 continue
             te = time.perf_counter()
             try:
-                sc = compare_at_state(em, q, u, t, ReferenceAnswer(acc, lam, M_ref, E_ref), base.m)
+                sc = compare_at_state(
+                    em,
+                    q,
+                    u,
+                    t,
+                    ReferenceAnswer(acc, lam, M_ref, E_ref),
+                    base.m,
+                    _adapter(engine).capabilities,
+                )
                 vals, sk, sf = sc.values, sc.skips, sc.soft
             except Exception as exc:
                 fault(i, s, engine, variant, "evaluate", exc)

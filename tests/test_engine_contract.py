@@ -80,6 +80,17 @@ def _check_forward(adapter, em, nm, q, u):
             assert np.asarray(ef.rigid_multipliers).shape == (nm.m,)
         if ef.soft:
             assert np.asarray(ef.predicted_acceleration_error).shape == (nm.n,)
+    if caps.soft_prediction and ef.soft:  # predicted from the reference's answer alone
+        try:
+            acc_p, lam_p = em.predict_soft(q, u, nm.forward(q, u).accelerations)
+        except EngineUnsupported as exc:  # a row type without a documented regularization
+            assert str(exc).strip()
+        else:
+            assert np.asarray(acc_p).shape == (nm.n,) and np.all(np.isfinite(acc_p))
+            assert lam_p is None or np.asarray(lam_p).shape == (nm.m,)
+    if caps.soft_limit and em.soft_constraints:  # a stiffer copy, the same physics otherwise
+        stiff = em.stiffened(2.0)
+        assert stiff is not em and stiff.fingerprint() == em.fingerprint()
     if caps.exact:
         assert not ef.soft, "an exact engine's answer is not regularized"
     assert ef.iterations is None or ef.iterations >= 0

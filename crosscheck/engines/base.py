@@ -51,6 +51,11 @@ class Capabilities:
     adaptive_integrators: the subset of ``integrators`` that control their error (they take
         ``rtol``); the others take a fixed ``timestep``.
     variants: some models have several engine models (``EngineAdapter.variants``).
+    soft_prediction: built models predict their raw soft answer from the reference's rigid
+        answer and the engine's documented regularization alone (``EngineModel.predict_soft``),
+        without reading the engine's constraint solution: the ``*_soft_vs_predicted`` records.
+    soft_limit: built models with soft rows give the same model with a stiffer regularization
+        (``EngineModel.stiffened``): the trajectories' rigid-limit record extrapolates to it.
     """
 
     multipliers: bool
@@ -61,6 +66,8 @@ class Capabilities:
     integrators: tuple[str, ...] = ()
     variants: bool = False
     adaptive_integrators: tuple[str, ...] = ()
+    soft_prediction: bool = False
+    soft_limit: bool = False
 
     def __post_init__(self) -> None:
         extra = set(self.adaptive_integrators) - set(self.integrators)
@@ -72,7 +79,8 @@ class Capabilities:
                 "rigid_recovery": self.rigid_recovery, "mass_matrix": self.mass_matrix,
                 "nonholonomic": self.nonholonomic, "integrators": list(self.integrators),
                 "variants": self.variants,
-                "adaptive_integrators": list(self.adaptive_integrators)}
+                "adaptive_integrators": list(self.adaptive_integrators),
+                "soft_prediction": self.soft_prediction, "soft_limit": self.soft_limit}
 
 
 @dataclass
@@ -180,6 +188,19 @@ class EngineModel(ABC):
         """Integrate from a consistent reference state with one of the adapter's integrators:
         adaptive ones take ``rtol``, fixed-step ones ``timestep``."""
         raise EngineUnsupported(f"{self.engine} has no trajectories in this suite")
+
+    def predict_soft(self, q: np.ndarray, u: np.ndarray, reference_accelerations: np.ndarray
+                     ) -> tuple[np.ndarray, Optional[np.ndarray]]:
+        """The raw soft (accelerations, multipliers) this model should return at a consistent
+        reference state, predicted from the reference's accelerations and the engine's
+        documented regularization, never from its constraint solution
+        (Capabilities.soft_prediction); raises EngineUnsupported where it cannot."""
+        raise EngineUnsupported(f"{self.engine} does not predict its soft answer")
+
+    def stiffened(self, factor: float) -> "EngineModel":
+        """The same model (same parameters) with its soft rows' time constant divided by
+        ``factor`` (Capabilities.soft_limit)."""
+        raise EngineUnsupported(f"{self.engine} has no stiffer soft model")
 
     def timed_forward(self, q: np.ndarray, u: np.ndarray) -> Callable[[], Any]:
         """A callable making only the engine's native forward call at a state already mapped

@@ -85,13 +85,14 @@ from ...compare import Tolerance
 from ..base import (Capabilities, EngineUnsupported, TableAdapter, is_user_model, lookup_builder,
                     resolve_params, single_variant, table_variants)
 from .exercises import Exercise61, Exercise62, Exercise64
-from .machinery import INTEGRATORS, LIGHT, MJCF_DIR, MUJOCO_EXACT, SOLIMP, SOLREF
+from .machinery import (INTEGRATORS, LIGHT, MJCF_DIR, MUJOCO_EXACT, MUJOCO_LIGHT_EXACT, SOLIMP,
+                        SOLREF)
 from .planar import (FrameBar, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
                      SliderCrankSplit)
 from .spatial import DoublePendulumFree, DoublePendulumTree, TopCartesian, TopEuler
 
 __all__ = ["MujocoAdapter", "mjcf", "write_mjcf", "SOLIMP", "SOLREF", "LIGHT", "INTEGRATORS",
-           "MJCF_DIR", "MUJOCO_EXACT"]
+           "MJCF_DIR", "MUJOCO_EXACT", "MUJOCO_LIGHT_EXACT", "LIGHT_BIASED"]
 
 
 # ======================================================================================
@@ -113,6 +114,9 @@ _MODELS: dict = {
     "exercise_6_2": Exercise62,
     "exercise_6_4": Exercise64,
 }
+
+# models whose exact answer carries an amplified light-body bias (MUJOCO_LIGHT_EXACT)
+LIGHT_BIASED = frozenset({"exercise_6_4"})
 
 _UNSUPPORTED = {
     "knife_edge": "MuJoCo's equality constraints are holonomic (position level: connect, weld, "
@@ -161,7 +165,8 @@ class MujocoAdapter(TableAdapter):
     rank = 20
     capabilities = Capabilities(multipliers=True, exact=False, rigid_recovery=True,
                                 mass_matrix=True, nonholonomic=False,
-                                integrators=tuple(INTEGRATORS), variants=True)
+                                integrators=tuple(INTEGRATORS), variants=True,
+                                soft_prediction=True, soft_limit=True)
 
     def __init__(self, solref=SOLREF, solimp=SOLIMP):
         self.solref, self.solimp = tuple(solref), tuple(solimp)
@@ -171,7 +176,9 @@ class MujocoAdapter(TableAdapter):
     user_files = True
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
-        return MUJOCO_EXACT
+        """MUJOCO_LIGHT_EXACT on the models whose light bodies' bias is amplified (measured,
+        LIGHT_BIASED), MUJOCO_EXACT on the others."""
+        return MUJOCO_LIGHT_EXACT if model_name in LIGHT_BIASED else MUJOCO_EXACT
 
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):

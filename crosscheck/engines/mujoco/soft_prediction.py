@@ -24,8 +24,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
+
+import mujoco
 
 from ..base import EngineUnsupported
 
@@ -67,7 +68,7 @@ def documented_R(m, d) -> np.ndarray:
         e = int(d.efc_id[i])
         if m.eq_type[e] != mujoco.mjtEq.mjEQ_CONNECT:
             raise EngineUnsupported(
-                "soft prediction: only connect rows have a documented diagonal approximation "
+                "only connect rows have a documented diagonal approximation of A "
                 f"here; equality {e} is of type {int(m.eq_type[e])}")
         b1, b2 = _row_bodies(m, e)
         diag = float(m.body_invweight0[b1, 0] + m.body_invweight0[b2, 0])
@@ -87,26 +88,3 @@ def predict(M, J, smooth, aref, R, G, c, reference_accelerations) -> SoftPredict
     K = np.block([[M, -J.T], [J, np.diag(R)]])
     sol = np.linalg.solve(K, np.concatenate([np.zeros(nv), -R * f_r]))
     return SoftPrediction(a_r + sol[:nv], f_r + sol[nv:nv + ne], np.asarray(R, float))
-
-
-def predict_for(em, q, u, reference_accelerations) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted soft (accelerations, multipliers) of a built MuJoCo model at a reference
-    state, in reference coordinates. Reads only model quantities at the state (M, J, smooth
-    forces, aref, solimp, invweights) after mj_forward, never its constraint solution."""
-    from .machinery import dense_efc_J, full_M  # dense views of MuJoCo's data
-
-    m, d = em.m, em.d
-    qe, ve = em.to_engine_state(q, u)
-    em._set(qe, ve)
-    mujoco.mj_forward(m, d)
-    qe, ve = d.qpos.copy(), d.qvel.copy()
-    if d.nefc == 0:
-        raise EngineUnsupported("no equality rows: MuJoCo's answer is not soft here")
-    J, M = dense_efc_J(m, d), full_M(m, d)
-    G = em._affine_gain(lambda z: em._acc_to_reference(qe, ve, z), np.zeros(m.nv))
-    c = np.asarray(em._acc_to_reference(qe, ve, np.zeros(m.nv)), float)
-    soft = predict(M, J, d.qfrc_smooth.copy(), d.efc_aref[:d.nefc].copy(), documented_R(m, d),
-                   G, c, reference_accelerations)
-    acc = np.asarray(em._acc_to_reference(qe, ve, soft.engine_accelerations), float)
-    lam = em._multipliers(qe, ve, soft.engine_accelerations, soft.engine_forces)
-    return acc, (None if lam is None else np.asarray(lam, float))

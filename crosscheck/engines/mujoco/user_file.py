@@ -107,7 +107,7 @@ class UserFileModel(MjEngineModel):
         self.solver = "MuJoCo (the file's solref/solimp, Newton to 1e-15)"
         self.constrained_solve = self.m.neq > 0
 
-    def _fresh_model(self):
+    def _load_model(self):
         m = mujoco.MjModel.from_xml_path(self.imp.path)
         m.opt.tolerance = SOLVER_TOLERANCE
         m.opt.iterations = SOLVER_ITERATIONS
