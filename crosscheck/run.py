@@ -114,34 +114,6 @@ def _formulation_records(name, nm, states):
     return out
 
 
-def _user_file_notes(name, engine, recs):
-    """A user's MJCF file in Pinocchio: each record says which Pinocchio model answered, and
-    one more record (reported, not judged) lists what pin's own MJCF parser lost."""
-    src = models.user_source(name)
-    if engine != "pinocchio" or not hasattr(src, "mj"):
-        return recs
-    from .engines.pinocchio.parser_findings import findings_isolated, summary
-    from .engines.pinocchio.user_file import BUILT_FROM
-
-    for r in recs:
-        r["engine_model"] = BUILT_FROM
-    found = findings_isolated(src.path)
-    return [
-        *recs,
-        C.record(
-            name,
-            recs[0]["formulation"],
-            engine,
-            "parser",
-            "mjcf_parse",
-            None,
-            None,
-            summary(found),
-            findings=found,
-        ),
-    ]
-
-
 SOFT_FILE = (
     "reported, not judged: MuJoCo integrates the file's own soft equality constraints "
     "(its solref/solimp; MuJoCo's default solimp gives an impedance of 0.9..0.95, "
@@ -151,15 +123,16 @@ SOFT_FILE = (
 )
 
 
-def _soft_file_trajectories(name, recs):
-    """MuJoCo's trajectory records on a user's MJCF file with equality constraints: the
-    measured figure kept, not judged (SOFT_FILE)."""
+def _soft_file_trajectories(name, recs, adapters):
+    """A soft engine's trajectory records on a user's MJCF file with equality constraints (the
+    file's own solref/solimp): the measured figure kept, not judged (SOFT_FILE)."""
     src = models.user_source(name)
     if not (hasattr(src, "mj") and src.mj.neq):
         return recs
+    soft = {a.name for a in adapters if not a.capabilities.exact}
     out = []
     for r in recs:
-        if r["engine"] == "mujoco" and r["passed"] is not None:
+        if r["engine"] in soft and r["passed"] is not None:
             r = {
                 **r,
                 "judged_tolerance": r["tolerance"],
@@ -190,8 +163,8 @@ def run(
         for adapter in adapters:
             params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
             for variant in adapter.variants(name):
-                records += _user_file_notes(
-                    name, adapter.name, engine_records(name, nm, states, adapter, params, variant)
+                records += adapter.annotate_records(
+                    name, engine_records(name, nm, states, adapter, params, variant)
                 )
         records += _generic_records(name, adapters, n_states, perturb)
         if trajectories:
@@ -199,7 +172,7 @@ def run(
                 a.name: perturbed(name, nm.params, perturb.get(a.name, {})) for a in adapters
             }
             recs, ser = trajectory_records(name, nm, adapters, t_end, engine_params)
-            records += _soft_file_trajectories(name, recs)
+            records += _soft_file_trajectories(name, recs, adapters)
             series += ser
         else:  # skipped on request: visible in the results, not silently absent
             records.append(

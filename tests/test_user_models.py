@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from crosscheck.mjcf_rigid import agreement, rigid_forward, sample_states
+from crosscheck.engines.mujoco.mjcf_rigid import agreement, rigid_forward, sample_states
 from crosscheck.user_models import (
     describe,
     entry_point_models,

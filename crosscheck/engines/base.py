@@ -262,6 +262,12 @@ class EngineAdapter(ABC):
         with the reason it is that size; the default is the round-off bound of a KKT solve."""
         return EXACT_KKT
 
+    def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
+        """An engine's own notes on its instantaneous records of a model (e.g. which engine
+        model answered a user's file, and what the engine's own file parser lost); the default
+        adds nothing."""
+        return records
+
 
 # An adapter's models: reference model -> the engine model's builder, or {variant: builder}
 # for several engine models of one reference model (the first variant is build's default).

@@ -128,6 +128,24 @@ class PinocchioAdapter(TableAdapter):
     refused = _UNSUPPORTED
     user_files = True
 
+    def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
+        """A user's MJCF file: each record says which Pinocchio model answered, and one more
+        record (reported, not judged) lists what pin's own MJCF parser lost."""
+        from reference import models
+
+        from ...compare import record
+        from .parser_findings import findings_isolated, summary
+        from .user_file import BUILT_FROM
+
+        src = models.user_source(model_name)
+        if not records or not hasattr(src, "mj"):
+            return records
+        for r in records:
+            r["engine_model"] = BUILT_FROM
+        found = findings_isolated(src.path)
+        return [*records, record(model_name, records[0]["formulation"], self.name, "parser",
+                                 "mjcf_parse", None, None, summary(found), findings=found)]
+
     def build(self, model_name: str, params: Optional[dict[str, float]] = None,
               variant: Optional[str] = None):
         if is_user_model(_MODELS, model_name):
