@@ -4,6 +4,8 @@ everything its Capabilities promise; a model it cannot express is refused with a
 `crosscheck run` records as a skip. Real engines, no mocks."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -104,6 +106,18 @@ def _check_forward(adapter, em, nm, q, u):
     timed()
 
 
+def _check_bad_states(em, nm, q, u):
+    """A wrong-sized or non-finite state is refused in the reference's words, never mapped
+    into the engine (MuJoCo's models raised numpy's broadcast error before they checked)."""
+    from reference.errors import ModelInputError
+
+    bad = [(list(q) + [0.0], u, "coordinates"), (q, list(u) + [0.0], "speeds"),
+           ([math.nan] + list(q)[1:], u, "NaN")]
+    for bq, bu, what in bad:
+        with pytest.raises(ModelInputError, match=what):
+            em.forward(bq, bu)
+
+
 def _check_simulate(adapter, em, nm, q0, u0):
     caps = adapter.capabilities
     if not caps.integrators:
@@ -135,6 +149,7 @@ def test_a_claimed_model_satisfies_the_contract(engine, name):
         em = build(adapter, name, nm.params, variant)
         assert isinstance(em, EngineModel) and em.engine == engine and em.model_name == name
         assert em.variant == variant
+        _check_bad_states(em, nm, *states[0])
         for q, u in states:
             qe, ve = em.to_engine_state(q, u)
             q2, u2 = em.from_engine_state(qe, ve)  # the state round trip

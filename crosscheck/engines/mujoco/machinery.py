@@ -14,7 +14,7 @@ import numpy as np
 import mujoco
 
 from ...compare import Tolerance
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
 from .soft_prediction import documented_R, predict
 
 SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
@@ -186,6 +186,11 @@ class MjEngineModel(EngineModel):
     def __init__(self, model_name: str, params: dict[str, float], solref=SOLREF, solimp=SOLIMP):
         self.model_name = model_name
         self.params = dict(params)
+        if not hasattr(self, "nq_ref"):  # the reference's sizes, for the state check
+            from reference import models
+
+            ref = models.get(model_name)
+            self.nq_ref, self.n_ref = len(ref.coordinates), len(ref.speeds)
         self.solref, self.solimp = tuple(solref), tuple(solimp)
         self.xml = self._xml(solref=self.solref, solimp=self.solimp)
         self.m = mujoco.MjModel.from_xml_string(self.xml)
@@ -339,10 +344,15 @@ class MjEngineModel(EngineModel):
         d.qfrc_applied[:] = self.applied
         d.time = 0.0
 
+    def _check(self, q, u=None, t: float = 0.0):
+        """Sizes and finiteness of a reference state, as the reference checks them."""
+        return check_state(f"{self.model_name} ({self.engine})", self.nq_ref, self.n_ref, q, u, t)
+
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         """mj_forward at the mapped state; the RAW soft answer mapped to the reference, with the
         de-regularized (rigid) answer and the impedance-based error prediction in raw."""
         m, d = self.m, self.d
+        q, u = self._check(q, u, t)
         qe, ve = self.to_engine_state(q, u)
         self._set(qe, ve)
         mujoco.mj_forward(m, d)

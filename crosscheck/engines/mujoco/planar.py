@@ -7,6 +7,7 @@ import math
 import mujoco
 import numpy as np
 
+from ..kinematics import IdentityMaps, frame_bar_from_engine, frame_bar_to_engine
 from .machinery import LIGHT, MjEngineModel, document, lamina, num, vec
 
 
@@ -140,7 +141,7 @@ def _xml_frame_bar(p, **kw) -> str:
 # ======================================================================================
 
 
-class PendulumAngle(MjEngineModel):
+class PendulumAngle(IdentityMaps, MjEngineModel):
     """Example 1(a). Engine: a light rod (1e-12 m L^2) on a hinge about -Z at the origin, the
     bob (mass m, zero inertia) welded at (0, L, 0) of the rod. World = reference frame (Y DOWN,
     gravity +g Y), so qpos = theta and qvel = theta' exactly.
@@ -159,15 +160,6 @@ class PendulumAngle(MjEngineModel):
 
     def _post_build(self):
         self.bob = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, "bob")
-
-    def to_engine_state(self, q, u):
-        return np.array(q, float).reshape(1).copy(), np.array(u, float).reshape(1).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return np.array(ae, float).copy()
 
     def _extra_raw(self, raw):
         mujoco.mj_rnePostConstraint(self.m, self.d)
@@ -319,7 +311,7 @@ class SliderCrank(_SliderCrankBase):
         raw["guide_force_cfrc"] = float(self.d.cfrc_int[self.slider, 4])
 
 
-class SliderCrankSplit(_SliderCrankBase):
+class SliderCrankSplit(IdentityMaps, _SliderCrankBase):
     """Note 2 / Exercise 6.3: engine dofs (theta1, x, theta2) = the reference's coordinates
     exactly (P = I): crank hinge at A; slider on a slide along X; rod hinged to the slider at C
     with its axis from C to B (theta2 from C to B, r2 = |C G2|). The crank's B and the rod's B
@@ -332,15 +324,6 @@ class SliderCrankSplit(_SliderCrankBase):
 
     def _xml(self, **kw):
         return _xml_slider_crank(self.params, "split", **kw)
-
-    def to_engine_state(self, q, u):
-        return np.array(q, float).reshape(3).copy(), np.array(u, float).reshape(3).copy()
-
-    def from_engine_state(self, qe, ve):
-        return np.array(qe, float).copy(), np.array(ve, float).copy()
-
-    def _acc_to_reference(self, qe, ve, ae):
-        return np.array(ae, float).copy()
 
     def _multipliers(self, qe, ve, ae, f):
         return np.array(f[0:2], float)
@@ -383,14 +366,10 @@ class FrameBar(MjEngineModel):
         return np.array([self.params["M_phi"], self.params["M_theta"]])
 
     def to_engine_state(self, q, u):
-        phi, th = (float(v) for v in q)
-        w1, w2, w3 = (float(v) for v in u)
-        return np.array([phi, th]), np.array([-math.sin(th) * w1 + math.cos(th) * w3, w2])
+        return frame_bar_to_engine(q, u)
 
     def from_engine_state(self, qe, ve):
-        th = float(qe[1])
-        return (np.array(qe, float).copy(),
-                np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))
+        return frame_bar_from_engine(qe, ve)
 
     def _acc_to_reference(self, qe, ve, ae):
         phi, th = float(qe[0]), float(qe[1])
