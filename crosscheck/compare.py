@@ -9,6 +9,7 @@ max(max |reference|, 1 SI unit). The floor keeps quantities that are legitimatel
 (a multiplier of 0 in Exercise 6.6, a state at rest) from turning round-off into huge relative
 errors; it makes the figure an absolute error for quantities below 1.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,28 +26,38 @@ class Tolerance:
 
 
 EXACT_KKT = Tolerance(
-    1e-11, "an exact answer in the engine (a tree or an unconstrained model, Pinocchio's KKT "
-           "solve, or its proximal iterations converged to 1e-12) against the reference's: both "
-           "round-off limited (~1e-14 of the largest term); 1e-11 is the issue's bound and "
-           "leaves room for the ~1e-12 amplification by small axial inertias (Example 4) and "
-           "MuJoCo's 1e-12 light bodies")
+    1e-11,
+    "an exact answer in the engine (a tree or an unconstrained model, Pinocchio's KKT "
+    "solve, or its proximal iterations converged to 1e-12) against the reference's: both "
+    "round-off limited (~1e-14 of the largest term); 1e-11 is the issue's bound and "
+    "leaves room for the ~1e-12 amplification by small axial inertias (Example 4) and "
+    "MuJoCo's 1e-12 light bodies",
+)
 STATE_MAP = Tolerance(
-    1e-12, "reference -> engine -> reference state map: trigonometric and quaternion round "
-           "trips lose a few ulps")
+    1e-12,
+    "reference -> engine -> reference state map: trigonometric and quaternion round "
+    "trips lose a few ulps",
+)
 MASS_MATRIX = Tolerance(
-    1e-11, "M assembled by the engine's CRBA against the reference's symbolic M at the same "
-           "coordinates: round-off only")
+    1e-11,
+    "M assembled by the engine's CRBA against the reference's symbolic M at the same "
+    "coordinates: round-off only",
+)
 ENERGY = Tolerance(
-    1e-11, "kinetic plus potential energy from the engine's own routines against the "
-           "reference's, same datum: round-off only")
+    1e-11,
+    "kinetic plus potential energy from the engine's own routines against the "
+    "reference's, same datum: round-off only",
+)
 SOFT_PREDICTION = Tolerance(
-    1e-4, "MuJoCo's raw (soft) answer against the one predicted from the reference's "
-          "accelerations and the documented solref/solimp impedance, never from MuJoCo's "
-          "constraint solution (crosscheck/engines/mujoco/soft_prediction.py): they differ by "
-          "where MuJoCo's soft solve stops (<= 8.6e-10 scaled), so the judged ratio was <= "
-          "8.6e-6 over 200 states of every MuJoCo model with soft rows (PYTHONPATH=$PWD python "
-          "scripts/mujoco_soft.py predict 200, docs/engines/mujoco.md); 1e-4 "
-          "leaves 11x, and a 0.1 % mass error (a miss ~1e-4 of the answer) fails")
+    1e-4,
+    "MuJoCo's raw (soft) answer against the one predicted from the reference's "
+    "accelerations and the documented solref/solimp impedance, never from MuJoCo's "
+    "constraint solution (crosscheck/engines/mujoco/soft_prediction.py): they differ by "
+    "where MuJoCo's soft solve stops (<= 8.6e-10 scaled), so the judged ratio was <= "
+    "8.6e-6 over 200 states of every MuJoCo model with soft rows (PYTHONPATH=$PWD python "
+    "scripts/mujoco_soft.py predict 200, docs/engines/mujoco.md); 1e-4 "
+    "leaves 11x, and a 0.1 % mass error (a miss ~1e-4 of the answer) fails",
+)
 # Below this predicted (scaled) soft error the solver floor (<= 8.6e-10 measured) is not small
 # against the prediction, so the miss is measured against the floor instead: a state where the
 # constraint forces are small compared with the force scale predicts a tiny soft error, and
@@ -74,8 +85,10 @@ def soft_prediction(raw_value, reference, predicted_error) -> tuple[float, float
 
 
 RIGID_RECOVERY = Tolerance(
-    1e-9, "rigid answer recovered from MuJoCo's own output (f + A^-1 R f): exact up to the "
-          "conditioning of A = J M^-1 J^T (issue bound)")
+    1e-9,
+    "rigid answer recovered from MuJoCo's own output (f + A^-1 R f): exact up to the "
+    "conditioning of A = J M^-1 J^T (issue bound)",
+)
 
 
 def scaled_error(value, reference) -> float:
@@ -93,22 +106,51 @@ METRICS = {
     "scaled_error": "max |value - reference| / max(max |reference|, 1)",
     "relative_energy_error": "|(K + V)_engine - (K + V)_reference| / max(|K| + |V|, 1)",
     "relative_miss": "max |(raw - reference) - predicted| / max(max |predicted|, 1e-5), "
-                     "both scaled as scaled_error",
+    "both scaled as scaled_error",
 }
 
 
-def record(model, formulation, engine, check, quantity, error, tolerance: Tolerance | None,
-           reason: str = "", metric: str = "scaled_error", **details) -> dict:
+def record(
+    model,
+    formulation,
+    engine,
+    check,
+    quantity,
+    error,
+    tolerance: Tolerance | None,
+    reason: str = "",
+    metric: str = "scaled_error",
+    **details,
+) -> dict:
     """One results.json record. A record with tolerance None is a skip, with the reason."""
-    base = {"model": model, "formulation": formulation, "engine": engine, "check": check,
-            "quantity": quantity}
+    base = {
+        "model": model,
+        "formulation": formulation,
+        "engine": engine,
+        "check": check,
+        "quantity": quantity,
+    }
     if tolerance is None:
-        return {**base, "error": None, "tolerance": None, "passed": None, "skipped": True,
-                "reason": reason, **details}
+        return {
+            **base,
+            "error": None,
+            "tolerance": None,
+            "passed": None,
+            "skipped": True,
+            "reason": reason,
+            **details,
+        }
     passed = bool(error is not None and np.isfinite(error) and error <= tolerance.value)
-    return {**base, "error": None if error is None else float(error),
-            "tolerance": tolerance.value, "passed": passed, "skipped": False,
-            "reason": reason or tolerance.reason, "metric": metric, **details}
+    return {
+        **base,
+        "error": None if error is None else float(error),
+        "tolerance": tolerance.value,
+        "passed": passed,
+        "skipped": False,
+        "reason": reason or tolerance.reason,
+        "metric": metric,
+        **details,
+    }
 
 
 class WorstCase:

@@ -15,11 +15,11 @@ regularization (``*_soft_vs_predicted``, Capabilities.soft_prediction: the predi
 reads the engine's constraint solution, so a physics error shows there; the raw error itself
 is ``*_soft_error``, reported, not judged).
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 
@@ -27,13 +27,19 @@ from . import compare as C
 from .engines.base import Capabilities, EngineAdapter, EngineModel, EngineUnsupported
 from .engines.registry import engine_label
 
-NO_MASS_MATRIX = ("engine coordinates do not map one to one onto the reference's, so their "
-                  "mass matrices are not comparable")
-NO_CONSTRAINTS = ("no constraints: the engine runs plain forward dynamics (ABA / unconstrained "
-                  "step), no multipliers to compare")
+NO_MASS_MATRIX = (
+    "engine coordinates do not map one to one onto the reference's, so their "
+    "mass matrices are not comparable"
+)
+NO_CONSTRAINTS = (
+    "no constraints: the engine runs plain forward dynamics (ABA / unconstrained "
+    "step), no multipliers to compare"
+)
 NO_FORCES = "the engine model has no constraint forces that map onto the reference's rows"
-SOFT_ANSWER = ("raw soft answer against the one predicted from the reference's answer and the "
-               "documented regularization: |raw - predicted| over |predicted - reference|")
+SOFT_ANSWER = (
+    "raw soft answer against the one predicted from the reference's answer and the "
+    "documented regularization: |raw - predicted| over |predicted - reference|"
+)
 NO_PREDICTION = "the engine does not predict its soft answer independently"
 
 
@@ -54,8 +60,9 @@ class ReferenceAnswer:
 
 def reference_answer(nm, q, u, t: float = 0.0) -> ReferenceAnswer:
     ref = nm.forward(q, u, t)
-    return ReferenceAnswer(ref.accelerations, ref.multipliers, nm.matrices(q, u, t)[0],
-                           tuple(nm.energy(q, u, t)))
+    return ReferenceAnswer(
+        ref.accelerations, ref.multipliers, nm.matrices(q, u, t)[0], tuple(nm.energy(q, u, t))
+    )
 
 
 def energy_error(engine_kv, reference_kv) -> float:
@@ -87,8 +94,10 @@ def work_energy_balance(E, W) -> float:
 def constraint_residual(nm, q, u, t: float = 0.0) -> tuple[float, float]:
     """(max |f(q, t)|, max |A u + a0|) of the reference's constraints at a state (0 without)."""
     pos, vel = nm.residuals(q, u, t)
-    return (float(np.max(np.abs(pos))) if pos.size else 0.0,
-            float(np.max(np.abs(vel))) if vel.size else 0.0)
+    return (
+        float(np.max(np.abs(pos))) if pos.size else 0.0,
+        float(np.max(np.abs(vel))) if vel.size else 0.0,
+    )
 
 
 def _finite(x: float) -> float:
@@ -105,7 +114,7 @@ class StateComparison:
     values: dict[str, float]
     skips: dict[str, str]
     soft: bool
-    iterations: Optional[int] = None
+    iterations: int | None = None
     predicted: list = field(default_factory=list)
 
 
@@ -131,8 +140,9 @@ def whole_turns_removed(em: EngineModel, q, u, q2, qe) -> np.ndarray:
     return q2 - 2 * math.pi * turns
 
 
-def compare_at_state(em: EngineModel, q, u, t: float, ref: ReferenceAnswer, n_rows: int,
-                     caps: Capabilities) -> StateComparison:
+def compare_at_state(
+    em: EngineModel, q, u, t: float, ref: ReferenceAnswer, n_rows: int, caps: Capabilities
+) -> StateComparison:
     """The engine model against the reference's answer at one consistent state (q, u, t);
     ``caps`` are its adapter's capabilities (soft_prediction)."""
     vals: dict[str, float] = {}
@@ -164,9 +174,15 @@ def compare_at_state(em: EngineModel, q, u, t: float, ref: ReferenceAnswer, n_ro
         vals[f"{qty}_soft_error"] = C.scaled_error(raw_value, reference)
         if predicted is not None and predicted[k] is not None:
             vals[f"{qty}_soft_vs_predicted"] = C.soft_prediction(
-                raw_value, reference, np.asarray(predicted[k], float) - reference)[0]
-    return StateComparison({k: _finite(v) for k, v in vals.items()}, skips, ef.soft,
-                           ef.iterations, _predicted_errors(pairs, predicted))
+                raw_value, reference, np.asarray(predicted[k], float) - reference
+            )[0]
+    return StateComparison(
+        {k: _finite(v) for k, v in vals.items()},
+        skips,
+        ef.soft,
+        ef.iterations,
+        _predicted_errors(pairs, predicted),
+    )
 
 
 def _soft_predictions(em, q, u, ref, soft, caps, skips):
@@ -190,12 +206,16 @@ def _predicted_errors(pairs, predicted) -> list:
     effect the prediction expects (records' predicted_rel_error_max)."""
     if predicted is None:
         return []
-    return [C.scaled_error(p, reference)
-            for (_, _, _, reference), p in zip(pairs, predicted, strict=False) if p is not None]
+    return [
+        C.scaled_error(p, reference)
+        for (_, _, _, reference), p in zip(pairs, predicted, strict=False)
+        if p is not None
+    ]
 
 
-def tolerance(quantity: str, soft: bool, adapter: EngineAdapter,
-              model_name: str = "") -> tuple[Optional[C.Tolerance], str]:
+def tolerance(
+    quantity: str, soft: bool, adapter: EngineAdapter, model_name: str = ""
+) -> tuple[C.Tolerance | None, str]:
     """(named tolerance, metric) of a quantity; None: reported, not judged."""
     if quantity == "state_map":
         return C.STATE_MAP, "scaled_error"
@@ -210,37 +230,41 @@ def tolerance(quantity: str, soft: bool, adapter: EngineAdapter,
     return (C.RIGID_RECOVERY if soft else adapter.exact_tolerance(model_name)), "scaled_error"
 
 
-def build(adapter: EngineAdapter, name: str, params, variant: Optional[str],
-          nominal: Optional[dict] = None) -> EngineModel:
+def build(
+    adapter: EngineAdapter, name: str, params, variant: str | None, nominal: dict | None = None
+) -> EngineModel:
     """The engine model of a variant (build's default when variant is None); its maps use
     `nominal` (the unperturbed values: a perturbation changes only the physics)."""
-    em = (adapter.build(name, params, variant=variant) if variant
-          else adapter.build(name, params))
+    em = adapter.build(name, params, variant=variant) if variant else adapter.build(name, params)
     if nominal is not None:
         em.nominal = dict(nominal)
     return em
 
 
-def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
-                   variant: Optional[str] = None) -> list[dict]:
+def engine_records(
+    name: str, nm, states, adapter: EngineAdapter, params: dict, variant: str | None = None
+) -> list[dict]:
     """results.json records of one engine model over a run's states (t = 0): the worst error
     of each quantity, at which state, against its tolerance."""
+
     def rec(*a, **k):
         r = C.record(name, nm.formulation, adapter.name, *a, **k)
         if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
             r["variant"] = variant
         return r
+
     try:
         em = build(adapter, name, params, variant, nominal=nm.params)
     except EngineUnsupported as exc:
-        return [rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
-                for q in ("accelerations", "multipliers")]
+        return [
+            rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
+            for q in ("accelerations", "multipliers")
+        ]
     worst: dict[str, C.WorstCase] = {}
     skipped: dict[str, str] = {}
     iterations, predicted, soft = [], [], False
     for i, (q, u) in enumerate(states):
-        sc = compare_at_state(em, q, u, 0.0, reference_answer(nm, q, u), nm.m,
-                              adapter.capabilities)
+        sc = compare_at_state(em, q, u, 0.0, reference_answer(nm, q, u), nm.m, adapter.capabilities)
         for qty, err in sc.values.items():
             worst.setdefault(qty, C.WorstCase()).add(err, i)
         skipped.update(sc.skips)
@@ -253,6 +277,7 @@ def engine_records(name: str, nm, states, adapter: EngineAdapter, params: dict,
 
 def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> list[dict]:
     """The records of one engine model from its worst cases (run's record order)."""
+
     def judged(qty, **extra):
         tol, metric = tolerance(qty, soft, adapter, name)
         w = worst[qty]
@@ -260,8 +285,11 @@ def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> li
         return rec("instantaneous", qty, w.error, tol, worst_state=w.state, **kw, **extra)
 
     out = [judged("state_map")]
-    out.append(rec("instantaneous", "mass_matrix", None, None, skipped["mass_matrix"])
-               if "mass_matrix" in skipped else judged("mass_matrix"))
+    out.append(
+        rec("instantaneous", "mass_matrix", None, None, skipped["mass_matrix"])
+        if "mass_matrix" in skipped
+        else judged("mass_matrix")
+    )
     out.append(judged("energy"))
     it = {"iterations_max": max(iterations)} if iterations else {}
     for qty in ("accelerations", "multipliers"):
@@ -270,13 +298,19 @@ def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> li
         elif not soft:
             out.append(judged(qty, **it))
         else:
-            raw_errors = [worst[f"{k}_soft_error"].error for k in ("accelerations", "multipliers")
-                          if f"{k}_soft_error" in worst]
+            raw_errors = [
+                worst[f"{k}_soft_error"].error
+                for k in ("accelerations", "multipliers")
+                if f"{k}_soft_error" in worst
+            ]
             extra = {"soft_rel_error_max": float(max(raw_errors))}
             if predicted:
                 extra["predicted_rel_error_max"] = float(max(predicted))
             out.append(judged(qty, answer=rigid_answer(adapter.name), **extra, **it))
             name_p = f"{qty}_soft_vs_predicted"
-            out.append(judged(name_p, answer=SOFT_ANSWER, **extra) if name_p in worst else
-                       rec("instantaneous", name_p, None, None, skipped.get(name_p, NO_PREDICTION)))
+            out.append(
+                judged(name_p, answer=SOFT_ANSWER, **extra)
+                if name_p in worst
+                else rec("instantaneous", name_p, None, None, skipped.get(name_p, NO_PREDICTION))
+            )
     return out

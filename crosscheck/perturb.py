@@ -3,6 +3,7 @@
 `--perturb ENGINE:PARAM=REL` changes one parameter of one engine's model by a relative amount
 (`crosscheck run`, `crosscheck sweep`): a run with mujoco:m2=1e-6 on the slider-crank must fail.
 """
+
 from __future__ import annotations
 
 from reference.errors import ModelInputError
@@ -19,11 +20,13 @@ def parse_perturb(specs: list[str]) -> dict[str, dict[str, float]]:
             param, rel = rest.split("=", 1)
             out.setdefault(engine.strip(), {})[param.strip()] = float(rel)
         except ValueError:
-            raise ModelInputError(f"--perturb {spec!r}: expected ENGINE:PARAM=REL, "
-                                  f"e.g. mujoco:m2=1e-6")
+            raise ModelInputError(
+                f"--perturb {spec!r}: expected ENGINE:PARAM=REL, e.g. mujoco:m2=1e-6"
+            ) from None
         if engine.strip() not in engine_names():
-            raise ModelInputError(f"--perturb {spec!r}: unknown engine {engine!r}; valid: "
-                                  f"{', '.join(engine_names())}")
+            raise ModelInputError(
+                f"--perturb {spec!r}: unknown engine {engine!r}; valid: {', '.join(engine_names())}"
+            )
     return out
 
 
@@ -32,8 +35,10 @@ def check_parameters(name: str, parameter_names, perturb: dict[str, dict[str, fl
     for engine, ps in perturb.items():
         for p in ps:
             if p not in parameter_names:
-                raise ModelInputError(f"--perturb {engine}:{p}: model {name!r} has no "
-                                      f"parameter {p!r}; valid: {', '.join(parameter_names)}")
+                raise ModelInputError(
+                    f"--perturb {engine}:{p}: model {name!r} has no "
+                    f"parameter {p!r}; valid: {', '.join(parameter_names)}"
+                )
 
 
 def perturbed(name, params: dict, perturb: dict) -> dict:
@@ -41,8 +46,9 @@ def perturbed(name, params: dict, perturb: dict) -> dict:
     params = dict(params)
     for p, rel in perturb.items():
         if p not in params:
-            raise ModelInputError(f"--perturb: model {name!r} has no parameter {p!r}; valid: "
-                                  f"{', '.join(params)}")
+            raise ModelInputError(
+                f"--perturb: model {name!r} has no parameter {p!r}; valid: {', '.join(params)}"
+            )
         params[p] *= 1.0 + rel
     return params
 
@@ -53,11 +59,13 @@ def check_perturb(names, perturb: dict) -> None:
     or of -2 on a mass, is bad input (exit 2), found before the first model runs."""
     from reference import models
     from reference.numeric import resolve_parameters
+
     for name in names:
         model = models.get(name)
         for ps in perturb.values():
-            resolve_parameters(model, perturbed(
-                name, {p.name: p.default for p in model.parameters}, ps))
+            resolve_parameters(
+                model, perturbed(name, {p.name: p.default for p in model.parameters}, ps)
+            )
 
 
 def check_perturb_changes(names, engine_names, perturb: dict) -> None:
@@ -71,12 +79,14 @@ def check_perturb_changes(names, engine_names, perturb: dict) -> None:
     from .comparison import build
     from .engines.base import EngineUnsupported
     from .engines.registry import get_engine
+
     for engine, ps in perturb.items():
         if engine not in engine_names:
             raise ModelInputError(
                 f"--perturb {engine}:...: {engine} is not among this run's engines "
                 f"({', '.join(engine_names)}), so the perturbation would change nothing; add it "
-                f"to --engines")
+                f"to --engines"
+            )
         adapter = get_engine(engine)
         for name in names:
             defaults = {p.name: p.default for p in models.get(name).parameters}
@@ -84,19 +94,26 @@ def check_perturb_changes(names, engine_names, perturb: dict) -> None:
                 for p, rel in ps.items():
                     try:
                         before = build(adapter, name, defaults, variant).fingerprint()
-                        after = build(adapter, name, perturbed(name, defaults, {p: rel}),
-                                      variant).fingerprint()
+                        after = build(
+                            adapter, name, perturbed(name, defaults, {p: rel}), variant
+                        ).fingerprint()
                     except (EngineUnsupported, NotImplementedError):
                         break  # nothing built, or no fingerprint: not checked
                     if before == after:
-                        raise ModelInputError(_no_effect(engine, name, variant, p, rel,
-                                                         defaults[p]))
+                        raise ModelInputError(
+                            _no_effect(engine, name, variant, p, rel, defaults[p])
+                        )
 
 
 def _no_effect(engine, name, variant, p, rel, value) -> str:
     where = f"{engine}'s model of {name!r}" + (f" (variant {variant})" if variant else "")
-    why = (f"{p} is 0 at the model's defaults, and a relative change of 0 is 0" if value == 0.0
-           else f"{where} does not contain {p} (its masses, inertias, geometry, gravity and "
-                f"loads are unchanged; the engine's coordinates or loads do not use it)")
-    return (f"--perturb {engine}:{p}={rel:g} does not change {where}: {why}; perturb a "
-            f"parameter the engine's model uses")
+    why = (
+        f"{p} is 0 at the model's defaults, and a relative change of 0 is 0"
+        if value == 0.0
+        else f"{where} does not contain {p} (its masses, inertias, geometry, gravity and "
+        f"loads are unchanged; the engine's coordinates or loads do not use it)"
+    )
+    return (
+        f"--perturb {engine}:{p}={rel:g} does not change {where}: {why}; perturb a "
+        f"parameter the engine's model uses"
+    )

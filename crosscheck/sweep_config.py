@@ -1,5 +1,6 @@
 """A sweep campaign's settings: the named constants, each with its reason, and the Campaign
 (what to sample, and its validation before any work)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -29,14 +30,23 @@ DASK_MAX_CHUNK = 2000
 # exact zeros, values below/above the range and non-finite values are counted apart
 HIST_LO, HIST_HI, HIST_STEP = -18.0, 2.0, 0.25
 
-QUANTITY_ORDER = ("accelerations", "multipliers", "accelerations_soft_vs_predicted",
-                  "multipliers_soft_vs_predicted", "accelerations_soft_error",
-                  "multipliers_soft_error", "state_map", "mass_matrix", "energy")
+QUANTITY_ORDER = (
+    "accelerations",
+    "multipliers",
+    "accelerations_soft_vs_predicted",
+    "multipliers_soft_vs_predicted",
+    "accelerations_soft_error",
+    "multipliers_soft_error",
+    "state_map",
+    "mass_matrix",
+    "energy",
+)
 SOFT_ERROR_REASON = (
     "MuJoCo's raw (soft) answer against the rigid reference: the error its impedance "
     "d = 0.9999 makes by design (~1e-4 relative); reported, not judged here -- the "
     "*_soft_vs_predicted quantity holds it to the answer predicted from the reference's "
-    "and the documented impedance")
+    "and the documented impedance"
+)
 REFERENCE = "reference"
 
 
@@ -54,14 +64,17 @@ class Campaign:
 
     def validate(self) -> None:
         from .arguments import resolve_engines, resolve_models
+
         if not self.models:
             raise ModelInputError("no models given")
         resolve_models(list(self.models))  # unknown or repeated names fail before any work
         resolve_engines(list(self.engines))
         for e in self.perturb:
             if e not in self.engines:
-                raise ModelInputError(f"--perturb names engine {e!r}, which is not in "
-                                      f"--engines {','.join(self.engines)}")
+                raise ModelInputError(
+                    f"--perturb names engine {e!r}, which is not in "
+                    f"--engines {','.join(self.engines)}"
+                )
         for name in self.models:
             check_parameters(name, [p.name for p in models.get(name).parameters], self.perturb)
         check_perturb(self.models, self.perturb)  # nan, or a mass made negative: exit 2

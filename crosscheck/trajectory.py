@@ -12,13 +12,14 @@ Each run yields records (state error against the reference, constraint drift, ve
 |A u + a0|, energy drift) and a series for the report's plots; an engine model with soft
 constraint rows (Capabilities.soft_limit) is also run with its regularization's time constant
 halved, and the two runs extrapolated to the rigid limit are judged against the reference
-(``state_error_rigid_limit``, SOFT_LIMIT_*), which sizes its other tolerances too; a run that does not finish is a
-failed record with its reason, and the other runs go on.
+(``state_error_rigid_limit``, SOFT_LIMIT_*), which sizes its other tolerances too; a run that
+does not finish is a failed record with its reason, and the other runs go on.
 
 State error: max over the output times of max |x - x_ref| / max(max |x_ref|, 1), x = (q, u) in
 the reference's coordinates. Angles are unwrapped in time and a whole-turn offset at t = 0 is
 removed, so a coordinate reported modulo 2 pi does not count as an error.
 """
+
 from __future__ import annotations
 
 import math
@@ -73,10 +74,13 @@ def output_grid(t_end: float) -> np.ndarray:
     steps = sorted(set(range(0, n + 1, every)) | {n})
     return np.linspace(0.0, t_end, n + 1)[steps]
 
+
 REFERENCE_ACCURACY = C.Tolerance(
-    1e-8, "the reference trajectory (rtol 1e-12) against a tighter one (rtol 1e-13): the "
-          "engines are judged against it, so its own error must sit far below the 1e-6..1e-2 "
-          "they are held to")
+    1e-8,
+    "the reference trajectory (rtol 1e-12) against a tighter one (rtol 1e-13): the "
+    "engines are judged against it, so its own error must sit far below the 1e-6..1e-2 "
+    "they are held to",
+)
 # The reference's stabilization guarantees its own bounds, so they are the tolerances: a run
 # whose projection is switched off must fail here, not only at the gate. Measured over 5 s on
 # every constrained model (issue 14; the ratios are per output time):
@@ -99,7 +103,8 @@ def projected_drift(q) -> C.Tolerance:
         f"coordinate projection after every step stops Gauss-Newton at |f| <= PROJECTION_TOL "
         f"(1 + |q|) = {PROJECTION_TOL:g} x {1 + qmax:.3g} (reference.integrate), x"
         f"{PROJECTION_SLACK:g} for where the largest |q| falls; without projection the drift is "
-        f"17x..1.6e5x that bound")
+        f"17x..1.6e5x that bound",
+    )
 
 
 def projected_velocity_drift(u) -> C.Tolerance:
@@ -109,24 +114,36 @@ def projected_velocity_drift(u) -> C.Tolerance:
         VELOCITY_ROUND_OFF * umax,
         f"the velocity projection u <- u - A^T (A A^T)^-1 (A u + a0) is exact: round-off of "
         f"A u + a0 only, 16 eps x max |u| ({umax:.3g}); measured <= 1.1 eps |u| with it, >= "
-        f"610 eps |u| without")
+        f"610 eps |u| without",
+    )
 
 
 def _failed(rec, engine, what: str, exc: Exception) -> dict:
     """A failed record for a run that did not finish (step underflow, a projection that does
     not converge, a singular system): the run goes on with the next one."""
     message = (str(exc).splitlines() or [""])[0]
-    return rec(engine, "state_error", math.inf, C.Tolerance(0.0, "the run must finish"),
-               f"{what} failed: {type(exc).__name__}: {message}", failure=True)
+    return rec(
+        engine,
+        "state_error",
+        math.inf,
+        C.Tolerance(0.0, "the run must finish"),
+        f"{what} failed: {type(exc).__name__}: {message}",
+        failure=True,
+    )
+
 
 INDEX1_DRIFT = C.Tolerance(
-    1e-7, "no stabilization: the position drift follows the integrator's error, ~10..100x its "
-          "tolerance over 5..10 s (docs/numerics.md); 1e3x rtol")
+    1e-7,
+    "no stabilization: the position drift follows the integrator's error, ~10..100x its "
+    "tolerance over 5..10 s (docs/numerics.md); 1e3x rtol",
+)
 SOFT_STATE = C.Tolerance(
-    5e-2, "characterization, not a physics bound (an engine whose soft model has no stiffer "
-          "version, Capabilities.soft_limit): soft equality constraints make the trajectory "
-          "follow slightly different dynamics; MuJoCo measured 6e-6 (pendulum) .. 1.1e-2 (top "
-          "spinning at 60 rad/s) over 5 s, independent of the step")
+    5e-2,
+    "characterization, not a physics bound (an engine whose soft model has no stiffer "
+    "version, Capabilities.soft_limit): soft equality constraints make the trajectory "
+    "follow slightly different dynamics; MuJoCo measured 6e-6 (pendulum) .. 1.1e-2 (top "
+    "spinning at 60 rad/s) over 5 s, independent of the step",
+)
 # The rigid limit: MuJoCo's soft effect on a trajectory shrinks as its solref time constant tc
 # shrinks; halving tc divided it by r = 2.7 (pendulum_xy, exercise_6_1) .. 9.8 (the free double
 # pendulum) on every built-in model (p = log2 r >= 1.4). The runs at tc and tc/2 are
@@ -141,19 +158,27 @@ SOFT_LIMIT_ORDER = 2.0  # the order the extrapolation assumes (measured 1.4..3.3
 SOFT_LIMIT_SLACK = 2.0  # |error| <= 2 x correction for any measured order >= 1
 SOFT_EFFECT_SLACK = 6.0  # |soft effect at tc| <= 6 x correction for any order >= 1
 SOFT_DRIFT = C.Tolerance(
-    1e-5, "MuJoCo's soft constraints settle at a violation set by solref (time constant "
-          "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md")
+    1e-5,
+    "MuJoCo's soft constraints settle at a violation set by solref (time constant "
+    "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md",
+)
 INDEX1_VELOCITY_DRIFT = C.Tolerance(
-    1e-7, "no stabilization: A u + a0 drifts with the integrator's error like the positions "
-          "(INDEX1_DRIFT); measured 4e-13..4e-10 for the reference's own index-1 run at rtol "
-          "1e-12 (scripts/drift_guarantee.py)")
+    1e-7,
+    "no stabilization: A u + a0 drifts with the integrator's error like the positions "
+    "(INDEX1_DRIFT); measured 4e-13..4e-10 for the reference's own index-1 run at rtol "
+    "1e-12 (scripts/drift_guarantee.py)",
+)
 SOFT_VELOCITY_DRIFT = C.Tolerance(
-    1e-3, "MuJoCo's soft constraints: the velocity violation is damped with solref's time "
-          "constant (0.02 s), not removed; characterization (measured in crosscheck run, "
-          "docs/engines/mujoco.md)")
+    1e-3,
+    "MuJoCo's soft constraints: the velocity violation is damped with solref's time "
+    "constant (0.02 s), not removed; characterization (measured in crosscheck run, "
+    "docs/engines/mujoco.md)",
+)
 SOFT_ENERGY = C.Tolerance(
-    1e-2, "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
-          "characterization (docs/engines/mujoco.md: 6e-4 J of 7 J for the slider-crank, RK4)")
+    1e-2,
+    "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
+    "characterization (docs/engines/mujoco.md: 6e-4 J of 7 J for the slider-crank, RK4)",
+)
 
 
 def state_error(q, u, ref_q, ref_u) -> np.ndarray:
@@ -167,28 +192,39 @@ def state_error(q, u, ref_q, ref_u) -> np.ndarray:
 
 def _residual_series(nm: NumericModel, t, q, u) -> tuple[np.ndarray, np.ndarray]:
     """max |f(q, t)| and max |A u + a0| at every output time (0 where there are no rows)."""
-    res = np.array([constraint_residual(nm, qi, ui, ti) for ti, qi, ui in zip(t, q, u)])
+    res = np.array(
+        [constraint_residual(nm, qi, ui, ti) for ti, qi, ui in zip(t, q, u, strict=False)]
+    )
     res = res.reshape(len(t), 2)
     return res[:, 0], res[:, 1]
 
 
 def _energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
-    return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u)])
+    return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u, strict=False)])
 
 
 def _series(model, engine, formulation, label, t, err, res, E, work=None, variant=None):
     """One line of the report's trajectory plots; `work` (the reference's W(t)) where energy is
     not conserved, so the plots show the work-energy balance that the records check."""
-    s = {"model": model, "engine": engine, "formulation": formulation, "label": label,
-         "t": np.asarray(t).tolist(), "state_error": np.asarray(err).tolist(),
-         "residual": np.asarray(res).tolist(), "energy": np.asarray(E).tolist(),
-         "energy_kind": "total energy K + V (reference datum)",
-         "state_error_kind": "max |x - x_ref| / max(max |x_ref|, 1), x = (q, u)",
-         "reference_label": f"reference DOP853+projection rtol={REF_RTOL:g}"}
+    s = {
+        "model": model,
+        "engine": engine,
+        "formulation": formulation,
+        "label": label,
+        "t": np.asarray(t).tolist(),
+        "state_error": np.asarray(err).tolist(),
+        "residual": np.asarray(res).tolist(),
+        "energy": np.asarray(E).tolist(),
+        "energy_kind": "total energy K + V (reference datum)",
+        "state_error_kind": "max |x - x_ref| / max(max |x_ref|, 1), x = (q, u)",
+        "reference_label": f"reference DOP853+projection rtol={REF_RTOL:g}",
+    }
     if work is not None:
         s["work"] = np.asarray(work).tolist()
-        s["energy_kind"] += ("; not conserved: the work-energy balance E(t) - E(0) - W(t) is "
-                             "checked, W the work of loads and moving constraints")
+        s["energy_kind"] += (
+            "; not conserved: the work-energy balance E(t) - E(0) - W(t) is "
+            "checked, W the work of loads and moving constraints"
+        )
     if variant:
         s["variant"] = variant
     return s
@@ -208,13 +244,22 @@ def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
         f"{integrator} at rtol {ENGINE_RTOL:g}: 10x the global error of the reference's "
         f"DOP853 at that rtol, measured in this run ({loose_err:.1e}; another choice of "
         f"coordinates), plus the engine's own error estimated against its run at rtol "
-        f"{10 * ENGINE_RTOL:g} ({own:.1e})")
-    energy_tol = C.Tolerance(10 * loose_E + 1e-10,
-                             f"10x the reference's energy drift at rtol "
-                             f"{ENGINE_RTOL:g} without stabilization ({loose_E:.1e}; "
-                             f"the work-energy balance where energy is not conserved)")
-    return ([(label, tr.t, tr.q, tr.u, {"nfev": tr.steps})], state_tol, INDEX1_DRIFT,
-            energy_tol, INDEX1_VELOCITY_DRIFT, [])
+        f"{10 * ENGINE_RTOL:g} ({own:.1e})",
+    )
+    energy_tol = C.Tolerance(
+        10 * loose_E + 1e-10,
+        f"10x the reference's energy drift at rtol "
+        f"{ENGINE_RTOL:g} without stabilization ({loose_E:.1e}; "
+        f"the work-energy balance where energy is not conserved)",
+    )
+    return (
+        [(label, tr.t, tr.q, tr.u, {"nfev": tr.steps})],
+        state_tol,
+        INDEX1_DRIFT,
+        energy_tol,
+        INDEX1_VELOCITY_DRIFT,
+        [],
+    )
 
 
 def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
@@ -245,20 +290,29 @@ def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
         f"no constraint rows in {engine_label(em.engine)}'s model: {integrator}'s global "
         f"error, estimated "
         f"in this run by halving the step ({halving:.1e}), times 10, plus the "
-        f"reference's own accuracy")
+        f"reference's own accuracy",
+    )
     E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
-    E0, E1 = ((energy_drift(E0), energy_drift(E1)) if conserved
-              else (work_energy_balance(E0, work), work_energy_balance(E1, work)))
-    energy_tol = C.Tolerance(10 * abs(E0 - E1) + 1e-10,
-                             f"{integrator}'s energy error estimated by halving the step "
-                             f"({abs(E0 - E1):.1e}), times 10")
+    E0, E1 = (
+        (energy_drift(E0), energy_drift(E1))
+        if conserved
+        else (work_energy_balance(E0, work), work_energy_balance(E1, work))
+    )
+    energy_tol = C.Tolerance(
+        10 * abs(E0 - E1) + 1e-10,
+        f"{integrator}'s energy error estimated by halving the step ({abs(E0 - E1):.1e}), times 10",
+    )
     # a fixed-step (index-3) solver holds the position rows; its velocity residual is a
     # discretization error, estimated like the state error by halving the step
-    V0, V1 = (float(np.max(_residual_series(nm, trs[h].t, trs[h].q, trs[h].u)[1]))
-              if nm.m else 0.0 for h in (h0, h1))
-    velocity_tol = C.Tolerance(10 * abs(V0 - V1) + 1e-10,
-                               f"{integrator}'s velocity-row residual estimated by halving the "
-                               f"step ({abs(V0 - V1):.1e}), times 10")
+    V0, V1 = (
+        float(np.max(_residual_series(nm, trs[h].t, trs[h].q, trs[h].u)[1])) if nm.m else 0.0
+        for h in (h0, h1)
+    )
+    velocity_tol = C.Tolerance(
+        10 * abs(V0 - V1) + 1e-10,
+        f"{integrator}'s velocity-row residual estimated by halving the "
+        f"step ({abs(V0 - V1):.1e}), times 10",
+    )
     return runs, state_tol, INDEX1_DRIFT, energy_tol, velocity_tol, []
 
 
@@ -275,7 +329,7 @@ def _soft_energy_tolerance(ctx, runs, stiff) -> C.Tolerance:
     most SOFT_EFFECT_SLACK x the extrapolation's correction |D(tc) - D(tc/2)| / 3."""
     d_tc, d_half_step = _energy_measure(ctx, runs[0]), _energy_measure(ctx, runs[1])
     d_stiff = _energy_measure(ctx, ("", stiff.t, stiff.q, stiff.u))
-    w = 1.0 / (SOFT_LIMIT_FACTOR ** SOFT_LIMIT_ORDER - 1.0)
+    w = 1.0 / (SOFT_LIMIT_FACTOR**SOFT_LIMIT_ORDER - 1.0)
     correction = w * abs(d_tc - d_stiff)
     step = abs(d_tc - d_half_step)
     return C.Tolerance(
@@ -283,16 +337,18 @@ def _soft_energy_tolerance(ctx, runs, stiff) -> C.Tolerance:
         f"the soft constraints' damper dissipates energy, less as tc shrinks: at tc it is <= "
         f"{SOFT_EFFECT_SLACK:g} x the correction |D(tc) - D(tc/{SOFT_LIMIT_FACTOR:g})| / 3 "
         f"({correction:.2e}) for any order >= 1, plus 10x the step-halving difference "
-        f"({step:.1e})")
+        f"({step:.1e})",
+    )
 
 
 def _soft_limit(ctx, em, integrator, runs, h, step_err):
     """The rigid-limit record of a soft engine model, and the state and energy tolerances of
     its run at the suite's setting, from its runs at tc, steps h and h/2 (runs) and a run at
     tc / 2 (see SOFT_LIMIT_*); step_err is the step-halving state difference at tc."""
-    stiff = em.stiffened(SOFT_LIMIT_FACTOR).simulate(ctx.q0, ctx.u0, ctx.grid,
-                                                     integrator=integrator, timestep=h)
-    w = 1.0 / (SOFT_LIMIT_FACTOR ** SOFT_LIMIT_ORDER - 1.0)
+    stiff = em.stiffened(SOFT_LIMIT_FACTOR).simulate(
+        ctx.q0, ctx.u0, ctx.grid, integrator=integrator, timestep=h
+    )
+    w = 1.0 / (SOFT_LIMIT_FACTOR**SOFT_LIMIT_ORDER - 1.0)
     qa, qb = np.unwrap(runs[0][2], axis=0), np.unwrap(stiff.q, axis=0)
     q_lim, u_lim = qb + w * (qb - qa), stiff.u + w * (stiff.u - runs[0][3])
     correction = w * float(np.max(state_error(runs[0][2], runs[0][3], stiff.q, stiff.u)))
@@ -302,16 +358,21 @@ def _soft_limit(ctx, em, integrator, runs, h, step_err):
         f"the runs at solref tc and tc/{SOFT_LIMIT_FACTOR:g} extrapolated to tc -> 0 (order "
         f"{SOFT_LIMIT_ORDER:g}): error <= {SOFT_LIMIT_SLACK:g} x the correction ({correction:.2e}) "
         f"for any measured order >= 1 (1.4..3.3 on the built-in models), plus 10x the step-"
-        f"halving difference ({step_err:.1e}); a physics error is not extrapolated away")
+        f"halving difference ({step_err:.1e}); a physics error is not extrapolated away",
+    )
     state_tol = C.Tolerance(
         SOFT_EFFECT_SLACK * correction + limit_tol.value,
         f"the soft effect at this solref, <= {SOFT_EFFECT_SLACK:g} x the rigid-limit "
         f"correction ({correction:.2e}) for any order >= 1, plus the rigid-limit tolerance "
-        f"({limit_tol.value:.2e}); the rigid-limit record judges the physics")
+        f"({limit_tol.value:.2e}); the rigid-limit record judges the physics",
+    )
     err = float(np.max(state_error(q_lim, u_lim, ctx.ref.q, ctx.ref.u)))
     label = f"{runs[0][0]}, solref tc and tc/{SOFT_LIMIT_FACTOR:g} extrapolated to tc -> 0"
-    return (("state_error_rigid_limit", err, limit_tol, label), state_tol,
-            _soft_energy_tolerance(ctx, runs, stiff))
+    return (
+        ("state_error_rigid_limit", err, limit_tol, label),
+        state_tol,
+        _soft_energy_tolerance(ctx, runs, stiff),
+    )
 
 
 @dataclass(frozen=True)
@@ -331,8 +392,18 @@ class _Reference:
     loose_E: float  # and its energy drift (or work-energy balance) there
 
     def rec(self, engine, qty, err, tol, reason="", **k):
-        return C.record(self.name, self.nm.formulation, engine, "trajectory", qty, err, tol,
-                        reason, t_end=self.t_end, **k)
+        return C.record(
+            self.name,
+            self.nm.formulation,
+            engine,
+            "trajectory",
+            qty,
+            err,
+            tol,
+            reason,
+            t_end=self.t_end,
+            **k,
+        )
 
 
 def _reference_runs(nm: NumericModel, q0, u0, t_end: float, grid):
@@ -340,16 +411,17 @@ def _reference_runs(nm: NumericModel, q0, u0, t_end: float, grid):
     RuntimeError naming the run that failed."""
     what = f"the reference run (DOP853+projection rtol {REF_RTOL:g})"
     try:
-        ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL,
-                       t_eval=grid)
+        ref = simulate(nm, q0, u0, t_end, "projection", rtol=REF_RTOL, atol=REF_RTOL, t_eval=grid)
         what = f"the tighter reference run (rtol {REF_CHECK_RTOL:g})"
-        tight = simulate(nm, q0, u0, t_end, "projection", rtol=REF_CHECK_RTOL,
-                         atol=REF_CHECK_RTOL, t_eval=grid)
+        tight = simulate(
+            nm, q0, u0, t_end, "projection", rtol=REF_CHECK_RTOL, atol=REF_CHECK_RTOL, t_eval=grid
+        )
         what = f"the reference's index-1 run at the engines' rtol {ENGINE_RTOL:g}"
         # the reference's own global error at the engines' tolerance, for the adaptive bound
-        loose = simulate(nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL,
-                         t_eval=grid)
-    except Exception as exc:  # noqa: BLE001 - any failure of the reference is its record
+        loose = simulate(
+            nm, q0, u0, t_end, "index1", rtol=ENGINE_RTOL, atol=ENGINE_RTOL, t_eval=grid
+        )
+    except Exception as exc:
         interrupts.check()
         raise _RunFailed(what, exc) from exc
     return ref, tight, loose
@@ -374,9 +446,14 @@ def _reference_run(name: str, nm: NumericModel, t_end: float):
     # conserved at these parameters: declared so, or no load does work along the reference
     # run (a driving torque or damper whose parameter is 0) and no constraint moves
     from reference.constraints import is_rheonomic
-    conserved = model.energy_conserved or (not is_rheonomic(model) and all(
-        nm.power_balance(qi, ui, ti)["load_power"] == 0.0
-        for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10])))
+
+    conserved = model.energy_conserved or (
+        not is_rheonomic(model)
+        and all(
+            nm.power_balance(qi, ui, ti)["load_power"] == 0.0
+            for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10], strict=False)
+        )
+    )
     # where energy is not conserved, the work-energy balance: E(t) - E(0) = W(t), the work of
     # the applied loads and moving constraints, integrated exactly alongside the reference run
     work = ref.work if ref.work is not None else np.zeros(len(ref.t))
@@ -387,25 +464,65 @@ def _reference_run(name: str, nm: NumericModel, t_end: float):
     loose_E = energy_drift(E_loose) if conserved else work_energy_balance(E_loose, work)
     ctx = _Reference(name, nm, t_end, grid, q0, u0, ref, work, conserved, loose_err, loose_E)
     rec = ctx.rec
-    records = [rec("reference", "state_error", ref_acc, REFERENCE_ACCURACY,
-                   label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
-                   nfev=ref.nfev)]
+    records = [
+        rec(
+            "reference",
+            "state_error",
+            ref_acc,
+            REFERENCE_ACCURACY,
+            label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
+            nfev=ref.nfev,
+        )
+    ]
     if nm.m:
-        records.append(rec("reference", "constraint_drift", float(res_ref.max()),
-                           projected_drift(ref.q), label="DOP853+projection"))
-        records.append(rec("reference", "velocity_drift", float(vel_ref.max()),
-                           projected_velocity_drift(ref.u), label="DOP853+projection"))
+        records.append(
+            rec(
+                "reference",
+                "constraint_drift",
+                float(res_ref.max()),
+                projected_drift(ref.q),
+                label="DOP853+projection",
+            )
+        )
+        records.append(
+            rec(
+                "reference",
+                "velocity_drift",
+                float(vel_ref.max()),
+                projected_velocity_drift(ref.u),
+                label="DOP853+projection",
+            )
+        )
     ref_energy_tol = C.Tolerance(
-        1e-9, "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
-              "(projection does not conserve energy exactly, docs/numerics.md)")
+        1e-9,
+        "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
+        "(projection does not conserve energy exactly, docs/numerics.md)",
+    )
     if conserved:
         records.append(rec("reference", "energy_drift", energy_drift(E_ref), ref_energy_tol))
     else:
-        records.append(rec("reference", "work_energy_balance", work_energy_balance(E_ref, work),
-                           ref_energy_tol, label="E(t) - E(0) - W(t), W integrated with the run"))
-    series = [_series(name, "reference", nm.formulation, f"DOP853+projection rtol={REF_RTOL:g}",
-                      ref.t, state_error(ref.q, ref.u, tight.q, tight.u), res_ref, E_ref,
-                      None if conserved else work)]
+        records.append(
+            rec(
+                "reference",
+                "work_energy_balance",
+                work_energy_balance(E_ref, work),
+                ref_energy_tol,
+                label="E(t) - E(0) - W(t), W integrated with the run",
+            )
+        )
+    series = [
+        _series(
+            name,
+            "reference",
+            nm.formulation,
+            f"DOP853+projection rtol={REF_RTOL:g}",
+            ref.t,
+            state_error(ref.q, ref.u, tight.q, tight.u),
+            res_ref,
+            E_ref,
+            None if conserved else work,
+        )
+    ]
     return ctx, records, series
 
 
@@ -417,79 +534,160 @@ def _engine_run(ctx: _Reference, adapter, em, variant):
     try:
         if integrator in adapter.capabilities.adaptive_integrators:
             runs, state_tol, drift_tol, energy_tol, velocity_tol, more = _adaptive_runs(
-                em, integrator, ctx.q0, ctx.u0, ctx.grid, ctx.loose_err, ctx.loose_E)
+                em, integrator, ctx.q0, ctx.u0, ctx.grid, ctx.loose_err, ctx.loose_E
+            )
         else:
             runs, state_tol, drift_tol, energy_tol, velocity_tol, more = _fixed_step_runs(
-                ctx, em, integrator, adapter.capabilities.soft_limit)
-    except Exception as exc:  # noqa: BLE001 - a run that did not finish fails its record
+                ctx, em, integrator, adapter.capabilities.soft_limit
+            )
+    except Exception as exc:
         interrupts.check()  # unless Ctrl-C stopped it (the engine may report that as a failure)
-        return [dict(_failed(ctx.rec, adapter.name, f"{adapter.name}'s {integrator} run", exc),
-                     **extra)], []
+        return [
+            dict(_failed(ctx.rec, adapter.name, f"{adapter.name}'s {integrator} run", exc), **extra)
+        ], []
     records, series = [], []
     for k, (label, t, q, u, info) in enumerate(runs):
-        if len(t) != len(ref.t) or \
-                np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(ctx.t_end, 1.0):
-            raise RuntimeError(f"{adapter.name} trajectory of {name} ({label}, {len(t)} times) "
-                               f"is not on the reference's output grid ({len(ref.t)} times over "
-                               f"{ctx.t_end:g} s): a bug in output_grid / step_ladder")
+        if len(t) != len(ref.t) or np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(
+            ctx.t_end, 1.0
+        ):
+            raise RuntimeError(
+                f"{adapter.name} trajectory of {name} ({label}, {len(t)} times) "
+                f"is not on the reference's output grid ({len(ref.t)} times over "
+                f"{ctx.t_end:g} s): a bug in output_grid / step_ladder"
+            )
         err = state_error(q, u, ref.q, ref.u)
         res, vel = _residual_series(nm, t, q, u)
         E = _energy_series(nm, t, q, u)
-        series.append(_series(name, adapter.name, nm.formulation, label, t, err, res, E,
-                              None if ctx.conserved else ctx.work, variant))
+        series.append(
+            _series(
+                name,
+                adapter.name,
+                nm.formulation,
+                label,
+                t,
+                err,
+                res,
+                E,
+                None if ctx.conserved else ctx.work,
+                variant,
+            )
+        )
         if k:  # records for the first rung; the others feed the estimate and plots
             continue
-        records.append(ctx.rec(adapter.name, "state_error", float(err.max()), state_tol,
-                               label=label, **info, **extra))
+        records.append(
+            ctx.rec(
+                adapter.name,
+                "state_error",
+                float(err.max()),
+                state_tol,
+                label=label,
+                **info,
+                **extra,
+            )
+        )
         if nm.m:
-            records.append(ctx.rec(adapter.name, "constraint_drift", float(res.max()),
-                                   drift_tol, label=label, **extra))
-            records.append(ctx.rec(adapter.name, "velocity_drift", float(vel.max()),
-                                   velocity_tol, label=label, **extra))
+            records.append(
+                ctx.rec(
+                    adapter.name,
+                    "constraint_drift",
+                    float(res.max()),
+                    drift_tol,
+                    label=label,
+                    **extra,
+                )
+            )
+            records.append(
+                ctx.rec(
+                    adapter.name,
+                    "velocity_drift",
+                    float(vel.max()),
+                    velocity_tol,
+                    label=label,
+                    **extra,
+                )
+            )
         if ctx.conserved:
-            records.append(ctx.rec(adapter.name, "energy_drift", energy_drift(E), energy_tol,
-                                   label=label, **extra))
+            records.append(
+                ctx.rec(
+                    adapter.name, "energy_drift", energy_drift(E), energy_tol, label=label, **extra
+                )
+            )
             continue
         # a soft model's energy tolerance already judges its work-energy balance
-        balance_tol = energy_tol if em.soft_constraints else C.Tolerance(
-            energy_tol.value + 10 * state_tol.value,
-            "the engine's energy change against the work done along the "
-            "reference's run: they differ by the engine's energy error plus the "
-            "work along the trajectory difference, bounded by the state tolerance "
-            "(x10 for the size of grad E)")
-        records.append(ctx.rec(adapter.name, "work_energy_balance",
-                               work_energy_balance(E, ctx.work), balance_tol, label=label,
-                               **extra))
+        balance_tol = (
+            energy_tol
+            if em.soft_constraints
+            else C.Tolerance(
+                energy_tol.value + 10 * state_tol.value,
+                "the engine's energy change against the work done along the "
+                "reference's run: they differ by the engine's energy error plus the "
+                "work along the trajectory difference, bounded by the state tolerance "
+                "(x10 for the size of grad E)",
+            )
+        )
+        records.append(
+            ctx.rec(
+                adapter.name,
+                "work_energy_balance",
+                work_energy_balance(E, ctx.work),
+                balance_tol,
+                label=label,
+                **extra,
+            )
+        )
     for qty, err, tol, label in more:  # e.g. the soft model's rigid limit
         records.append(ctx.rec(adapter.name, qty, err, tol, label=label, **extra))
     return records, series
 
 
-def trajectory_records(name: str, nm: NumericModel, adapters, t_end: float = T_END,
-                       engine_params: dict | None = None):
+def trajectory_records(
+    name: str, nm: NumericModel, adapters, t_end: float = T_END, engine_params: dict | None = None
+):
     """Records and plot series for one model: the reference, then every engine variant. A run
     that does not finish is a failed record with its reason; the other runs go on."""
     try:
         ctx, records, series = _reference_run(name, nm, t_end)
     except _RunFailed as failed:
-        rec = lambda engine, qty, err, tol, reason="", **k: C.record(  # noqa: E731
-            name, nm.formulation, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k)
+        rec = lambda engine, qty, err, tol, reason="", **k: C.record(
+            name, nm.formulation, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k
+        )
         return [_failed(rec, "reference", failed.what, failed.exc)] + [
-            rec(a.name, "state_error", None, None, "no reference trajectory to compare with "
-                "(its run failed, see the reference's trajectory record)")
-            for a in adapters], []
+            rec(
+                a.name,
+                "state_error",
+                None,
+                None,
+                "no reference trajectory to compare with "
+                "(its run failed, see the reference's trajectory record)",
+            )
+            for a in adapters
+        ], []
     for adapter in adapters:
         params = (engine_params or {}).get(adapter.name, nm.params)
         if not adapter.capabilities.integrators:
-            records.append(ctx.rec(adapter.name, "state_error", None, None,
-                                   f"{adapter.name} has no trajectories in this suite"))
+            records.append(
+                ctx.rec(
+                    adapter.name,
+                    "state_error",
+                    None,
+                    None,
+                    f"{adapter.name} has no trajectories in this suite",
+                )
+            )
             continue
         for variant in adapter.variants(name):
             try:
                 em = build(adapter, name, params, variant, nominal=nm.params)
             except EngineUnsupported as exc:
-                records.append(ctx.rec(adapter.name, "state_error", None, None,
-                                       f"engine cannot represent the model: {exc}"))
+                records.append(
+                    ctx.rec(
+                        adapter.name,
+                        "state_error",
+                        None,
+                        None,
+                        f"engine cannot represent the model: {exc}",
+                    )
+                )
                 continue
             recs, ser = _engine_run(ctx, adapter, em, variant)
             records += recs

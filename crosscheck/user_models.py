@@ -13,6 +13,7 @@ Every failure is one line (reference.errors.ModelFileError): malformed XML, a fi
 rejects (its message passed on), an element the reference cannot represent, a Python file that
 raises or defines no models, a name used twice.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -51,14 +52,17 @@ def _as_models(result, where: str) -> list[Model]:
     try:
         items = list(items)
     except TypeError:
-        raise ModelFileError(f"{where}: {HOOK}() returned {type(result).__name__}, expected a "
-                             f"Model or a list of Models") from None
+        raise ModelFileError(
+            f"{where}: {HOOK}() returned {type(result).__name__}, expected a "
+            f"Model or a list of Models"
+        ) from None
     if not items:
         raise ModelFileError(f"{where}: {HOOK}() returned no models")
     bad = [type(x).__name__ for x in items if not isinstance(x, Model)]
     if bad:
-        raise ModelFileError(f"{where}: {HOOK}() returned {', '.join(bad)}, expected "
-                             f"reference.system.Model objects")
+        raise ModelFileError(
+            f"{where}: {HOOK}() returned {', '.join(bad)}, expected reference.system.Model objects"
+        )
     for mdl in items:
         try:
             mdl.validate()
@@ -82,14 +86,17 @@ def _load_python(path: Path) -> list[UserModel]:
         raise ModelFileError(f"{path}: raised {type(exc).__name__} while loading: {exc}") from exc
     hook = getattr(module, HOOK, None)
     if not callable(hook):
-        raise ModelFileError(f"{path}: defines no {HOOK}() function; add one that returns the "
-                             f"file's Model objects (docs/user_models.md)")
+        raise ModelFileError(
+            f"{path}: defines no {HOOK}() function; add one that returns the "
+            f"file's Model objects (docs/user_models.md)"
+        )
     try:
         result = hook()
     except Exception as exc:
         raise ModelFileError(f"{path}: {HOOK}() raised {type(exc).__name__}: {exc}") from exc
-    return [UserModel(mdl, f"{path.name}:{HOOK}()", "python")
-            for mdl in _as_models(result, str(path))]
+    return [
+        UserModel(mdl, f"{path.name}:{HOOK}()", "python") for mdl in _as_models(result, str(path))
+    ]
 
 
 def _safe(s: str) -> str:
@@ -109,8 +116,10 @@ def load_model_file(path, *, project: bool = False) -> list[UserModel]:
         return [UserModel(imp.model, f"{path.name} (MJCF)", "mjcf", imp)]
     if suffix == ".py":
         return _load_python(path)
-    raise ModelFileError(f"{path}: unknown model file type {suffix!r}; give an MJCF file "
-                         f"(.xml) or a Python file (.py) with a {HOOK}() function")
+    raise ModelFileError(
+        f"{path}: unknown model file type {suffix!r}; give an MJCF file "
+        f"(.xml) or a Python file (.py) with a {HOOK}() function"
+    )
 
 
 def entry_point_models(group: str = ENTRY_POINT_GROUP) -> list[UserModel]:
@@ -123,13 +132,20 @@ def entry_point_models(group: str = ENTRY_POINT_GROUP) -> list[UserModel]:
             result = hook() if callable(hook) else hook
         except Exception as exc:
             raise ModelFileError(f"{where}: raised {type(exc).__name__}: {exc}") from exc
-        out += [UserModel(mdl, f"entry point {group}:{ep.name}", "entry-point")
-                for mdl in _as_models(result, where)]
+        out += [
+            UserModel(mdl, f"entry point {group}:{ep.name}", "entry-point")
+            for mdl in _as_models(result, where)
+        ]
     return out
 
 
-def load_all(paths: Iterable = (), *, entry_points: bool = True,
-             builtin_names: Iterable[str] = (), project: bool = False) -> list[UserModel]:
+def load_all(
+    paths: Iterable = (),
+    *,
+    entry_points: bool = True,
+    builtin_names: Iterable[str] = (),
+    project: bool = False,
+) -> list[UserModel]:
     """Models of every file in `paths` (in order) and of the entry points; a name given twice,
     or the name of a built-in model, is an error naming both origins."""
     found: list[UserModel] = []
@@ -140,8 +156,10 @@ def load_all(paths: Iterable = (), *, entry_points: bool = True,
     seen: dict[str, str] = {n: "the built-in models" for n in builtin_names}
     for um in found:
         if um.name in seen:
-            raise ModelFileError(f"model name {um.name!r} from {um.origin} is already used by "
-                                 f"{seen[um.name]}; rename it (Model(name=...))")
+            raise ModelFileError(
+                f"model name {um.name!r} from {um.origin} is already used by "
+                f"{seen[um.name]}; rename it (Model(name=...))"
+            )
         seen[um.name] = um.origin
     return found
 
@@ -149,12 +167,18 @@ def load_all(paths: Iterable = (), *, entry_points: bool = True,
 def describe(um: UserModel) -> dict:
     """One row for `crosscheck models`: the model's shape and where it came from."""
     mdl = um.model
-    return {"name": mdl.name, "origin": um.origin, "kind": um.kind, "title": mdl.title,
-            "coordinates": [s.name for s in mdl.coordinates],
-            "speeds": [s.name for s in mdl.speeds],
-            "parameters": [p.name for p in mdl.parameters],
-            "constraints": list(mdl.constraint_names), "formulations": list(mdl.formulations),
-            "notes": mdl.geometry_note}
+    return {
+        "name": mdl.name,
+        "origin": um.origin,
+        "kind": um.kind,
+        "title": mdl.title,
+        "coordinates": [s.name for s in mdl.coordinates],
+        "speeds": [s.name for s in mdl.speeds],
+        "parameters": [p.name for p in mdl.parameters],
+        "constraints": list(mdl.constraint_names),
+        "formulations": list(mdl.formulations),
+        "notes": mdl.geometry_note,
+    }
 
 
 def register_all(found: Iterable[UserModel]) -> list[str]:

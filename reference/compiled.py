@@ -20,6 +20,7 @@ is `not (piv > PIVOT_RATIO_MIN)`, which is true for NaN.
 Backend choice: CROSSCHECK_BACKEND=python forces the pure-Python path (the fallback and the
 cross-check of this one); without numba installed it is chosen automatically.
 """
+
 from __future__ import annotations
 
 import ast
@@ -53,8 +54,8 @@ def setting() -> str:
     want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower() or "auto"
     if want not in ("auto", "numba", "python"):
         from .errors import ModelInputError
-        raise ModelInputError(
-            f"CROSSCHECK_BACKEND={want!r}: valid values are auto, numba, python")
+
+        raise ModelInputError(f"CROSSCHECK_BACKEND={want!r}: valid values are auto, numba, python")
     return want if numba_available() else "python"
 
 
@@ -70,6 +71,7 @@ def threads() -> int:
         return max(1, int(os.environ.get("CROSSCHECK_THREADS", "1")))
     except ValueError:
         from .errors import ModelInputError
+
         raise ModelInputError("CROSSCHECK_THREADS must be a whole number >= 1") from None
 
 
@@ -101,19 +103,20 @@ class _Sref(ast.NodeTransformer):
     def visit_Subscript(self, node):
         if isinstance(node.value, ast.Name) and node.value.id == "_sref":
             k = node.slice.value
-            return ast.Subscript(ast.Name("_pa", ast.Load()), ast.Constant(self.npar + k),
-                                 ast.Load())
+            return ast.Subscript(
+                ast.Name("_pa", ast.Load()), ast.Constant(self.npar + k), ast.Load()
+            )
         return self.generic_visit(node)
 
 
-def _kernel(fn: ast.FunctionDef, nq: int, n: int, npar: int,
-            pmin: float) -> tuple[list[str], list[int]]:
+def _kernel(
+    fn: ast.FunctionDef, nq: int, n: int, npar: int, pmin: float
+) -> tuple[list[str], list[int]]:
     """Lines of `<name>_body` (reads arrays, writes _out, returns a status) and group sizes."""
     fn = _Sref(npar).visit(fn)
     forward = fn.name == "forward"
     args = "_qa, _ua, _t, _pa, _db, _out" if forward else "_qa, _ua, _t, _pa, _out"
-    lines = ["@njit(cache=True, error_model='numpy', nogil=True)",
-             f"def {fn.name}_body({args}):"]
+    lines = ["@njit(cache=True, error_model='numpy', nogil=True)", f"def {fn.name}_body({args}):"]
     lines += [f"    _q{i} = _qa[{i}]" for i in range(nq)]
     lines += [f"    _u{i} = _ua[{i}]" for i in range(n)]
     lines += [f"    _p{i} = _pa[{i}]" for i in range(npar)]
@@ -138,14 +141,15 @@ def _kernel(fn: ast.FunctionDef, nq: int, n: int, npar: int,
     if forward:
         lines.append(f"    _piv = {_pivot_code(piv)}" if piv is not None else "    _piv = 1.0")
         lines.append(f"    _out[{k}] = _piv")
-        lines.append(f"    return ({OK} if _fin else {NOT_DEFINED}) if _piv > {pmin!r} "
-                     f"else {SINGULAR}")
+        lines.append(
+            f"    return ({OK} if _fin else {NOT_DEFINED}) if _piv > {pmin!r} else {SINGULAR}"
+        )
     else:
         lines.append(f"    return {OK} if _fin else {NOT_DEFINED}")
     return lines, [len(g) for g in groups]
 
 
-_PRELUDE = '''from math import sin, cos, tan, sqrt, exp, log, atan2, pi, isfinite
+_PRELUDE = """from math import sin, cos, tan, sqrt, exp, log, atan2, pi, isfinite
 import numpy as np
 from numba import njit, prange
 
@@ -181,30 +185,37 @@ def _check(_qa, _ua, _t):
             if not isfinite(_ua[i]):
                 return {NOT_FINITE}
     return {OK}
-'''
+"""
+
 
 def _batch_forward(body: list[str]) -> list[str]:
     """forward_batch with the body inside the loop: reads _Q[i, k] and writes _OUT[i, k]
     directly, so no row views and no call per state (measured: the per-state overhead of a
     loop calling the single-state kernel bounded the batch, docs/compiled.md)."""
-    lines = ["@njit(cache=True, error_model='numpy', nogil=True)",
-             "def forward_batch(_Q, _U, _T, _P, _DB, _OUT, _ST):",
-             "    nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1",
-             "    for _i in range(_Q.shape[0]):",
-             "        _t = _T[_i if nt else 0]",
-             "        _jp = _i if np_ else 0",
-             "        _jd = _i if nd else 0"]
+    lines = [
+        "@njit(cache=True, error_model='numpy', nogil=True)",
+        "def forward_batch(_Q, _U, _T, _P, _DB, _OUT, _ST):",
+        "    nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1",
+        "    for _i in range(_Q.shape[0]):",
+        "        _t = _T[_i if nt else 0]",
+        "        _jp = _i if np_ else 0",
+        "        _jd = _i if nd else 0",
+    ]
     for ln in body[2:]:
-        ln = (ln.replace("_qa[", "_Q[_i, ").replace("_ua[", "_U[_i, ")
-              .replace("_pa[", "_P[_jp, ").replace("_db[", "_DB[_jd, ")
-              .replace("_out[", "_OUT[_i, "))
+        ln = (
+            ln.replace("_qa[", "_Q[_i, ")
+            .replace("_ua[", "_U[_i, ")
+            .replace("_pa[", "_P[_jp, ")
+            .replace("_db[", "_DB[_jd, ")
+            .replace("_out[", "_OUT[_i, ")
+        )
         if ln.startswith("    return "):
-            ln = "    _ST[_i] = " + ln[len("    return "):]
+            ln = "    _ST[_i] = " + ln[len("    return ") :]
         lines.append("    " + ln)
     return lines
 
 
-_WRAPPERS = '''
+_WRAPPERS = """
 
 @njit(cache=True, error_model='numpy', nogil=True)
 def {name}({args}):
@@ -226,31 +237,44 @@ def {name}_batch_parallel(_Q, _U, _T, _P, _DB, _OUT, _ST):
     nt, np_, nd = _T.shape[0] > 1, _P.shape[0] > 1, _DB.shape[0] > 1
     for i in prange(_Q.shape[0]):
         _ST[i] = {name}({bargs})
-'''
+"""
 
 
 def numba_source(src: str, nq: int, n: int, npar: int, m: int, pmin: float) -> tuple[str, dict]:
     """The numba module for a generated Python module, and each function's group sizes."""
     tree = ast.parse(src)
-    out = [_PRELUDE.format(nq=nq, n=n, npar=npar, m=m, OK=OK, BAD_Q_SIZE=BAD_Q_SIZE,
-                           BAD_U_SIZE=BAD_U_SIZE, NOT_FINITE=NOT_FINITE)]
+    out = [
+        _PRELUDE.format(
+            nq=nq,
+            n=n,
+            npar=npar,
+            m=m,
+            OK=OK,
+            BAD_Q_SIZE=BAD_Q_SIZE,
+            BAD_U_SIZE=BAD_U_SIZE,
+            NOT_FINITE=NOT_FINITE,
+        )
+    ]
     sizes = {}
     for fn in tree.body:
         if not isinstance(fn, ast.FunctionDef):
             continue
         lines, sizes[fn.name] = _kernel(fn, nq, n, npar, pmin)
-        out += ["", ""] + lines
+        out += ["", "", *lines]
         fwd = fn.name == "forward"
         if fwd:
-            out += ["", ""] + _batch_forward(lines)
+            out += ["", "", *_batch_forward(lines)]
         args = "_qa, _ua, _t, _pa, _db, _out" if fwd else "_qa, _ua, _t, _pa, _out"
-        bargs = ("_Q[i], _U[i], _T[i if nt else 0], _P[i if np_ else 0], "
-                 + ("_DB[i if nd else 0], " if fwd else "") + "_OUT[i]")
+        bargs = (
+            "_Q[i], _U[i], _T[i if nt else 0], _P[i if np_ else 0], "
+            + ("_DB[i if nd else 0], " if fwd else "")
+            + "_OUT[i]"
+        )
         wrappers = _WRAPPERS.format(name=fn.name, args=args, bargs=bargs, OK=OK)
         if fwd:  # forward_batch is the inlined loop above
             head = "@njit(cache=True, error_model='numpy', nogil=True)\ndef forward_batch("
             a = wrappers.index(head)
-            wrappers = wrappers[:a] + wrappers[wrappers.index("@njit", a + 1):]
+            wrappers = wrappers[:a] + wrappers[wrappers.index("@njit", a + 1) :]
         out.append(wrappers)
     totals = {k: sum(g) + (1 if k == "forward" else 0) for k, g in sizes.items()}
     out.append(f"OUT_SIZES = {totals!r}")
@@ -285,8 +309,7 @@ class Kernels:
                 offs.append((k, k + g))
                 k += g
             self.offsets[name] = offs
-        self.total = {name: sum(gs) + (1 if name == "forward" else 0)
-                      for name, gs in sizes.items()}
+        self.total = {name: sum(gs) + (1 if name == "forward" else 0) for name, gs in sizes.items()}
         self.ready: dict = {}
 
     def get(self, kname: str):
@@ -298,6 +321,7 @@ class Kernels:
     def _compile(self, kname: str):
         """Compile or load `kname` with a first call on dummy inputs; record how long it took."""
         import numpy as np
+
         nq, n, npar, m = self.dims
         name = kname.split("_batch")[0]
         f = getattr(self.module, kname)
@@ -307,23 +331,24 @@ class Kernels:
         if kname == name:
             f(q, u, 0.0, p, db, out) if name == "forward" else f(q, u, 0.0, p, out)
         else:
-            f(q[None], u[None], np.zeros(1), p[None], db[None], out[None],
-              np.empty(1, np.int64))
+            f(q[None], u[None], np.zeros(1), p[None], db[None], out[None], np.empty(1, np.int64))
         # one signature only: other argument types raise TypeError and are converted by the
         # caller, instead of compiling a new specialization for seconds mid-run
         f.disable_compile()
         st = f.stats
         TIMINGS.setdefault(self.stem, {})[kname] = {
             "seconds": time.perf_counter() - t0,
-            "from_cache": sum(st.cache_hits.values()) > 0 and not sum(st.cache_misses.values())}
+            "from_cache": sum(st.cache_hits.values()) > 0 and not sum(st.cache_misses.values()),
+        }
         return f
 
 
 _LOADED: dict[tuple, Kernels] = {}
 
 
-def load_kernels(src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int,
-                 pmin: float) -> Kernels | None:
+def load_kernels(
+    src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int, pmin: float
+) -> Kernels | None:
     """The kernels of `src`, once per process (see _load); None on the 'auto' setting while
     numba's cache does not hold them yet (the caller takes the Python path; the compile is
     queued for a background process that starts when this one exits)."""
@@ -364,6 +389,7 @@ def _queue_warm(path: Path) -> None:
         return
     if not _PENDING:
         import atexit
+
         atexit.register(_spawn_warm)
     if path not in _PENDING:
         _PENDING.append(path)
@@ -372,6 +398,7 @@ def _queue_warm(path: Path) -> None:
 def _spawn_warm() -> None:
     """Start one detached worker for the queued modules nobody else is compiling."""
     import subprocess
+
     todo = []
     for path in _PENDING:
         lock = path.with_suffix(".warming")
@@ -387,14 +414,20 @@ def _spawn_warm() -> None:
     env = dict(os.environ)
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    subprocess.Popen([sys.executable, "-m", "reference.compiled", *todo], env=env,
-                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                     stderr=subprocess.DEVNULL, start_new_session=True)
+    subprocess.Popen(
+        [sys.executable, "-m", "reference.compiled", *todo],
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
 
 
 def warm(path: Path) -> dict:
     """Compile every kernel of a written module into numba's cache; mark it ready."""
     import numpy as np
+
     text = path.read_text()
     mod = _import(path, text)
     times = {}
@@ -408,8 +441,15 @@ def warm(path: Path) -> dict:
             f(q, u, 0.0, p, db, out) if name == "forward" else f(q, u, 0.0, p, out)
             times[name] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        mod.forward_batch(q[None], u[None], np.zeros(1), p[None], db[None],
-                          np.empty((1, mod.OUT_SIZES["forward"])), np.empty(1, np.int64))
+        mod.forward_batch(
+            q[None],
+            u[None],
+            np.zeros(1),
+            p[None],
+            db[None],
+            np.empty((1, mod.OUT_SIZES["forward"])),
+            np.empty(1, np.int64),
+        )
         times["forward_batch"] = time.perf_counter() - t0
         path.with_suffix(".times.json").write_text(json.dumps(times))
         path.with_suffix(".ready").write_text(_digest(text))

@@ -6,6 +6,7 @@ constraints are given directly in that form in the speeds (Eq. 8). Both are mapp
 speeds through q' = N(q, u, t), so every formulation sees A u + a0 = 0 and its derivative
 A u' = b with b = -(d/dt)(A u + a0) at u' = 0.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -53,7 +54,11 @@ def motion_coefficients(g: sp.Matrix, u) -> tuple[sp.Matrix, sp.Matrix]:
 def constraint_set(model: Model) -> ConstraintSet:
     """All constraints of a model in its speeds, with the acceleration-level right side b."""
     q, u, t = model.coordinates, model.speeds, model.t
-    f = sp.Matrix(model.configuration_constraints) if model.configuration_constraints else sp.zeros(0, 1)
+    f = (
+        sp.Matrix(model.configuration_constraints)
+        if model.configuration_constraints
+        else sp.zeros(0, 1)
+    )
     A_q, a0_q = configuration_coefficients(f, q, t)
     # q' = N u + n0 (the kinematics are affine in u in every model of the unit)
     qdot = sp.Matrix(model.kinematics)
@@ -99,22 +104,37 @@ def integrability(A_row, a0, q, t) -> str:
 
 
 def classify(model: Model) -> list[dict]:
-    """Kind of every constraint row: configuration (holonomic) or motion (tested with Eq. 4's rule)."""
+    """Kind of every constraint row: configuration (holonomic) or motion (tested with Eq. 4's
+    rule)."""
     out = []
     names = model.constraint_names or tuple(f"c{j + 1}" for j in range(model.n_constraints))
-    rheo = lambda e: "rheonomic" if sp.diff(e, model.t) != 0 else "scleronomic"  # noqa: E731
-    for name, f in zip(names, model.configuration_constraints):
-        out.append({"name": name, "kind": "configuration", "holonomic": "holonomic",
-                    "time": rheo(f), "expression": str(f)})
-    names_m = names[len(model.configuration_constraints):]
-    for name, g in zip(names_m, model.motion_constraints):
+    rheo = lambda e: "rheonomic" if sp.diff(e, model.t) != 0 else "scleronomic"
+    for name, f in zip(names, model.configuration_constraints, strict=False):
+        out.append(
+            {
+                "name": name,
+                "kind": "configuration",
+                "holonomic": "holonomic",
+                "time": rheo(f),
+                "expression": str(f),
+            }
+        )
+    names_m = names[len(model.configuration_constraints) :]
+    for name, g in zip(names_m, model.motion_constraints, strict=False):
         if model.speeds_are_coordinate_rates:
             A, a0 = motion_coefficients(sp.Matrix([g]), model.speeds)
             kind = integrability(list(A), a0[0], model.coordinates, model.t)
         else:
             kind = "not tested: the speeds are not coordinate rates"
-        out.append({"name": name, "kind": "motion", "holonomic": kind, "time": rheo(g),
-                    "expression": str(g)})
+        out.append(
+            {
+                "name": name,
+                "kind": "motion",
+                "holonomic": kind,
+                "time": rheo(g),
+                "expression": str(g),
+            }
+        )
     return out
 
 
@@ -138,4 +158,5 @@ def check_independent(A_numeric: np.ndarray, names, *, where: str) -> None:
     raise RedundantConstraintError(
         f"constraint rows are dependent at {where}: rank(A) = {rank} < m = {m}; rows "
         f"{dependent} repeat earlier rows. Remove the redundant constraints (Eq. 4: only "
-        f"independent constraint equations may be used)")
+        f"independent constraint equations may be used)"
+    )

@@ -3,6 +3,7 @@
 x is the model's speed vector (q' for Lagrange's and d'Alembert's models, the dependent speeds
 u for Kane's). `crosscheck` and the tests talk only to this contract.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -23,7 +23,8 @@ class RedundantConstraintError(ModelInputError):
 
 
 class SingularSystemError(ModelInputError):
-    """The KKT matrix is singular at a state (kinematic singularity or M not definite on null(A))."""
+    """The KKT matrix is singular at a state (kinematic singularity, M not definite on
+    null(A), or a coordinate singularity where the derived equations are not defined)."""
 
 
 class OffManifoldError(ModelInputError):

@@ -18,6 +18,7 @@ parameters; a callable given for a force or torque is called once with those sym
 not numpy or math ones). A spring's potential keeps energy bookkeeping exact; a damper or an
 applied load enters the work-energy balance through Model.load_power.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -69,12 +70,14 @@ def _evaluate(spec: VectorSpec, name: str, t, coordinates, speeds) -> sp.Matrix:
         except TypeError as exc:  # numpy/math functions reject sympy symbols
             raise ModelInputError(
                 f"force element {name!r}: its function must accept sympy symbols "
-                f"(t, q, u) and use sympy functions (sp.sin, not math.sin): {exc}") from exc
+                f"(t, q, u) and use sympy functions (sp.sin, not math.sin): {exc}"
+            ) from exc
     return _column(spec, name)
 
 
-def spring_damper(name: str, r_A, r_B, *, stiffness, free_length, damping=0,
-                  coordinates, kinematics, t=T_SYM) -> ForceElements:
+def spring_damper(
+    name: str, r_A, r_B, *, stiffness, free_length, damping=0, coordinates, kinematics, t=T_SYM
+) -> ForceElements:
     """A linear spring-damper between points A and B (inertial positions r_A, r_B as functions
     of q and t): tension k (L - L0) + c L' along the line, L = |r_B - r_A|.
 
@@ -97,8 +100,9 @@ def spring_damper(name: str, r_A, r_B, *, stiffness, free_length, damping=0,
 
 def joint_spring(name: str, coordinate, stiffness, reference=0) -> ForceElements:
     """A linear spring on one coordinate: potential k (q - q_ref)^2 / 2."""
-    return ForceElements(sp.Rational(1, 2) * sp.sympify(stiffness)
-                         * (coordinate - sp.sympify(reference)) ** 2)
+    return ForceElements(
+        sp.Rational(1, 2) * sp.sympify(stiffness) * (coordinate - sp.sympify(reference)) ** 2
+    )
 
 
 def joint_damper(name: str, rate_expr, damping) -> ForceElements:
@@ -106,25 +110,40 @@ def joint_damper(name: str, rate_expr, damping) -> ForceElements:
     generalized force -c w dw/du. It is written as a Force along a one-component 'velocity' w,
     so its power is -c w^2 (Model.load_power)."""
     w = sp.sympify(rate_expr)
-    return ForceElements(loads=(Force(f"{name}:damper", velocity=vec(w, 0, 0),
-                                      force=vec(-sp.sympify(damping) * w, 0, 0)),))
+    return ForceElements(
+        loads=(
+            Force(
+                f"{name}:damper", velocity=vec(w, 0, 0), force=vec(-sp.sympify(damping) * w, 0, 0)
+            ),
+        )
+    )
 
 
-def applied_force(name: str, point, force: VectorSpec, *, coordinates, speeds, kinematics,
-                  t=T_SYM) -> ForceElements:
+def applied_force(
+    name: str, point, force: VectorSpec, *, coordinates, speeds, kinematics, t=T_SYM
+) -> ForceElements:
     """A force at a point (inertial position `point` as a function of q, t): the force is a
     3-vector in inertial components, or f(t, q, u) returning one (a function of time and
     state)."""
     r = _column(point, name)
     F = _evaluate(force, name, t, coordinates, speeds)
-    return ForceElements(loads=(Force(name, velocity=rate(r, coordinates, kinematics, t),
-                                      force=F),))
+    return ForceElements(
+        loads=(Force(name, velocity=rate(r, coordinates, kinematics, t), force=F),)
+    )
 
 
-def applied_torque(name: str, omega, torque: VectorSpec, *, coordinates, speeds,
-                   t=T_SYM) -> ForceElements:
+def applied_torque(
+    name: str, omega, torque: VectorSpec, *, coordinates, speeds, t=T_SYM
+) -> ForceElements:
     """A torque acting through the angular velocity `omega` (components in the same frame as
     the torque; the relative angular velocity for a torque between two bodies, a motor): a
     3-vector or f(t, q, u) returning one."""
-    return ForceElements(loads=(Torque(name, omega=_column(omega, name),
-                                       torque=_evaluate(torque, name, t, coordinates, speeds)),))
+    return ForceElements(
+        loads=(
+            Torque(
+                name,
+                omega=_column(omega, name),
+                torque=_evaluate(torque, name, t, coordinates, speeds),
+            ),
+        )
+    )

@@ -15,10 +15,11 @@ parameter is its default times its own factor:
   the constraint manifold (`generic_parameters` takes that check as an argument so this module
   stays free of the numeric layer).
 """
+
 from __future__ import annotations
 
 import math
-from typing import Callable, Optional
+from collections.abc import Callable
 
 import sympy as sp
 
@@ -52,8 +53,11 @@ def inertia_triples(model: Model) -> list[tuple[str, str, str]]:
     for body in model.bodies:
         diag = [body.inertia[i, i] for i in range(3)]
         off = [body.inertia[i, j] for i in range(3) for j in range(3) if i != j]
-        if all(isinstance(d, sp.Symbol) and d in names for d in diag) and all(
-                o == 0 for o in off) and len(set(diag)) == 3:
+        if (
+            all(isinstance(d, sp.Symbol) and d in names for d in diag)
+            and all(o == 0 for o in off)
+            and len(set(diag)) == 3
+        ):
             out.append(tuple(names[d] for d in diag))
     return out
 
@@ -68,25 +72,30 @@ def _physical_inertias(values: dict[str, float], triples) -> None:
             values[large] = values[mid] + TRIANGLE_MARGIN * values[small]
 
 
-def generic_parameters(model: Model,
-                       geometry_ok: Optional[Callable[[dict[str, float]], bool]] = None
-                       ) -> dict[str, float]:
+def generic_parameters(
+    model: Model, geometry_ok: Callable[[dict[str, float]], bool] | None = None
+) -> dict[str, float]:
     """Every parameter with a nonzero default times its own factor. A zero default (an absent
     applied torque, no damping) gets a value of its own, `zero_default_value`: a load that is
-    zero at both ends of a comparison cannot show a sign or lever-arm error. If `geometry_ok` rejects the
-    set, the factors are pulled halfway towards 1 (still distinct) until it accepts, at most
-    8 times; a model that needs more than that is refused with the reason."""
+    zero at both ends of a comparison cannot show a sign or lever-arm error. If `geometry_ok`
+    rejects the set, the factors are pulled halfway towards 1 (still distinct) until it
+    accepts, at most 8 times; a model that needs more than that is refused with the reason."""
     triples = inertia_triples(model)
     shrink = 1.0
     for _ in range(9):
         values = {}
         for k, p in enumerate(model.parameters):
             factor = 1.0 + shrink * (generic_factor(k) - 1.0)
-            values[p.name] = (p.default * factor if p.default != 0.0
-                              else zero_default_value(k, signed=not (p.positive or p.nonnegative)))
+            values[p.name] = (
+                p.default * factor
+                if p.default != 0.0
+                else zero_default_value(k, signed=not (p.positive or p.nonnegative))
+            )
         _physical_inertias(values, triples)
         if geometry_ok is None or geometry_ok(values):
             return values
         shrink /= 2.0
-    raise ValueError(f"{model.name}: no generic parameter set near the defaults keeps the "
-                     f"initial state consistent; declare the model's valid parameter ranges")
+    raise ValueError(
+        f"{model.name}: no generic parameter set near the defaults keeps the "
+        f"initial state consistent; declare the model's valid parameter ranges"
+    )

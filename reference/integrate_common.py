@@ -2,11 +2,11 @@
 the Trajectory it returns, per-model facts, consistent initial states and the _Problem base
 class the method families (integrate_index1, integrate_projection, integrate_nullspace)
 derive from."""
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Optional
 
 import numpy as np
 import scipy.integrate as si
@@ -15,8 +15,14 @@ from .errors import ModelInputError, OffManifoldError, SingularSystemError
 from .numeric import MANIFOLD_TOL, NumericModel
 
 METHODS = ("index1", "baumgarte", "projection", "nullspace")
-INTEGRATORS = {"DOP853": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau,
-               "BDF": si.BDF, "LSODA": si.LSODA}
+INTEGRATORS = {
+    "DOP853": si.DOP853,
+    "RK45": si.RK45,
+    "RK23": si.RK23,
+    "Radau": si.Radau,
+    "BDF": si.BDF,
+    "LSODA": si.LSODA,
+}
 # integrators whose whole internal state is (t, y, f, step size): projection may reset y and f
 PROJECTABLE = ("DOP853", "RK45", "RK23", "Radau")
 
@@ -79,9 +85,9 @@ class Trajectory:
     wall_s: float
     method: str
     settings: dict
-    work: Optional[np.ndarray] = None
+    work: np.ndarray | None = None
     stats: dict = field(default_factory=dict)
-    nm: Optional[NumericModel] = field(default=None, repr=False)
+    nm: NumericModel | None = field(default=None, repr=False)
     warnings: list = field(default_factory=list)
 
     @property
@@ -92,26 +98,34 @@ class Trajectory:
         """Position residuals f(q, t) (N x m_c) and velocity residuals A u + a0 (N x m)."""
         res, p = self.nm._scalar["residuals"], self.nm.p
         P, V = [], []
-        for t, q, u in zip(self.t, self.q, self.u):
+        for t, q, u in zip(self.t, self.q, self.u, strict=False):
             pos, vel = res(q.tolist(), u.tolist(), float(t), p)
             P.append(pos)
             V.append(vel)
-        return (np.array(P, float).reshape(len(self.t), -1),
-                np.array(V, float).reshape(len(self.t), -1))
+        return (
+            np.array(P, float).reshape(len(self.t), -1),
+            np.array(V, float).reshape(len(self.t), -1),
+        )
 
     def max_residual(self) -> dict:
         """Largest |f(q, t)| and |A u + a0| over the outputs (0 where there are no rows)."""
         P, V = self.residuals()
-        return {"position": float(np.max(np.abs(P))) if P.size else 0.0,
-                "velocity": float(np.max(np.abs(V))) if V.size else 0.0}
+        return {
+            "position": float(np.max(np.abs(P))) if P.size else 0.0,
+            "velocity": float(np.max(np.abs(V))) if V.size else 0.0,
+        }
 
     def energy(self) -> np.ndarray:
         """K + V at the outputs."""
         en, p = self.nm._scalar["energy"], self.nm.p
-        return np.array([sum(en(q.tolist(), u.tolist(), float(t), p)[0][:2])
-                         for t, q, u in zip(self.t, self.q, self.u)])
+        return np.array(
+            [
+                sum(en(q.tolist(), u.tolist(), float(t), p)[0][:2])
+                for t, q, u in zip(self.t, self.q, self.u, strict=False)
+            ]
+        )
 
-    def energy_drift(self) -> Optional[float]:
+    def energy_drift(self) -> float | None:
         """max |E(t) - E(0) - W(t)| over the outputs, relative to max(|E|, K0 + |V0|, 1e-300):
         energy conservation where the model declares it, the work-energy balance where the
         work was integrated, None where neither is available (energy="none" on a model that
@@ -127,21 +141,29 @@ class Trajectory:
 
     def summary(self) -> dict:
         r = self.max_residual()
-        return {"method": self.method, "nfev": self.nfev, "nsteps": self.nsteps,
-                "wall_s": self.wall_s, "residual_position": r["position"],
-                "residual_velocity": r["velocity"], "energy_drift": self.energy_drift(),
-                "warnings": list(self.warnings),
-                **{k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))}}
+        return {
+            "method": self.method,
+            "nfev": self.nfev,
+            "nsteps": self.nsteps,
+            "wall_s": self.wall_s,
+            "residual_position": r["position"],
+            "residual_velocity": r["velocity"],
+            "energy_drift": self.energy_drift(),
+            "warnings": list(self.warnings),
+            **{k: v for k, v in self.stats.items() if isinstance(v, (int, float, str))},
+        }
 
 
 # ---- small dense linear algebra ------------------------------------------------------------
-def _min_norm_correction(J: list[float], rows: int, cols: int, r: list[float],
-                         redundant: bool = False) -> list[float]:
+def _min_norm_correction(
+    J: list[float], rows: int, cols: int, r: list[float], redundant: bool = False
+) -> list[float]:
     """-J^T (J J^T)^-1 r for a flat row-major J (rows x cols): the minimum-norm step. With
     `redundant` (a model that allows dependent rows) the pseudo-inverse step -J^+ r at
     reference.redundant's rank tolerance."""
     if redundant:
         from .redundant import RANK_RTOL
+
         Jm = np.array(J, float).reshape(rows, cols)
         return (np.linalg.lstsq(Jm, -np.asarray(r, float), rcond=RANK_RTOL)[0]).tolist()
     if rows == 1:
@@ -164,14 +186,19 @@ def _facts(nm: NumericModel) -> dict:
     hit = _FACTS.get(id(model))
     if hit is None or hit[0] is not model:
         from .constraints import is_rheonomic
-        facts = {"rates": model.speeds_are_coordinate_rates, "rheonomic": is_rheonomic(model),
-                 "mc": len(model.configuration_constraints)}
+
+        facts = {
+            "rates": model.speeds_are_coordinate_rates,
+            "rheonomic": is_rheonomic(model),
+            "mc": len(model.configuration_constraints),
+        }
         hit = _FACTS[id(model)] = (model, facts)
     return hit[1]
 
 
-def consistent_initial_state(nm: NumericModel, q0, u0, t0: float = 0.0,
-                             max_correction: float = math.inf):
+def consistent_initial_state(
+    nm: NumericModel, q0, u0, t0: float = 0.0, max_correction: float = math.inf
+):
     """(q, u) on the constraint manifold closest to (q0, u0) (minimum-norm corrections).
 
     Raises OffManifoldError where no consistent state can be reached from (q0, u0) (Gauss-Newton
@@ -187,7 +214,8 @@ def consistent_initial_state(nm: NumericModel, q0, u0, t0: float = 0.0,
         raise OffManifoldError(
             f"{nm.model.name}: the initial state is far off the constraint manifold: the "
             f"projection moved q by {dq:.3e} and u by {du:.3e} (allowed {max_correction:.1e}). "
-            f"Give a consistent initial state.")
+            f"Give a consistent initial state."
+        )
     return q, u, max(dq, du)
 
 
@@ -214,8 +242,13 @@ class _Problem:
         self.mat = nm.raw_function("matrices")
         self.en = nm.raw_function("energy")
         self.zeros_u = [0.0] * self.n
-        self.stats = {"projections": 0, "projection_iterations": 0, "newton_iterations": 0,
-                      "partitions": 0, "min_pivot_ratio": math.inf}
+        self.stats = {
+            "projections": 0,
+            "projection_iterations": 0,
+            "newton_iterations": 0,
+            "partitions": 0,
+            "min_pivot_ratio": math.inf,
+        }
         # smallest KKT pivot ratio seen in any RHS call (a cell the closures update)
         self.pmin = [math.inf]
 
@@ -232,14 +265,15 @@ class _Problem:
             raise SingularSystemError(
                 f"{self.nm.model.name}: at t = {t:.6g} the kinematic equations q' = N(q, u) are "
                 f"singular at q = {np.round(q, 6).tolist()} ({exc}): the coordinates are at a "
-                f"singularity of their parametrization") from None
+                f"singularity of their parametrization"
+            ) from None
 
     def power(self, q, u, t, lam) -> float:
         """Power of the applied loads plus that of rheonomic constraints (-lambda . a0)."""
         P = self.en(q, u, t, self.p)[0][2]
         if self.rheonomic and lam:
             a0 = self.res(q, self.zeros_u, t, self.p)[1]
-            P -= sum(l * a for l, a in zip(lam, a0))
+            P -= sum(l * a for l, a in zip(lam, a0, strict=False))
         return P
 
     # defaults: the state is (q, u[, W])
@@ -250,7 +284,7 @@ class _Problem:
     def full(self, t, y):
         yl = y.tolist()
         nq, n = self.nq, self.n
-        return yl[:nq], yl[nq:nq + n], (yl[nq + n] if self.work else None)
+        return yl[:nq], yl[nq : nq + n], (yl[nq + n] if self.work else None)
 
     def after_step(self, solver) -> bool:
         """Post-process an accepted step; True when the solver must be restarted."""

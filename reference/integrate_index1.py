@@ -1,5 +1,6 @@
 """The index-1 family: the acceleration-level equations as they are (index1), and with
 Baumgarte's stabilizing terms (baumgarte)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,10 +24,10 @@ class _Index1(_Problem):
 
         def fun(t, y):
             if arrays:  # views of y straight into the compiled kernel
-                q, u = y[:nq], y[nq:nq + n]
+                q, u = y[:nq], y[nq : nq + n]
             else:  # the Python path is fastest on lists of floats
                 yl = y.tolist()
-                q, u = yl[:nq], yl[nq:nq + n]
+                q, u = yl[:nq], yl[nq : nq + n]
             try:
                 ud, lam, piv = fr(q, u, t, offset(q, u, t) if offset else None)
             except (ZeroDivisionError, ValueError):
@@ -37,7 +38,7 @@ class _Index1(_Problem):
                 pmin[0] = piv
             out = np.empty(size)
             out[:nq] = u if rates else self.qdot(q, u, t)
-            out[nq:nq + n] = ud
+            out[nq : nq + n] = ud
             if work:
                 out[nq + n] = self.power(q, u, t, lam)
             return out
@@ -50,7 +51,7 @@ class _Baumgarte(_Index1):
         if alpha < 0 or beta < 0:
             raise ModelInputError(f"Baumgarte gains must be >= 0, got alpha={alpha}, beta={beta}")
         self.alpha, self.beta = float(alpha), float(beta)
-        two_a, b2 = 2.0 * self.alpha, self.beta ** 2
+        two_a, b2 = 2.0 * self.alpha, self.beta**2
 
         def offset(q, u, t):
             # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only

@@ -1,5 +1,6 @@
 """Coordinate partitioning: the independent coordinates integrated, the dependent ones solved
 for by Newton, re-partitioned when the dependent block degrades."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,11 +28,13 @@ class _Nullspace(_Problem):
             raise ModelInputError(
                 f"{nm.model.name}: coordinate partitioning needs independent constraint rows "
                 f"(rank {nm.rank} < {nm.m} rows here); use the projection, baumgarte or index1 "
-                f"method")
+                f"method"
+            )
         if self.mc and not self.rates:
             raise ModelInputError(
                 f"{nm.model.name}: coordinate partitioning of configuration constraints needs "
-                f"speeds equal to the coordinate rates")
+                f"speeds equal to the coordinate rates"
+            )
         self.dep_q: list[int] = []
         self.dep_u: list[int] = []
         self.qd_cache: list[float] = []
@@ -62,8 +65,9 @@ class _Nullspace(_Problem):
                 raise SingularSystemError(
                     f"{self.nm.model.name}: at t = {t:.6g} the configuration constraints' "
                     f"Jacobian is rank deficient (|R_mm / R_11| = {d[-1] / max(d[0], 1e-300):.1e})"
-                    f": no dependent coordinates can be chosen at q = {np.round(q, 6).tolist()}")
-            self.dep_q = sorted(int(i) for i in P[:self.mc])
+                    f": no dependent coordinates can be chosen at q = {np.round(q, 6).tolist()}"
+                )
+            self.dep_q = sorted(int(i) for i in P[: self.mc])
         else:
             self.dep_q = []
         if self.m:
@@ -76,8 +80,9 @@ class _Nullspace(_Problem):
                 if not d[-1] > RANK_TOL * d[0]:
                     raise SingularSystemError(
                         f"{self.nm.model.name}: at t = {t:.6g} the constraint Jacobian A is rank "
-                        f"deficient: no dependent speeds can be chosen")
-                self.dep_u = sorted(int(i) for i in P[:self.m])
+                        f"deficient: no dependent speeds can be chosen"
+                    )
+                self.dep_u = sorted(int(i) for i in P[: self.m])
         else:
             self.dep_u = []
         self.ind_q = [i for i in range(self.nq) if i not in self.dep_q]
@@ -109,11 +114,11 @@ class _Nullspace(_Problem):
         qd = list(self.qd_cache)
         J0 = self.J_last
         if J0 is not None:  # dq_d = -J_d^-1 J_i dq_i: first-order accurate start
-            dqi = [a - b for a, b in zip(qi, self.qi_last)]
+            dqi = [a - b for a, b in zip(qi, self.qi_last, strict=False)]
             if mc == 1:
                 d = J0[dep[0]]
                 if d != 0.0:
-                    qd[0] -= sum(J0[i] * dv for i, dv in zip(self.ind_q, dqi)) / d
+                    qd[0] -= sum(J0[i] * dv for i, dv in zip(self.ind_q, dqi, strict=False)) / d
             else:
                 Jm = np.array(J0, float).reshape(mc, nq)
                 step = np.linalg.solve(Jm[:, dep], Jm[:, self.ind_q] @ dqi)
@@ -132,7 +137,8 @@ class _Nullspace(_Problem):
                     return None
                 raise IntegrationError(
                     f"{self.nm.model.name}: dependent coordinates did not converge at t = "
-                    f"{t:.6g} (|f| = {max(map(abs, pos)):.2e}); the partition degenerated")
+                    f"{t:.6g} (|f| = {max(map(abs, pos)):.2e}); the partition degenerated"
+                )
             J = self.pjac(q, zu, t, p)[0]
             try:
                 if mc == 1:
@@ -146,7 +152,8 @@ class _Nullspace(_Problem):
                 if not strict:
                     return None
                 raise SingularSystemError(
-                    f"{self.nm.model.name}: dependent-coordinate block singular at t = {t:.6g}")
+                    f"{self.nm.model.name}: dependent-coordinate block singular at t = {t:.6g}"
+                ) from None
             self.stats["newton_iterations"] += 1
         self.qd_cache = [q[i] for i in dep]
         self.qi_last = list(qi)
@@ -189,7 +196,7 @@ class _Nullspace(_Problem):
             if q is None:  # no dependent coordinates for this trial stage: NaN makes scipy's
                 self.stats["rejected_stages"] += 1  # RK error test reject the step (h x 0.2)
                 return np.full(size, np.nan)
-            u = self.u_of(q, yl[nqi:nqi + nui], t)
+            u = self.u_of(q, yl[nqi : nqi + nui], t)
             try:
                 ud, lam, piv = fr(q, u, t)
             except (ZeroDivisionError, ValueError):
@@ -210,7 +217,7 @@ class _Nullspace(_Problem):
         yl = y.tolist()
         nqi, nui = len(self.ind_q), len(self.ind_u)
         q = self.q_of(yl[:nqi], t)
-        u = self.u_of(q, yl[nqi:nqi + nui], t)
+        u = self.u_of(q, yl[nqi : nqi + nui], t)
         return q, u, (yl[nqi + nui] if self.work else None)
 
     def after_step(self, solver) -> bool:

@@ -1,4 +1,5 @@
 """Coordinate projection after every accepted step (Hairer-Wanner II Sec. VII.2)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -24,7 +25,8 @@ class _Projection(_Index1):
         if not self.rates and self.mc:
             raise ModelInputError(
                 f"{nm.model.name}: position projection needs speeds equal to the coordinate "
-                f"rates (this model maps q' = N(q, u))")
+                f"rates (this model maps q' = N(q, u))"
+            )
 
     @classmethod
     def build(cls, nm, energy, opts):
@@ -36,7 +38,8 @@ class _Projection(_Index1):
             raise ModelInputError(
                 f"projection needs a one-step integrator whose state is (t, y, f): "
                 f"{', '.join(PROJECTABLE)}; {integrator} keeps a multistep history that "
-                f"projecting y would corrupt")
+                f"projecting y would corrupt"
+            )
 
     def dense_state(self, t, y):
         return self.project(t, y)
@@ -65,14 +68,16 @@ class _Projection(_Index1):
             except np.linalg.LinAlgError:
                 raise SingularSystemError(
                     f"{self.nm.model.name}: projection at t = {t:.6g}: the constraint "
-                    f"Jacobian is rank deficient at q = {np.round(q, 6).tolist()}")
-            q = [a + b for a, b in zip(q, dq)]
+                    f"Jacobian is rank deficient at q = {np.round(q, 6).tolist()}"
+                ) from None
+            q = [a + b for a, b in zip(q, dq, strict=False)]
             self.stats["projection_iterations"] += 1
         if err > PROJECTION_FAIL:
             raise IntegrationError(
                 f"{self.nm.model.name}: position projection did not converge at t = {t:.6g} "
                 f"(|f| = {err:.2e} after {PROJECTION_MAX_ITER} Gauss-Newton steps): the step "
-                f"left the manifold too far; tighten rtol/atol")
+                f"left the manifold too far; tighten rtol/atol"
+            )
         return q, J
 
     def project_u(self, q, u, t):
@@ -84,7 +89,7 @@ class _Projection(_Index1):
         else:
             A = self.mat(q, u, t, self.p)[2]
         du = _min_norm_correction(A, self.m, self.n, vel, self.nm.redundant)
-        return [a + b for a, b in zip(u, du)]
+        return [a + b for a, b in zip(u, du, strict=False)]
 
     def project(self, t, y):
         q, u, W = self.full(t, y)

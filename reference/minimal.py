@@ -17,11 +17,12 @@ Each reference states its own accuracy: the largest difference between the tight
 at 10x the tolerance (an upper estimate of the tight run's error, since DOP853's error falls
 with the tolerance), or between the elliptic formula and the tight run.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import sympy as sp
@@ -68,7 +69,7 @@ def pendulum_exact(theta0: float, theta_dot0: float, g: float, L: float, t):
     if theta_dot0 < 0:
         phi = 2.0 * K - phi  # the same sn, cn < 0
     arg = np.mod(w0 * np.asarray(t, float) + phi, 4.0 * K)  # ellipj is most accurate near 0
-    sn, cn, dn, _ = special.ellipj(arg, m)
+    sn, cn, _dn, _ = special.ellipj(arg, m)
     theta = 2.0 * np.arcsin(k * sn)
     theta_dot = 2.0 * k * w0 * cn
     return theta, theta_dot
@@ -86,18 +87,29 @@ def slider_crank_one_coordinate():
     th2 = sp.asin(-sc.l1 * sp.sin(th1) / sc.l2)
     q, N = (th1,), (w1,)
     e1, e2 = vec(sp.cos(th1), sp.sin(th1), 0), vec(sp.cos(th2), sp.sin(th2), 0)
-    bodies = (planar_body("crank", sc.m1, sc.I_G1, sc.r1 * e1, th1, q, N),
-              planar_body("rod", sc.m2, sc.I_G2, sc.l1 * e1 + sc.r2 * e2, th2, q, N),
-              particle("slider", sc.m3, sc.l1 * e1 + sc.l2 * e2, q, N))
-    return Model(name="slider_crank_1dof", source="reference reduction of Example 2(b)",
-                 title="Slider-crank in theta1 only (+x branch)", parameters=sc.PARAMETERS,
-                 coordinates=q, speeds=N, kinematics=N, bodies=bodies, gravity=sc.GRAVITY,
-                 loads=(Torque("T", vec(0, 0, w1), vec(0, 0, sc.T)),),
-                 formulations=("lagrange",), initial_q=(sc.THETA1_0,),
-                 initial_u=(sc.THETA1_DOT0,))
+    bodies = (
+        planar_body("crank", sc.m1, sc.I_G1, sc.r1 * e1, th1, q, N),
+        planar_body("rod", sc.m2, sc.I_G2, sc.l1 * e1 + sc.r2 * e2, th2, q, N),
+        particle("slider", sc.m3, sc.l1 * e1 + sc.l2 * e2, q, N),
+    )
+    return Model(
+        name="slider_crank_1dof",
+        source="reference reduction of Example 2(b)",
+        title="Slider-crank in theta1 only (+x branch)",
+        parameters=sc.PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=bodies,
+        gravity=sc.GRAVITY,
+        loads=(Torque("T", vec(0, 0, w1), vec(0, 0, sc.T)),),
+        formulations=("lagrange",),
+        initial_q=(sc.THETA1_0,),
+        initial_u=(sc.THETA1_DOT0,),
+    )
 
 
-@lru_cache(maxsize=None)
+@cache
 def _one_coordinate_model():
     return slider_crank_one_coordinate()
 
@@ -111,8 +123,7 @@ def _ode_run(nm: NumericModel, y0, t_end, rtol, atol):
         ud = fr(yl[:nq], yl[nq:], t)[0]
         return yl[nq:] + list(ud)  # list concatenation (ud is an array on the compiled path)
 
-    sol = solve_ivp(fun, (0.0, t_end), np.asarray(y0, float), method="DOP853", rtol=rtol,
-                    atol=atol)
+    sol = solve_ivp(fun, (0.0, t_end), np.asarray(y0, float), method="DOP853", rtol=rtol, atol=atol)
     if not sol.success:
         raise RuntimeError(f"reference run failed: {sol.message}")
     return sol.y[:, -1]
@@ -137,8 +148,14 @@ def _slider_from_theta1(th1, w1, l1, l2, split: bool):
     return np.array([th1, x, th2 + math.pi]), np.array([w1, xd, w2])
 
 
-def reference_final_state(model_name: str, t_end: float, params: dict | None = None,
-                          q0=None, u0=None, formulation: str | None = None) -> Reference:
+def reference_final_state(
+    model_name: str,
+    t_end: float,
+    params: dict | None = None,
+    q0=None,
+    u0=None,
+    formulation: str | None = None,
+) -> Reference:
     """The high-accuracy final state at t_end from (q0, u0) (default: the model's initial state,
     which must be consistent), in the model's own coordinates, with its estimated accuracy."""
     model = models.get(model_name)
@@ -166,8 +183,13 @@ def reference_final_state(model_name: str, t_end: float, params: dict | None = N
             q = np.array([L * math.sin(th), L * math.cos(th)])
             u = np.array([L * w * math.cos(th), -L * w * math.sin(th)])
             acc *= max(L, L * abs(w), 1.0)
-        return Reference(q, u, "exact (Jacobi elliptic functions)", acc,
-                         "accuracy: |elliptic - DOP853 rtol 1e-13 run of theta| (mapped)")
+        return Reference(
+            q,
+            u,
+            "exact (Jacobi elliptic functions)",
+            acc,
+            "accuracy: |elliptic - DOP853 rtol 1e-13 run of theta| (mapped)",
+        )
     if model_name in ("slider_crank", "slider_crank_split"):
         split = model_name == "slider_crank_split"
         l1, l2 = P["l1"], P["l2"]
@@ -176,15 +198,22 @@ def reference_final_state(model_name: str, t_end: float, params: dict | None = N
         if not math.cos(th2) > 0 or l2 <= l1:
             raise ModelInputError(
                 f"{model_name}: the one-coordinate reference covers the +x branch with l2 > l1 "
-                f"(cos(theta2) > 0); got cos(theta2) = {math.cos(th2):.3f}, l1 = {l1}, l2 = {l2}")
+                f"(cos(theta2) > 0); got cos(theta2) = {math.cos(th2):.3f}, l1 = {l1}, l2 = {l2}"
+            )
         one = NumericModel(_one_coordinate_model(), params=params)
         y, acc = _two_runs(lambda r, a: _ode_run(one, [th1, w1], t_end, r, a))
         q, u = _slider_from_theta1(float(y[0]), float(y[1]), l1, l2, split)
         # the map's derivative is at most ~ max(1, l1/l2 ...) <= 2 here: scale the estimate
-        return Reference(q, u, "one-coordinate reduction (theta1), DOP853 rtol 1e-13", 2 * acc,
-                         "accuracy: 2 x |rtol 1e-13 - rtol 1e-12 run| (the map's gain <= 2)")
+        return Reference(
+            q,
+            u,
+            "one-coordinate reduction (theta1), DOP853 rtol 1e-13",
+            2 * acc,
+            "accuracy: 2 x |rtol 1e-13 - rtol 1e-12 run| (the map's gain <= 2)",
+        )
     # a converged tight run of the model itself
     from .integrate import simulate
+
     method = "index1" if nm.m == 0 else "projection"
 
     def run(r, a):
@@ -192,5 +221,10 @@ def reference_final_state(model_name: str, t_end: float, params: dict | None = N
         return tr.final_state
 
     y, acc = _two_runs(run)
-    return Reference(y[:nm.nq], y[nm.nq:], f"tight run ({method}, DOP853 rtol 1e-13)", acc,
-                     "accuracy: |rtol 1e-13 - rtol 1e-12 run|")
+    return Reference(
+        y[: nm.nq],
+        y[nm.nq :],
+        f"tight run ({method}, DOP853 rtol 1e-13)",
+        acc,
+        "accuracy: |rtol 1e-13 - rtol 1e-12 run|",
+    )

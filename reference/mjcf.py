@@ -23,6 +23,7 @@ Anything else that changes the dynamics is refused with the element's name and t
 doubles (short ones where the double is exactly a short fraction), so no digit is lost in code
 generation.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -91,8 +92,10 @@ def axis_rotation(a: sp.Matrix, angle) -> sp.Matrix:
     return sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
 
 
-_NORM_REASON = ("quaternion normalization: Lagrange's K and V see variations off the unit "
-                "sphere that the partial velocities do not (as the top's, Exercise 6.6)")
+_NORM_REASON = (
+    "quaternion normalization: Lagrange's K and V see variations off the unit "
+    "sphere that the partial velocities do not (as the top's, Exercise 6.6)"
+)
 
 
 @dataclass(frozen=True)
@@ -199,8 +202,17 @@ def _frames(m):
                     p = a_w - R * anchor
                     w = Rj.T * w + a * u[0]
                 dofs = (u[0],)
-            joints.append(JointInfo(_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint"), int(t),
-                                    int(adr), int(m.jnt_dofadr[j]), q, u, dofs))
+            joints.append(
+                JointInfo(
+                    _name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint"),
+                    int(t),
+                    int(adr),
+                    int(m.jnt_dofadr[j]),
+                    q,
+                    u,
+                    dofs,
+                )
+            )
         pos[b], rot[b], omega[b] = p, R, w
     return pos, rot, omega, joints
 
@@ -221,9 +233,17 @@ def _bodies(m, pos, rot, omega, coords, kin) -> tuple[Body, ...]:
         if m.body_mass[b] == 0 and not np.any(m.body_inertia[b]):
             continue  # a pure frame: no kinetic energy, no weight
         r_G = pos[b] + rot[b] * sp.Matrix([num(c) for c in m.body_ipos[b]])
-        out.append(Body(_name(m, mujoco.mjtObj.mjOBJ_BODY, b, "body"), num(m.body_mass[b]),
-                        v_G=rate(r_G, coords, kin, T_SYM), inertia=_central_inertia(m, b),
-                        omega=omega[b], r_G=r_G, R=rot[b]))
+        out.append(
+            Body(
+                _name(m, mujoco.mjtObj.mjOBJ_BODY, b, "body"),
+                num(m.body_mass[b]),
+                v_G=rate(r_G, coords, kin, T_SYM),
+                inertia=_central_inertia(m, b),
+                omega=omega[b],
+                r_G=r_G,
+                R=rot[b],
+            )
+        )
     return tuple(out)
 
 
@@ -238,17 +258,29 @@ def _passive(m, joints) -> tuple[tuple[Body, ...], ForceElements]:
             dof = ji.dofadr + k
             a, d = float(m.dof_armature[dof]), float(m.dof_damping[dof])
             if a:
-                rotors.append(Body(f"armature:{ji.name}:{k}", sp.Integer(0), v_G=sp.zeros(3, 1),
-                                   inertia=sp.diag(num(a), 0, 0), omega=vec(w, 0, 0),
-                                   r_G=sp.zeros(3, 1), R=sp.eye(3)))
+                rotors.append(
+                    Body(
+                        f"armature:{ji.name}:{k}",
+                        sp.Integer(0),
+                        v_G=sp.zeros(3, 1),
+                        inertia=sp.diag(num(a), 0, 0),
+                        omega=vec(w, 0, 0),
+                        r_G=sp.zeros(3, 1),
+                        R=sp.eye(3),
+                    )
+                )
             if d and not disabled(m, "mjDSBL_DAMPER"):
                 elements.append(joint_damper(f"{ji.name}:{k}", w, num(d)))
         jid = next(j for j in range(m.njnt) if m.jnt_qposadr[j] == ji.qposadr)
         k_s = float(m.jnt_stiffness[jid])
-        if k_s and not disabled(m, "mjDSBL_SPRING") and ji.type in (int(JNT.mjJNT_HINGE),
-                                                                   int(JNT.mjJNT_SLIDE)):
-            elements.append(joint_spring(ji.name, ji.coords[0], num(k_s),
-                                         num(m.qpos_spring[ji.qposadr])))
+        if (
+            k_s
+            and not disabled(m, "mjDSBL_SPRING")
+            and ji.type in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE))
+        ):
+            elements.append(
+                joint_spring(ji.name, ji.coords[0], num(k_s), num(m.qpos_spring[ji.qposadr]))
+            )
     return tuple(rotors), combine(*elements)
 
 
@@ -264,7 +296,7 @@ def _eq_point_and_frame(m, e: int, side: int, pos, rot, weld: bool):
         return pos[body] + rot[body] * local, frame
     # body semantic: connect anchors data[0:3] (body 1), data[3:6] (body 2); weld the reverse
     k = (1 - side) if weld else side
-    local = sp.Matrix([num(c) for c in data[3 * k:3 * k + 3]])
+    local = sp.Matrix([num(c) for c in data[3 * k : 3 * k + 3]])
     frame = rot[obj] * (quat_matrix_const(data[6:10]) if (weld and side == 0) else sp.eye(3))
     return pos[obj] + rot[obj] * local, frame
 
@@ -327,12 +359,13 @@ def rates_from_qvel(joints, qpos, qvel) -> np.ndarray:
             out[a] = qvel[d]
             continue
         if ji.type == int(JNT.mjJNT_FREE):
-            out[a:a + 3] = qvel[d:d + 3]
+            out[a : a + 3] = qvel[d : d + 3]
             a, d = a + 3, d + 3
         qd = np.zeros(4)
-        mujoco.mju_mulQuat(qd, np.asarray(qpos[a:a + 4], float),
-                           np.array([0.0, *qvel[d:d + 3]]))
-        out[a:a + 4] = 0.5 * qd
+        mujoco.mju_mulQuat(
+            qd, np.asarray(qpos[a : a + 4], float), np.array([0.0, *qvel[d : d + 3]])
+        )
+        out[a : a + 4] = 0.5 * qd
     return out
 
 
@@ -352,9 +385,9 @@ def qvel_from_rates(joints, qpos, rates, nv: int) -> np.ndarray:
             out[d] = rates[a]
             continue
         if ji.type == int(JNT.mjJNT_FREE):
-            out[d:d + 3] = rates[a:a + 3]
+            out[d : d + 3] = rates[a : a + 3]
             a, d = a + 3, d + 3
-        out[d:d + 3] = 2 * _E(qpos[a:a + 4]) @ np.asarray(rates[a:a + 4], float)
+        out[d : d + 3] = 2 * _E(qpos[a : a + 4]) @ np.asarray(rates[a : a + 4], float)
     return out
 
 
@@ -392,34 +425,44 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
                 f"the equality constraints (positions or velocities) or quaternion norms by "
                 f"{off:.3e} (tolerance "
                 f"{INITIAL_TOL:.0e}); fix the keyframe or load with project=True to project "
-                f"it onto the constraint manifold")
+                f"it onto the constraint manifold"
+            )
         qpos, qvel = project_state(m, qpos, qvel)
         note = f"initial state projected onto the constraint manifold (it was off by {off:.3e})"
         notes = (*notes, note)
     loads = passive.loads
     conserved = not loads
     model = Model(
-        name=name or _ident(Path(path).stem), source=f"MJCF file {Path(path).name}",
+        name=name or _ident(Path(path).stem),
+        source=f"MJCF file {Path(path).name}",
         title=f"MJCF model {Path(path).name} ({len(coords)} coordinates, {len(rows)} "
-              f"constraint rows)",
-        parameters=(), coordinates=coords, speeds=rates, kinematics=rates,
-        bodies=bodies + rotors, gravity=sp.Matrix([num(c) for c in g]),
-        loads=loads, potential=passive.potential,
-        configuration_constraints=tuple(rows), constraint_names=tuple(names),
+        f"constraint rows)",
+        parameters=(),
+        coordinates=coords,
+        speeds=rates,
+        kinematics=rates,
+        bodies=bodies + rotors,
+        gravity=sp.Matrix([num(c) for c in g]),
+        loads=loads,
+        potential=passive.potential,
+        configuration_constraints=tuple(rows),
+        constraint_names=tuple(names),
         # d'Alembert with the rates as speeds writes Kane's equations again (Eqs. 7 and 9
         # differ only in the rates they project on), so it would only double the derivation
         formulations=("kane", "lagrange"),
         formulation_dependent_rows=tuple((n, _NORM_REASON) for n in norm_names),
         multiplier_meaning="MuJoCo's equality rows: connect/weld position rows, the force on "
-                           "the first object at its anchor (world components); weld rotation "
-                           "rows, torquescale * lambda / 2 is the moment on the first object "
-                           "(the second object's frame, on the manifold); joint rows, the "
-                           "generalized force on the first joint; quaternion norm rows depend "
-                           "on the formulation. With dependent rows, the minimum-norm lambda",
+        "the first object at its anchor (world components); weld rotation "
+        "rows, torquescale * lambda / 2 is the moment on the first object "
+        "(the second object's frame, on the manifold); joint rows, the "
+        "generalized force on the first joint; quaternion norm rows depend "
+        "on the formulation. With dependent rows, the minimum-norm lambda",
         initial_q=tuple(float(x) for x in qpos),
         initial_u=tuple(float(x) for x in rates_from_qvel(joints, qpos, qvel)),
-        energy_conserved=conserved, redundant_constraints=True,
-        geometry_note="; ".join(notes))
+        energy_conserved=conserved,
+        redundant_constraints=True,
+        geometry_note="; ".join(notes),
+    )
     model.validate()
     return MjcfImport(model, str(path), m, tuple(joints), notes)
 

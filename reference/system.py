@@ -11,12 +11,14 @@ components in the same frame, so a body's mass-center velocity, the loads acting
 gravity vector must be expressed consistently (gravity is rotated into the body frame with the
 body's rotation matrix ``R`` when its velocity is in body components).
 """
+
 from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Literal, Optional
+from typing import Any, Literal
 
 import sympy as sp
 
@@ -58,8 +60,8 @@ class Body:
     v_frame: Frame = "inertial"
     inertia: sp.Matrix = field(default_factory=lambda: sp.zeros(3, 3))
     omega: sp.Matrix = field(default_factory=lambda: sp.zeros(3, 1))
-    r_G: Optional[sp.Matrix] = None
-    R: Optional[sp.Matrix] = None
+    r_G: sp.Matrix | None = None
+    R: sp.Matrix | None = None
 
 
 @dataclass(frozen=True)
@@ -108,7 +110,9 @@ class Model:
     initial_u: tuple[float, ...]
     gravity: sp.Matrix = field(default_factory=lambda: sp.zeros(3, 1))
     loads: tuple[Force | Torque, ...] = ()
-    potential: sp.Expr = sp.Integer(0)  # springs; gravity's potential is derived from the bodies
+    # springs; gravity's potential is derived from the bodies (sympy's zero is an immutable
+    # singleton, so one default object shared by every Model is safe)
+    potential: sp.Expr = sp.Integer(0)  # noqa: RUF009
     configuration_constraints: tuple[sp.Expr, ...] = ()
     motion_constraints: tuple[sp.Expr, ...] = ()
     constraint_names: tuple[str, ...] = ()
@@ -118,7 +122,7 @@ class Model:
     # constraint rows whose multiplier depends on the formulation, with the reason (the motion
     # does not): e.g. the Euler-parameter normalization row of the top (Exercise 6.6)
     formulation_dependent_rows: tuple[tuple[str, str], ...] = ()
-    state_sampler: Optional[Callable] = None  # rng, params -> (q, u) consistent (optional)
+    state_sampler: Callable | None = None  # rng, params -> (q, u) consistent (optional)
     # Dependent constraint rows are allowed (user models: a planar loop closed by a 3-D MJCF
     # `connect` has a row that repeats the others). NumericModel then solves on the independent
     # rows, gives the unique u' and A^T lambda and the minimum-norm lambda with the rank
@@ -139,7 +143,7 @@ class Model:
     def speeds_are_coordinate_rates(self) -> bool:
         """True when u_k = q'_k, which Lagrange's equations and d'Alembert's principle need."""
         return len(self.speeds) == len(self.coordinates) and all(
-            sp.simplify(k - u) == 0 for k, u in zip(self.kinematics, self.speeds)
+            sp.simplify(k - u) == 0 for k, u in zip(self.kinematics, self.speeds, strict=False)
         )
 
     def time_derivative(self, expr: Any, accelerations: Any = None) -> Any:
@@ -151,7 +155,7 @@ class Model:
             return expr.applyfunc(lambda e: self.time_derivative(e, accelerations))
         out = rate(expr, self.coordinates, self.kinematics, self.t)
         if accelerations is not None:
-            for u, ud in zip(self.speeds, accelerations):
+            for u, ud in zip(self.speeds, accelerations, strict=False):
                 out += sp.diff(expr, u) * ud
         return out
 
@@ -175,8 +179,9 @@ class Model:
                 sp.srepr(x) for x in (b.mass, b.v_G, b.inertia, b.omega, b.r_G, b.R)
             ]
         for ld in self.loads:
-            parts += [type(ld).__name__, ld.name] + [sp.srepr(x) for x in vars(ld).values()
-                                                     if not isinstance(x, str)]
+            parts += [type(ld).__name__, ld.name] + [
+                sp.srepr(x) for x in vars(ld).values() if not isinstance(x, str)
+            ]
         parts += [sp.srepr(self.gravity), sp.srepr(self.potential)]
         parts += [sp.srepr(x) for x in self.configuration_constraints + self.motion_constraints]
         parts += [p.name for p in self.parameters]
@@ -191,18 +196,28 @@ class Model:
         if len(self.initial_q) != n or len(self.initial_u) != nu:
             problems.append(
                 f"initial state has {len(self.initial_q)} q and {len(self.initial_u)} u, "
-                f"expected {n} and {nu}")
+                f"expected {n} and {nu}"
+            )
         if self.constraint_names and len(self.constraint_names) != self.n_constraints:
-            problems.append(f"{len(self.constraint_names)} constraint names for "
-                            f"{self.n_constraints} constraints")
+            problems.append(
+                f"{len(self.constraint_names)} constraint names for "
+                f"{self.n_constraints} constraints"
+            )
         bad = [f for f in self.formulations if f not in FORMULATIONS]
         if bad:
             problems.append(f"unknown formulations {bad}; valid: {list(FORMULATIONS)}")
-        if {"lagrange", "dalembert"} & set(self.formulations) and not self.speeds_are_coordinate_rates:
+        if {"lagrange", "dalembert"} & set(
+            self.formulations
+        ) and not self.speeds_are_coordinate_rates:
             problems.append("Lagrange/d'Alembert need speeds equal to the coordinate rates")
         known = set(self.parameter_symbols) | set(self.coordinates) | set(self.speeds) | {self.t}
-        exprs = list(self.kinematics) + list(self.configuration_constraints) + list(
-            self.motion_constraints) + [self.potential] + list(self.gravity)
+        exprs = (
+            list(self.kinematics)
+            + list(self.configuration_constraints)
+            + list(self.motion_constraints)
+            + [self.potential]
+            + list(self.gravity)
+        )
         for b in self.bodies:
             exprs += [b.mass, *b.v_G, *b.inertia, *b.omega]
             exprs += list(b.r_G) if b.r_G is not None else []
@@ -216,7 +231,9 @@ class Model:
             exprs += [*(ld.force if isinstance(ld, Force) else ld.torque)]
         unknown = set().union(*(sp.sympify(e).free_symbols for e in exprs)) - known
         if unknown:
-            problems.append(f"undeclared symbols {sorted(map(str, unknown))}: add them as parameters")
+            problems.append(
+                f"undeclared symbols {sorted(map(str, unknown))}: add them as parameters"
+            )
         for g in self.motion_constraints:
             for u in self.speeds:
                 if sp.simplify(sp.diff(g, u, 2)) != 0:
@@ -264,6 +281,6 @@ def rate(expr: Any, coordinates: Any, kinematics: Any, t: Any = None) -> Any:
     if isinstance(expr, sp.MatrixBase):
         return expr.applyfunc(lambda e: rate(e, coordinates, kinematics, t))
     out = sp.diff(expr, t) if t is not None else sp.Integer(0)
-    for q, qdot in zip(coordinates, kinematics):
+    for q, qdot in zip(coordinates, kinematics, strict=False):
         out += sp.diff(expr, q) * qdot
     return out

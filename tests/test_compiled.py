@@ -7,6 +7,7 @@ pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and knife_edge (doc
 EQUAL_REL leaves room for one reason they could part: an integer power x**k, which CPython
 computes with libm's pow and numba by repeated multiplication (k - 1 roundings instead of one).
 """
+
 from __future__ import annotations
 
 import math
@@ -52,15 +53,17 @@ def test_compiled_equals_fallback(monkeypatch, name):
         _same(a.accelerations, b.accelerations, "u'")
         _same(a.multipliers, b.multipliers, "lambda")
         _same(a.pivot_ratio, b.pivot_ratio, "pivot ratio")
-        for what, x, y in zip("MfAb", fast.matrices(q, u), slow.matrices(q, u)):
+        for what, x, y in zip("MfAb", fast.matrices(q, u), slow.matrices(q, u), strict=False):
             _same(x, y, what)
-        for what, x, y in zip(("f(q)", "A u + a0"), fast.residuals(q, u), slow.residuals(q, u)):
+        for what, x, y in zip(
+            ("f(q)", "A u + a0"), fast.residuals(q, u), slow.residuals(q, u), strict=False
+        ):
             _same(x, y, what)
         _same(fast.energy(q, u), slow.energy(q, u), "energy")
         _same(fast.kinematics(q, u), slow.kinematics(q, u), "q'")
         buf = np.empty(fast.n + fast.m + 1)
         assert fast.forward_into(np.asarray(q, float), np.asarray(u, float), 0.0, buf) == 0
-        _same(buf[:fast.n], b.accelerations, "u' written into a preallocated array")
+        _same(buf[: fast.n], b.accelerations, "u' written into a preallocated array")
         raw = fast.forward_raw(q, u, 0.3, db=np.full(max(fast.m, 1), 0.1))
         ref = slow.forward_raw(list(q), list(u), 0.3, db=[0.1] * max(slow.m, 1))
         _same(raw[0], ref[0], "raw u' with a b offset")
@@ -73,8 +76,8 @@ def test_compiled_batch_equals_single_and_fallback_batch(monkeypatch, name):
     states = consistent_states(slow, 8)
     Q = np.array([q for q, _ in states])
     U = np.array([u for _, u in states])
-    UD, LAM, piv = fast.forward_batch(Q, U, 0.2)
-    UDs, LAMs, pivs = slow.forward_batch(Q, U, 0.2)
+    UD, LAM, _piv = fast.forward_batch(Q, U, 0.2)
+    UDs, LAMs, _pivs = slow.forward_batch(Q, U, 0.2)
     _same(UD, UDs, "batched u'")
     _same(LAM, LAMs, "batched lambda")
     for i in range(len(Q)):
@@ -94,11 +97,13 @@ def test_singular_and_bad_states_raise_the_same_errors(monkeypatch):
         with pytest.raises(SingularSystemError, match="1 of 2 states are singular"):
             nm.forward_batch(np.array([[0.5, -0.5], q]), np.array([[1.0, -1.0], u]))
         assert not nm.forward_raw(q, u, 0.0)[2] > 1e-12  # raw: the caller tests the ratio
-    for bad, match in (([[0.1], [0.0, 0.0]], "expected 2 coordinates"),
-                       ([[0.1, 0.2], [0.0]], "expected 2 speeds"),
-                       ([[0.1, math.nan], [0.0, 0.0]], "NaN or infinite"),
-                       ([[0.1, 0.2], [math.inf, 0.0]], "NaN or infinite"),
-                       ([["a", 0.2], [0.0, 0.0]], "must be numbers")):
+    for bad, match in (
+        ([[0.1], [0.0, 0.0]], "expected 2 coordinates"),
+        ([[0.1, 0.2], [0.0]], "expected 2 speeds"),
+        ([[0.1, math.nan], [0.0, 0.0]], "NaN or infinite"),
+        ([[0.1, 0.2], [math.inf, 0.0]], "NaN or infinite"),
+        ([["a", 0.2], [0.0, 0.0]], "must be numbers"),
+    ):
         msgs = []
         for nm in (fast, slow):
             with pytest.raises(ModelInputError, match=match) as exc:

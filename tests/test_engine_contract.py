@@ -2,6 +2,7 @@
 imports here on every built-in model: a model the engine claims satisfies the contract and
 everything its Capabilities promise; a model it cannot express is refused with a reason, which
 `crosscheck run` records as a skip. Real engines, no mocks."""
+
 from __future__ import annotations
 
 import math
@@ -11,8 +12,13 @@ import pytest
 
 from crosscheck import compare as C
 from crosscheck.comparison import build, engine_records
-from crosscheck.engines.base import (EngineAdapter, EngineForward, EngineModel, EngineTrajectory,
-                                     EngineUnsupported)
+from crosscheck.engines.base import (
+    EngineAdapter,
+    EngineForward,
+    EngineModel,
+    EngineTrajectory,
+    EngineUnsupported,
+)
 from crosscheck.engines.registry import available_engines, get_engine
 from crosscheck.sampling import consistent_states
 from reference import NumericModel, models
@@ -28,8 +34,9 @@ RTOL, TIMESTEP = 1e-8, 1e-3
 
 def _nonholonomic(model) -> bool:
     """A motion row the reference's integrability test does not find exact (the knife edge)."""
-    return any(r["kind"] == "motion" and r["holonomic"].startswith("not exact")
-               for r in classify(model))
+    return any(
+        r["kind"] == "motion" and r["holonomic"].startswith("not exact") for r in classify(model)
+    )
 
 
 def test_the_built_in_engines_are_registered_and_import():
@@ -51,8 +58,9 @@ def test_every_model_is_claimed_or_refused_with_a_reason(engine, name):
         assert name in refused, "a nonholonomic model needs Capabilities.nonholonomic"
 
 
-@pytest.mark.parametrize("engine,name", [(e, m) for e, m in CASES
-                                         if m in get_engine(e).unsupported()])
+@pytest.mark.parametrize(
+    "engine,name", [(e, m) for e, m in CASES if m in get_engine(e).unsupported()]
+)
 def test_a_refused_model_raises_and_becomes_a_skip_record(engine, name):
     adapter = get_engine(engine)
     with pytest.raises(EngineUnsupported) as exc:
@@ -111,8 +119,11 @@ def _check_bad_states(em, nm, q, u):
     into the engine (MuJoCo's models raised numpy's broadcast error before they checked)."""
     from reference.errors import ModelInputError
 
-    bad = [(list(q) + [0.0], u, "coordinates"), (q, list(u) + [0.0], "speeds"),
-           ([math.nan] + list(q)[1:], u, "NaN")]
+    bad = [
+        ([*list(q), 0.0], u, "coordinates"),
+        (q, [*list(u), 0.0], "speeds"),
+        ([math.nan, *list(q)[1:]], u, "NaN"),
+    ]
     for bq, bu, what in bad:
         with pytest.raises(ModelInputError, match=what):
             em.forward(bq, bu)
@@ -125,7 +136,7 @@ def _check_simulate(adapter, em, nm, q0, u0):
             em.simulate(q0, u0, T_GRID, integrator="none")
         return
     integ = caps.integrators[0]
-    setting = ({"rtol": RTOL} if integ in caps.adaptive_integrators else {"timestep": TIMESTEP})
+    setting = {"rtol": RTOL} if integ in caps.adaptive_integrators else {"timestep": TIMESTEP}
     tr = em.simulate(q0, u0, T_GRID, integrator=integ, **setting)
     assert isinstance(tr, EngineTrajectory) and tr.integrator == integ and tr.failure is None
     assert np.allclose(tr.t, T_GRID, atol=1e-12, rtol=0)
@@ -137,8 +148,7 @@ def _check_simulate(adapter, em, nm, q0, u0):
     assert C.scaled_error(tr.q[0], q0) <= C.STATE_MAP.value  # starts where it was asked to
 
 
-@pytest.mark.parametrize("engine,name", [(e, m) for e, m in CASES
-                                         if m in get_engine(e).models()])
+@pytest.mark.parametrize("engine,name", [(e, m) for e, m in CASES if m in get_engine(e).models()])
 def test_a_claimed_model_satisfies_the_contract(engine, name):
     adapter = get_engine(engine)
     nm = NumericModel(models.get(name))
@@ -162,8 +172,13 @@ def test_a_claimed_model_satisfies_the_contract(engine, name):
 def test_registry_order_labels_and_unknown_names():
     """Default engine order follows EngineAdapter.rank (the built-ins first), an unknown name
     is refused with the registered ones listed, and results' versions are keyed by package."""
-    from crosscheck.engines.registry import (UnknownEngineError, engine_label, engine_names,
-                                             engine_versions)
+    from crosscheck.engines.registry import (
+        UnknownEngineError,
+        engine_label,
+        engine_names,
+        engine_versions,
+    )
+
     order = list(ENGINES)
     assert order.index("pinocchio") < order.index("mujoco")
     assert [get_engine(e).rank for e in order] == sorted(get_engine(e).rank for e in order)
@@ -179,8 +194,10 @@ def test_registry_order_labels_and_unknown_names():
 def test_perturbation_is_parsed_checked_and_applied_in_one_place():
     from crosscheck.perturb import check_parameters, parse_perturb, perturbed
     from reference.errors import ModelInputError
-    assert parse_perturb(["mujoco:m2=1e-6", "mujoco:l1=-0.5"]) == {"mujoco": {"m2": 1e-6,
-                                                                             "l1": -0.5}}
+
+    assert parse_perturb(["mujoco:m2=1e-6", "mujoco:l1=-0.5"]) == {
+        "mujoco": {"m2": 1e-6, "l1": -0.5}
+    }
     with pytest.raises(ModelInputError, match="pinocchio"):  # the registered ones are listed
         parse_perturb(["nope:m=1"])
     with pytest.raises(ModelInputError, match="ENGINE:PARAM=REL"):

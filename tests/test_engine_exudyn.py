@@ -7,6 +7,7 @@ constraint forces on poses done by hand, energy, that a 1e-6 parameter fault is 
 two gaps of Exudyn's initial-acceleration solve the special models work around, short
 trajectories against the reference, and the unsupported models' reasons.
 """
+
 from __future__ import annotations
 
 import math
@@ -94,7 +95,7 @@ def test_every_model_supported_or_refused_with_reason():
 
 @pytest.mark.parametrize("name", MODELS)
 def test_state_round_trip(name):
-    for params, nm, t, q, u in _instances(name, 3):
+    for params, _nm, t, q, u in _instances(name, 3):
         em = ADAPTER.build(name, params)
         em.time = t
         qe, ve = em.to_engine_state(q, u)
@@ -170,8 +171,9 @@ def test_energy(name):
         assert abs(V - V_ref) <= ENERGY_RTOL * max(1.0, abs(V_ref))
 
 
-@pytest.mark.parametrize("name,param", [("slider_crank", "m2"), ("knife_edge", "I_G"),
-                                        ("pendulum_moving_support", "L")])
+@pytest.mark.parametrize(
+    "name,param", [("slider_crank", "m2"), ("knife_edge", "I_G"), ("pendulum_moving_support", "L")]
+)
 def test_parameter_fault_is_caught(name, param):
     """The engine built with one parameter 1e-6 off disagrees beyond the tolerance."""
     tol = ADAPTER.exact_tolerance(name).value
@@ -179,8 +181,10 @@ def test_parameter_fault_is_caught(name, param):
     ref = nm.forward(q, u, t)
     bad = dict(params, **{param: params[param] * (1 + 1e-6)})
     out = ADAPTER.build(name, bad).forward(q, u, t)
-    err = max(scaled_error(out.accelerations, ref.accelerations),
-              scaled_error(out.multipliers, ref.multipliers))
+    err = max(
+        scaled_error(out.accelerations, ref.accelerations),
+        scaled_error(out.multipliers, ref.multipliers),
+    )
     assert err > 10 * tol
 
 
@@ -216,17 +220,28 @@ def test_bad_input_is_refused():
         em.forward([np.nan, 0.8], [0.0, 0.0])
     m = get("pendulum_xy")
     with pytest.raises(EngineUnsupported, match="step grid"):
-        em.simulate(m.initial_q, m.initial_u, [0.0, 0.0105], integrator="generalized-alpha",
-                    timestep=1e-3)
+        em.simulate(
+            m.initial_q, m.initial_u, [0.0, 0.0105], integrator="generalized-alpha", timestep=1e-3
+        )
     with pytest.raises(EngineUnsupported, match="timestep"):
         em.simulate(m.initial_q, m.initial_u, [0.0, 0.1], integrator="generalized-alpha")
     with pytest.raises(EngineUnsupported, match="unknown integrator"):
         em.simulate(m.initial_q, m.initial_u, [0.0, 0.1], integrator="RK4", timestep=1e-3)
 
 
-@pytest.mark.parametrize("name", ["pendulum_xy", "slider_crank", "knife_edge",
-                                  "pendulum_moving_support", "double_pendulum_3d",
-                                  "exercise_6_1", "exercise_6_4", "frame_bar"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "pendulum_xy",
+        "slider_crank",
+        "knife_edge",
+        "pendulum_moving_support",
+        "double_pendulum_3d",
+        "exercise_6_1",
+        "exercise_6_4",
+        "frame_bar",
+    ],
+)
 @pytest.mark.parametrize("integrator", ["generalized-alpha", "trapezoidal-index2"])
 def test_short_trajectory_against_reference(name, integrator):
     """0.3 s from the model's initial state: both of Exudyn's integrators are second order
@@ -234,8 +249,9 @@ def test_short_trajectory_against_reference(name, integrator):
     m = get(name)
     nm = NumericModel(m)
     t_eval = np.linspace(0.0, 0.3, 7)
-    ref = reference_simulate(nm, m.initial_q, m.initial_u, 0.3, "projection", rtol=1e-11,
-                             atol=1e-11, t_eval=t_eval)
+    ref = reference_simulate(
+        nm, m.initial_q, m.initial_u, 0.3, "projection", rtol=1e-11, atol=1e-11, t_eval=t_eval
+    )
     em = ADAPTER.build(name)
     errs = []
     for h in (2e-3, 1e-3):
@@ -244,7 +260,6 @@ def test_short_trajectory_against_reference(name, integrator):
         errs.append(float(np.max(np.abs(tr.q - ref.q))))
     assert errs[1] < 1e-3
     assert 3.0 < errs[0] / errs[1] < 5.0
-
 
 
 def test_exercise_6_4_pin_force_is_the_bars_momentum_balance():
@@ -261,8 +276,7 @@ def test_frame_bar_bearing_moment_is_newton_euler():
     accelerations."""
     params, _, t, q, u = _instances("frame_bar", 1, seed=4)[0]
     out = ADAPTER.build("frame_bar", params).forward(q, u, t)
-    assert out.multipliers[0] == pytest.approx(out.raw["lambda_newton_euler"], rel=1e-9,
-                                               abs=1e-12)
+    assert out.multipliers[0] == pytest.approx(out.raw["lambda_newton_euler"], rel=1e-9, abs=1e-12)
 
 
 @pytest.mark.parametrize("name", MODELS)
@@ -285,8 +299,9 @@ def test_fingerprint_reads_the_built_system():
     em = ADAPTER.build("slider_crank", params)
     before = em.fingerprint()
     assert type(em)("slider_crank", dict(params, unused=1.0)).fingerprint() == before
-    body = next(i for i in range(em.mbs.systemData.NumberOfObjects())
-                if "mass" in em.mbs.GetObject(i))
+    body = next(
+        i for i in range(em.mbs.systemData.NumberOfObjects()) if "mass" in em.mbs.GetObject(i)
+    )
     em.mbs.ModifyObject(body, {"mass": em.mbs.GetObject(body)["mass"] * (1 + 1e-12)})
     assert em.fingerprint() != before
 
@@ -299,25 +314,38 @@ def test_perturbation_that_changes_nothing_is_refused():
     check_perturb_changes(["slider_crank"], ["exudyn"], {"exudyn": {"m2": 1e-6}})
 
 
-@pytest.mark.parametrize("name,param", [("pendulum_angle", "L"), ("knife_edge", "a"),
-                                        ("pendulum_moving_support", "a"),
-                                        ("slider_crank", "l2"), ("top_euler", "L")])
+@pytest.mark.parametrize(
+    "name,param",
+    [
+        ("pendulum_angle", "L"),
+        ("knife_edge", "a"),
+        ("pendulum_moving_support", "a"),
+        ("slider_crank", "l2"),
+        ("top_euler", "L"),
+    ],
+)
 def test_maps_use_the_nominal_geometry(name, param):
     """A perturbation changes the engine's physics only: with a length 1e-3 off, the state
     maps are the nominal model's (the same engine state, the exact round trip) while the
     answer differs."""
-    params, nm, t, q, u = _instances(name, 1, seed=7)[0]
+    params, _nm, t, q, u = _instances(name, 1, seed=7)[0]
     bad = dict(params, **{param: params[param] * (1 + 1e-3)})
-    nominal, perturbed = build(ADAPTER, name, params, None), build(ADAPTER, name, bad, None,
-                                                                   nominal=params)
+    nominal, perturbed = (
+        build(ADAPTER, name, params, None),
+        build(ADAPTER, name, bad, None, nominal=params),
+    )
     nominal.time = perturbed.time = t
     qe, ve = perturbed.to_engine_state(q, u)
     qn, vn = nominal.to_engine_state(q, u)
     assert np.array_equal(qe, qn) and np.array_equal(ve, vn)
     q2, u2 = perturbed.from_engine_state(qe, ve)
     assert scaled_error(q2, q) < STATE_MAP_RTOL and scaled_error(u2, u) < STATE_MAP_RTOL
-    assert scaled_error(perturbed.forward(q, u, t).accelerations,
-                        nominal.forward(q, u, t).accelerations) > 1e-6
+    assert (
+        scaled_error(
+            perturbed.forward(q, u, t).accelerations, nominal.forward(q, u, t).accelerations
+        )
+        > 1e-6
+    )
 
 
 def test_solver_output_is_silenced_and_failures_keep_their_reason(capfd, monkeypatch):
@@ -328,15 +356,17 @@ def test_solver_output_is_silenced_and_failures_keep_their_reason(capfd, monkeyp
 
     m = get("slider_crank")
     em = ADAPTER.build("slider_crank")
-    with pytest.raises(ExudynIntegrationError, match="did not converge .* at t = "):
-        em.simulate(m.initial_q, m.initial_u, [0.0, 0.5], integrator="generalized-alpha",
-                    timestep=0.25)
+    with pytest.raises(ExudynIntegrationError, match=r"did not converge .* at t = "):
+        em.simulate(
+            m.initial_q, m.initial_u, [0.0, 0.5], integrator="generalized-alpha", timestep=0.25
+        )
     # Exudyn notes allocations per step above a threshold; at 1 it fires on any run with
     # Python user functions (the knife edge's row)
     monkeypatch.setattr(exudyn.solver, "solverCheckMemoryAllocationsThreshold", 1)
     k = get("knife_edge")
-    tr = ADAPTER.build("knife_edge").simulate(k.initial_q, k.initial_u, [0.0, 0.01],
-                                              integrator="generalized-alpha", timestep=1e-3)
+    tr = ADAPTER.build("knife_edge").simulate(
+        k.initial_q, k.initial_u, [0.0, 0.01], integrator="generalized-alpha", timestep=1e-3
+    )
     assert tr.failure is None
     out = capfd.readouterr().out
     assert "SOLVER FAILED" not in out and "memory allocations" not in out

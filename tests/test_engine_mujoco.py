@@ -18,20 +18,21 @@ Tolerances (one per quantity, with the reason):
 - TOL_MASS = 1e-11: M and f mapped to the reference; the light bodies (1e-12 relative inertia)
   bias M by 1e-12.
 """
+
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import mujoco
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from crosscheck.engines.base import EngineUnsupported
-from crosscheck.engines.mujoco.adapter import (MJCF_DIR, SOLIMP, MujocoAdapter, mjcf,
-                                              write_mjcf)
+from crosscheck.engines.mujoco.adapter import MJCF_DIR, SOLIMP, MujocoAdapter, mjcf, write_mjcf
 from reference.models import get
 from reference.numeric import NumericModel
 
@@ -43,24 +44,39 @@ TOL_MASS = 1e-11
 PRED_REL = 1e-3  # |actual raw error - predicted| / |predicted|: floor 1e-9 / 1e-4 = 1e-5
 EPS_SOFT = (1 - SOLIMP[0]) / SOLIMP[0]  # (1 - d)/d = 1.0001e-4
 
-CASES = [("pendulum_angle", None), ("pendulum_xy", None), ("slider_crank", None),
-         ("slider_crank_split", None), ("slider_crank_free", None),
-         ("double_pendulum_3d", "free"), ("double_pendulum_3d", "tree"),
-         ("top_euler", None), ("top_cartesian", None), ("frame_bar", None),
-         ("exercise_6_1", None), ("exercise_6_2", None), ("exercise_6_4", None)]
+CASES = [
+    ("pendulum_angle", None),
+    ("pendulum_xy", None),
+    ("slider_crank", None),
+    ("slider_crank_split", None),
+    ("slider_crank_free", None),
+    ("double_pendulum_3d", "free"),
+    ("double_pendulum_3d", "tree"),
+    ("top_euler", None),
+    ("top_cartesian", None),
+    ("frame_bar", None),
+    ("exercise_6_1", None),
+    ("exercise_6_2", None),
+    ("exercise_6_4", None),
+]
 IDS = [n if v is None else f"{n}[{v}]" for n, v in CASES]
-DETERMINISTIC = settings(derandomize=True, max_examples=15, deadline=None, database=None,
-                         suppress_health_check=[HealthCheck.too_slow])
+DETERMINISTIC = settings(
+    derandomize=True,
+    max_examples=15,
+    deadline=None,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 
 ADAPTER = MujocoAdapter()
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference(name: str, formulation: str | None = None) -> NumericModel:
     return NumericModel(get(name), formulation)
 
 
-@lru_cache(maxsize=None)
+@cache
 def engine(name: str, variant: str | None):
     return ADAPTER.build(name, None, variant)
 
@@ -70,7 +86,7 @@ def maxabs(x) -> float:
     return float(np.max(np.abs(x))) if x.size else 0.0
 
 
-@lru_cache(maxsize=None)
+@cache
 def scales(name: str, formulation: str | None = None) -> tuple[float, float]:
     """(|u'|, |lambda|) of the reference at the model's initial state."""
     nm = reference(name, formulation)
@@ -137,12 +153,16 @@ def state_from_primaries(name, nm, a, b, seed):
 def random_states(name, n, seed=0, formulation=None):
     nm = reference(name, formulation)
     rng = np.random.default_rng(seed)
-    return [state_from_primaries(name, nm, rng.uniform(-1, 1), rng.uniform(-1, 1),
-                                 int(rng.integers(2**31))) for _ in range(n)]
+    return [
+        state_from_primaries(
+            name, nm, rng.uniform(-1, 1), rng.uniform(-1, 1), int(rng.integers(2**31))
+        )
+        for _ in range(n)
+    ]
 
 
 # ---- the reference's kinematics, for an independent check of the state map -------------------
-@lru_cache(maxsize=None)
+@cache
 def body_kinematics(name: str):
     """Lambdified (r_G, v_G in inertial components, R, omega body) of every reference body."""
     mdl = get(name)
@@ -157,8 +177,9 @@ def body_kinematics(name: str):
         if b.v_frame == "body":
             v = R * v
         w = b.omega.xreplace(subs) if b.R is not None else None
-        out[b.name] = tuple(sp.lambdify(args, e, "numpy") if e is not None else None
-                            for e in (r, v, R, w))
+        out[b.name] = tuple(
+            sp.lambdify(args, e, "numpy") if e is not None else None for e in (r, v, R, w)
+        )
     return out
 
 
@@ -225,12 +246,22 @@ def check_forward(name, variant, formulation, q, u):
     out = {}
     # de-regularized (rigid) answer: the issue's 1e-9
     out["acc_rigid"] = rel_err(raw["rigid_accelerations"], ref.accelerations, s_acc)
-    assert out["acc_rigid"] <= TOL_RIGID, (name, q, u, raw["rigid_accelerations"],
-                                           ref.accelerations)
+    assert out["acc_rigid"] <= TOL_RIGID, (
+        name,
+        q,
+        u,
+        raw["rigid_accelerations"],
+        ref.accelerations,
+    )
     if fw.multipliers is not None:
         out["lam_rigid"] = rel_err(raw["rigid_multipliers"], ref.multipliers, s_lam)
-        assert out["lam_rigid"] <= TOL_RIGID, (name, q, u, raw["rigid_multipliers"],
-                                               ref.multipliers)
+        assert out["lam_rigid"] <= TOL_RIGID, (
+            name,
+            q,
+            u,
+            raw["rigid_multipliers"],
+            ref.multipliers,
+        )
     if "impedance" in raw:  # soft equality rows
         # raw soft answer: impedance d = solimp[0] on every row, R = (1-d)/d diagA
         assert np.allclose(raw["impedance"], SOLIMP[0], rtol=0, atol=1e-15)
@@ -238,8 +269,10 @@ def check_forward(name, variant, formulation, q, u):
         e_lam = fw.multipliers - ref.multipliers
         e_acc = fw.accelerations - ref.accelerations
         # within the bound derived from eps = (1 - d)/d ...
-        slack_l, slack_a = TOL_RIGID * max(maxabs(ref.multipliers), s_lam), \
-            TOL_RIGID * max(maxabs(ref.accelerations), s_acc)
+        slack_l, slack_a = (
+            TOL_RIGID * max(maxabs(ref.multipliers), s_lam),
+            TOL_RIGID * max(maxabs(ref.accelerations), s_acc),
+        )
         assert maxabs(e_lam) <= raw["raw_multiplier_error_bound"] + slack_l
         assert maxabs(e_acc) <= raw["raw_acceleration_error_bound"] + slack_a
         # ... and equal to the error predicted from the impedance alone
@@ -370,16 +403,16 @@ def test_sign_slider_crank():
     slider and its share of the rod, lambda = (m2 r2/l2 + m3) g; the slider pushes the rod
     up at C by m2 g r2/l2 (efc_force on the rod, site1); q'' = 0."""
     p = _params("slider_crank")
-    m1, m2, m3, l1, l2, r1, r2, g = (p[k] for k in ("m1", "m2", "m3", "l1", "l2", "r1", "r2",
-                                                     "g"))
+    m1, m2, m3, l1, l2, r1, r2, g = (p[k] for k in ("m1", "m2", "m3", "l1", "l2", "r1", "r2", "g"))
     lam = (m2 * r2 / l2 + m3) * g
     T = m1 * r1 * g + m2 * g * l1 * (1 - r2 / l2)
     em = ADAPTER.build("slider_crank", {"T": T})
     fw = em.forward([0.0, 0.0], [0.0, 0.0])
     assert fw.raw["rigid_accelerations"] == pytest.approx([0.0, 0.0], abs=1e-9)
     assert fw.raw["rigid_multipliers"][0] == pytest.approx(lam, rel=1e-10)
-    assert fw.raw["rigid_engine_forces"][:3] == pytest.approx([0.0, m2 * g * r2 / l2, 0.0],
-                                                              abs=1e-9)
+    assert fw.raw["rigid_engine_forces"][:3] == pytest.approx(
+        [0.0, m2 * g * r2 / l2, 0.0], abs=1e-9
+    )
     assert fw.raw["guide_force_cfrc"] == pytest.approx(fw.multipliers[0], rel=1e-12)
     nm = NumericModel(get("slider_crank"), None, {"T": T})
     assert nm.forward([0.0, 0.0], [0.0, 0.0]).multipliers[0] == pytest.approx(lam, rel=1e-12)
@@ -419,7 +452,8 @@ def test_sign_double_pendulum(variant):
     assert fw.raw["rigid_multipliers"] == pytest.approx(lam, abs=1e-9)
     if variant == "free":  # efc_force = [F_O on link 1, F_A on link 2]
         assert fw.raw["rigid_engine_forces"] == pytest.approx(
-            [0.0, (m1 + m2) * g, 0.0, 0.0, m2 * g, 0.0], abs=1e-9)
+            [0.0, (m1 + m2) * g, 0.0, 0.0, m2 * g, 0.0], abs=1e-9
+        )
     nm = reference("double_pendulum_3d")
     assert nm.forward(HANG + HANG, np.zeros(12)).multipliers == pytest.approx(lam, abs=1e-12)
 
@@ -436,8 +470,9 @@ def test_sign_top():
     assert fw.raw["rigid_multipliers"] == pytest.approx(lam, abs=1e-10)
     assert fw.raw["rigid_engine_forces"] == pytest.approx([0.0, 0.0, m * g], abs=1e-10)
     for form in get("top_cartesian").formulations:
-        assert reference("top_cartesian", form).forward(q, np.zeros(7)).multipliers == \
-            pytest.approx(lam, abs=1e-12)
+        assert reference("top_cartesian", form).forward(
+            q, np.zeros(7)
+        ).multipliers == pytest.approx(lam, abs=1e-12)
     fe = engine("top_euler", None).forward([0.0, 0.0, 0.0, 1.0], np.zeros(4))
     assert fe.multipliers is None
     assert fe.raw["socket_force"] == pytest.approx([0.0, 0.0, m * g], abs=1e-12)
@@ -473,12 +508,14 @@ def test_sign_exercise_6_1():
     raw = fw.raw
     assert raw["rigid_accelerations"] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
     assert raw["rigid_multipliers"] == pytest.approx(lam, rel=1e-10)
-    assert raw["rigid_engine_forces"] == pytest.approx([k * l * S, -(m_p * g + F), 0.0],
-                                                       rel=1e-10, abs=1e-10)
+    assert raw["rigid_engine_forces"] == pytest.approx(
+        [k * l * S, -(m_p * g + F), 0.0], rel=1e-10, abs=1e-10
+    )
     assert raw["spring_damper_force"] == pytest.approx(-k * l * S, rel=1e-14)
     # the slider's force on the bar (cfrc_int) at MuJoCo's own (soft) answer, ~1e-4 off
-    assert raw["pin_A_force_cfrc"] == pytest.approx([-k * l * S, (m + m_p) * g + F, 0.0],
-                                                    rel=1e-3, abs=1e-9)
+    assert raw["pin_A_force_cfrc"] == pytest.approx(
+        [-k * l * S, (m + m_p) * g + F, 0.0], rel=1e-3, abs=1e-9
+    )
     assert fw.multipliers == pytest.approx(lam, rel=1e-3)
     assert reference("exercise_6_1").forward(q, u).multipliers == pytest.approx(lam, rel=1e-12)
     # moving: the damper opposes x' (qfrc_passive = -k x - c x'), and the slider transmits it
@@ -486,10 +523,8 @@ def test_sign_exercise_6_1():
     w = 1.3
     fm = engine("exercise_6_1", None).forward([l * S, l * C, th], [l * C * w, -l * S * w, w])
     assert fm.raw["spring_damper_force"] == pytest.approx(-k * l * S - c * l * C * w, rel=1e-14)
-    assert fm.raw["pin_A_force_cfrc"][0] == pytest.approx(fm.raw["spring_damper_force"],
-                                                          rel=1e-10)
-    assert fm.raw["pin_A_force_cfrc"] == pytest.approx(fm.raw["pin_A_force"], rel=1e-10,
-                                                       abs=1e-10)
+    assert fm.raw["pin_A_force_cfrc"][0] == pytest.approx(fm.raw["spring_damper_force"], rel=1e-10)
+    assert fm.raw["pin_A_force_cfrc"] == pytest.approx(fm.raw["pin_A_force"], rel=1e-10, abs=1e-10)
 
 
 def test_sign_exercise_6_2():
@@ -507,7 +542,8 @@ def test_sign_exercise_6_2():
     assert fw.multipliers == pytest.approx([0.0, -m2 * g], rel=1e-13, abs=1e-13)
     assert fw.raw["pin_force_on_bar"] == pytest.approx([0.0, -m2 * g, 0.0], abs=1e-12)
     assert reference("exercise_6_2").forward(q, u).multipliers == pytest.approx(
-        [0.0, -m2 * g], abs=1e-12)
+        [0.0, -m2 * g], abs=1e-12
+    )
     x, xd = 0.2, -0.7
     em.forward([x, 0.0, 0.0, l / 2], [xd, 0.0, 0.0, 0.0])
     assert em.d.qfrc_passive[0] == pytest.approx(-k * x - c * xd, rel=1e-14)
@@ -532,14 +568,16 @@ def test_sign_exercise_6_4():
     W = 2.5
     fw = em.forward(q, [W, 0.0, 0.0, 0.0])
     thdd = 3 * R * W * W / (2 * l)
-    assert fw.accelerations == pytest.approx([0.0, thdd, l / 2 * thdd, 0.0], rel=1e-11,
-                                             abs=1e-11)
+    assert fw.accelerations == pytest.approx([0.0, thdd, l / 2 * thdd, 0.0], rel=1e-11, abs=1e-11)
     assert fw.multipliers == pytest.approx([-m * R * W * W / 4, m * g], rel=1e-11)
     assert nm.forward(q, [W, 0.0, 0.0, 0.0]).multipliers == pytest.approx(
-        [-m * R * W * W / 4, m * g], rel=1e-12)
+        [-m * R * W * W / 4, m * g], rel=1e-12
+    )
     th, thd = 0.4, -1.1
-    em.forward([0.3, th, R + l / 2 * math.sin(th), -l / 2 * math.cos(th)],
-               [0.0, thd, l / 2 * math.cos(th) * thd, l / 2 * math.sin(th) * thd])
+    em.forward(
+        [0.3, th, R + l / 2 * math.sin(th), -l / 2 * math.cos(th)],
+        [0.0, thd, l / 2 * math.cos(th) * thd, l / 2 * math.sin(th) * thd],
+    )
     assert em.d.qfrc_passive[1] == pytest.approx(-k * th - c * thd, rel=1e-14)
 
 
@@ -573,8 +611,12 @@ def test_exercise_mass_matrix_on_the_manifold(name):
     assert em.mass_matrix(nm.model.initial_q) is None
     for q, u in random_states(name, 4, seed=9):
         qe, ve = em.to_engine_state(q, u)
-        Z = np.column_stack([em.from_engine_state(qe, e)[1] - em.from_engine_state(qe, 0 * e)[1]
-                             for e in np.eye(len(ve))])
+        Z = np.column_stack(
+            [
+                em.from_engine_state(qe, e)[1] - em.from_engine_state(qe, 0 * e)[1]
+                for e in np.eye(len(ve))
+            ]
+        )
         M, *_ = nm.matrices(q, u)
         em.d.qpos[:], em.d.qvel[:] = qe, ve
         mujoco.mj_forward(em.m, em.d)
@@ -605,9 +647,17 @@ def test_timed_forward_is_forwards_engine_call(name, variant):
 # ======================================================================================
 # the checks can fail
 # ======================================================================================
-PERTURBED = [("slider_crank", "m2"), ("slider_crank_split", "m2"), ("double_pendulum_3d", "m2"),
-             ("exercise_6_1", "m_p"), ("exercise_6_1", "c"), ("exercise_6_2", "m2"),
-             ("exercise_6_2", "k"), ("exercise_6_4", "m"), ("exercise_6_4", "k")]
+PERTURBED = [
+    ("slider_crank", "m2"),
+    ("slider_crank_split", "m2"),
+    ("double_pendulum_3d", "m2"),
+    ("exercise_6_1", "m_p"),
+    ("exercise_6_1", "c"),
+    ("exercise_6_2", "m2"),
+    ("exercise_6_2", "k"),
+    ("exercise_6_4", "m"),
+    ("exercise_6_4", "k"),
+]
 
 
 @pytest.mark.parametrize("name,param", PERTURBED, ids=[f"{n}:{p}" for n, p in PERTURBED])
@@ -625,8 +675,11 @@ def test_perturbed_parameter_fails_the_rigid_comparison(name, param):
         ok = good.forward(q, u).raw
         assert rel_err(ok["rigid_accelerations"], ref.accelerations, s_acc) <= TOL_RIGID
         raw = bad.forward(q, u).raw
-        worst = max(worst, rel_err(raw["rigid_accelerations"], ref.accelerations, s_acc),
-                    rel_err(raw["rigid_multipliers"], ref.multipliers, s_lam))
+        worst = max(
+            worst,
+            rel_err(raw["rigid_accelerations"], ref.accelerations, s_acc),
+            rel_err(raw["rigid_multipliers"], ref.multipliers, s_lam),
+        )
     assert worst > 10 * TOL_RIGID, worst
 
 
@@ -641,10 +694,11 @@ def test_tendon_equality_misses_jdot_v():
     m, L, g = p["m"], p["L"], p["g"]
     xml = f"""<mujoco><option gravity="0 {g!r} 0" tolerance="1e-15"><flag contact="disable"/>
     </option><worldbody><site name="o"/><body name="bob" pos="0 {L!r} 0">
-    <joint name="x" type="slide" axis="1 0 0"/><joint name="y" type="slide" axis="0 1 0"/><inertial pos="0 0 0"
-    mass="{m!r}" diaginertia="1e-12 1e-12 1e-12"/><site name="b"/></body></worldbody>
+    <joint name="x" type="slide" axis="1 0 0"/><joint name="y" type="slide" axis="0 1 0"/>
+    <inertial pos="0 0 0" mass="{m!r}" diaginertia="1e-12 1e-12 1e-12"/><site name="b"/>
+    </body></worldbody>
     <tendon><spatial name="rod"><site site="o"/><site site="b"/></spatial></tendon>
-    <equality><tendon tendon1="rod" solimp="{' '.join(map(str, SOLIMP))}"/></equality>
+    <equality><tendon tendon1="rod" solimp="{" ".join(map(str, SOLIMP))}"/></equality>
     </mujoco>"""
     mm = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(mm)
@@ -675,9 +729,15 @@ def test_simulate_rk4_matches_reference_and_energy_is_read_after_forward():
     q0, u0 = [1.2], [0.5]
     tr = em.simulate(q0, u0, np.linspace(0.0, 1.0, 11), integrator="RK4", timestep=1e-3)
     assert tr.steps == 1000 and tr.t[-1] == pytest.approx(1.0) and len(tr.t) == 11
-    sol = solve_ivp(lambda t, y: [y[1], nm.forward([y[0]], [y[1]]).accelerations[0]],
-                    (0, tr.t[-1]), [q0[0], u0[0]], t_eval=tr.t, rtol=1e-12, atol=1e-12,
-                    method="DOP853")
+    sol = solve_ivp(
+        lambda t, y: [y[1], nm.forward([y[0]], [y[1]]).accelerations[0]],
+        (0, tr.t[-1]),
+        [q0[0], u0[0]],
+        t_eval=tr.t,
+        rtol=1e-12,
+        atol=1e-12,
+        method="DOP853",
+    )
     assert maxabs(tr.q[:, 0] - sol.y[0]) <= 1e-9
     assert maxabs(tr.u[:, 0] - sol.y[1]) <= 1e-8
     E = tr.energy
@@ -712,8 +772,9 @@ def test_simulate_constrained_drift(integrator):
     # the energy error's size: tests/test_mujoco_bounds.py (derived from order and step)
 
 
-@pytest.mark.parametrize("name,limit", [("exercise_6_1", 1e-5), ("exercise_6_2", 1e-9),
-                                        ("exercise_6_4", 1e-9)])
+@pytest.mark.parametrize(
+    "name,limit", [("exercise_6_1", 1e-5), ("exercise_6_2", 1e-9), ("exercise_6_4", 1e-9)]
+)
 def test_simulate_exercises_against_reference(name, limit):
     """1 s of MuJoCo RK4 (dt = 1e-3) from the model's initial state against the reference
     (projection method, tolerance 1e-12). The trees (6.2, 6.4: springs and dampers as joint

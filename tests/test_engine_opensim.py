@@ -9,11 +9,12 @@ unsupported models' reasons, the timing hook, and short Manager trajectories.
 States: crosscheck.sampling.random_consistent_state (initial state + noise, projected by
 NumericModel.project) from a seeded numpy Generator, so every run draws the same states.
 """
+
 from __future__ import annotations
 
 import math
 import tomllib
-from functools import lru_cache
+from functools import cache
 from importlib import metadata
 from pathlib import Path
 
@@ -56,8 +57,12 @@ RELAXED = {"exercise_6_2", "exercise_6_4"}
 UDOTERR_ATOL = 1e-9
 N_STATES = 12
 
-PARAMS = {"slider_crank": {"T": 0.7}, "slider_crank_split": {"T": 0.7},
-          "slider_crank_free": {"T": 0.7}, "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2}}
+PARAMS = {
+    "slider_crank": {"T": 0.7},
+    "slider_crank_split": {"T": 0.7},
+    "slider_crank_free": {"T": 0.7},
+    "exercise_6_4": {"M_phi": 0.3, "M_theta": -0.2},
+}
 MODELS = ADAPTER.models()
 # (model, variant) pairs: every engine variant of every mapped model
 CASES = [(m, v) for m in MODELS for v in ADAPTER.variants(m)]
@@ -65,18 +70,20 @@ CASES = [(m, v) for m in MODELS for v in ADAPTER.variants(m)]
 
 def _id(case):
     return "-".join(str(x) for x in case if x is not None)
+
+
 # The top's normalization row has no engine force (its multiplier is formulation-dependent).
 NO_ENGINE_MULTIPLIERS = {"top_euler"}
 # Models whose q ends with Euler parameters: eps and -eps are one engine rotation.
 EULER_PARAMETERS = {"top_euler", "top_cartesian"}
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference(model_name: str, formulation: str) -> NumericModel:
     return NumericModel(get(model_name), formulation, PARAMS.get(model_name, {}))
 
 
-@lru_cache(maxsize=None)
+@cache
 def engine(model_name: str, perturb=(), variant=None):
     params = dict(PARAMS.get(model_name, {}))
     params.update(dict(perturb))
@@ -90,8 +97,10 @@ def states(model_name: str, n: int = N_STATES, seed: int = 0):
     nm = reference(model_name, mod.formulations[0])
     rng = np.random.default_rng(seed)
     if mod.state_sampler is not None:
-        return [nm.project(*(np.array(x, float) for x in mod.state_sampler(rng, nm.params)))
-                for _ in range(n)]
+        return [
+            nm.project(*(np.array(x, float) for x in mod.state_sampler(rng, nm.params)))
+            for _ in range(n)
+        ]
     return [random_consistent_state(nm, rng) for _ in range(n)]
 
 
@@ -188,7 +197,7 @@ def test_energy_same_datum(case):
     em = engine(model_name, variant=variant)
     nm = reference(model_name, get(model_name).formulations[0])
     for q, u in states(model_name, 5):
-        for got, ref in zip(em.energy(q, u), nm.energy(q, u)):
+        for got, ref in zip(em.energy(q, u), nm.energy(q, u), strict=False):
             bound = ENERGY_RTOL * max(1.0, abs(ref))
             if model_name in RELAXED:
                 bound = max(bound, ENERGY_MANIFOLD_ATOL)
@@ -200,8 +209,10 @@ def test_perturbed_parameter_breaks_agreement():
     nm = reference("slider_crank", "lagrange")
     m2 = nm.params["m2"]
     bad = engine("slider_crank", (("m2", m2 * (1 + 1e-6)),))
-    worst = max(rel_err(bad.forward(q, u).multipliers, nm.forward(q, u).multipliers)
-                for q, u in states("slider_crank", 4))
+    worst = max(
+        rel_err(bad.forward(q, u).multipliers, nm.forward(q, u).multipliers)
+        for q, u in states("slider_crank", 4)
+    )
     assert worst > 100 * EXACT
     assert bad.fingerprint() != engine("slider_crank").fingerprint()
 
@@ -230,8 +241,9 @@ def test_perturbation_that_changes_nothing_is_refused():
     check_perturb_changes(["slider_crank"], ["opensim"], {"opensim": {"m2": 1e-6}})
 
 
-@pytest.mark.parametrize("model_name,param", [("top_cartesian", "L"),
-                                              ("pendulum_moving_support", "a")])
+@pytest.mark.parametrize(
+    "model_name,param", [("top_cartesian", "L"), ("pendulum_moving_support", "a")]
+)
 def test_maps_use_the_nominal_geometry(model_name, param):
     """A perturbation changes the engine's physics only: with a length 1e-3 off, the state
     and multiplier maps are the nominal model's (the exact round trip) while the answer
@@ -302,7 +314,7 @@ def _forward(model_name, k=0):
 def test_pendulum_xy_multiplier_is_the_rod_force():
     """The rod's force on the bob (OpenSim's calcConstraintForces, body 2) is A^T lambda =
     lambda p in the reference's axes (p_ref = (x, y down); the engine's y is flipped)."""
-    em, q, u, f = _forward("pendulum_xy")
+    em, q, _u, f = _forward("pendulum_xy")
     (_, on_ground), (_, on_bob) = em.constraint_forces()[0]
     assert np.allclose(on_bob[:2], f.multipliers[0] * np.array([q[0], -q[1]]), rtol=1e-13)
     assert np.allclose(on_ground, -on_bob, rtol=1e-13)
@@ -325,14 +337,14 @@ def test_moving_support_rod_multiplier():
 
 
 def test_slider_crank_multiplier_is_the_guide_force_on_C():
-    em, q, u, f = _forward("slider_crank")
-    (_, on_ground), (_, on_slider) = em.constraint_forces()[0]
+    em, _q, _u, f = _forward("slider_crank")
+    (_, _on_ground), (_, on_slider) = em.constraint_forces()[0]
     assert math.isclose(on_slider[1], f.multipliers[0], rel_tol=1e-13)
     assert abs(on_slider[0]) < 1e-13 and abs(f.raw["engine_multipliers"][0]) < 1e-13
 
 
 def test_slider_crank_split_multipliers_are_the_force_on_the_crank():
-    em, q, u, f = _forward("slider_crank_split")
+    em, _q, _u, f = _forward("slider_crank_split")
     (_, on_crank), (_, on_rod) = em.constraint_forces()[0]
     assert np.allclose(on_crank[:2], f.multipliers, rtol=1e-13)
     assert np.allclose(on_rod, -on_crank, rtol=1e-13)
@@ -341,11 +353,12 @@ def test_slider_crank_split_multipliers_are_the_force_on_the_crank():
 def test_exercise_6_1_end_forces():
     """F_B from the closure's applied force on the bar; F_A from the bar joint's reaction equals
     the massless slider's spring-damper force along X."""
-    em, q, u, f = _forward("exercise_6_1")
+    em, _q, _u, f = _forward("exercise_6_1")
     (_, on_bar), _ = em.constraint_forces()[0]
     assert np.allclose(f.raw["force_on_bar_at_B"], on_bar, rtol=1e-13)
-    assert math.isclose(f.raw["force_on_bar_at_A"][0], f.raw["spring_damper_force"],
-                        rel_tol=1e-12, abs_tol=1e-12)
+    assert math.isclose(
+        f.raw["force_on_bar_at_A"][0], f.raw["spring_damper_force"], rel_tol=1e-12, abs_tol=1e-12
+    )
 
 
 def test_top_normalization_values_in_raw():
@@ -392,8 +405,9 @@ def test_timed_forward_is_forwards_engine_call(model_name):
 SIM_TOL = 1e-7
 
 
-@pytest.mark.parametrize("model_name", ["pendulum_xy", "slider_crank", "exercise_6_1",
-                                        "pendulum_moving_support"])
+@pytest.mark.parametrize(
+    "model_name", ["pendulum_xy", "slider_crank", "exercise_6_1", "pendulum_moving_support"]
+)
 def test_simulate_matches_reference_trajectory(model_name):
     em, nm = engine(model_name), reference(model_name, "lagrange")
     mod = get(model_name)
@@ -405,8 +419,9 @@ def test_simulate_matches_reference_trajectory(model_name):
     def rhs(t, y):
         return np.concatenate([y[n:], nm.forward(y[:n], y[n:], t).accelerations])
 
-    sol = solve_ivp(rhs, (0.0, 0.5), np.concatenate([q0, u0]), method="DOP853", rtol=1e-12,
-                    atol=1e-12, t_eval=t)
+    sol = solve_ivp(
+        rhs, (0.0, 0.5), np.concatenate([q0, u0]), method="DOP853", rtol=1e-12, atol=1e-12, t_eval=t
+    )
     assert np.allclose(tr.t, t, rtol=0, atol=1e-12)
     assert np.max(np.abs(tr.q - sol.y[:n].T)) < SIM_TOL
     assert np.max(np.abs(tr.u - sol.y[n:].T)) < SIM_TOL
@@ -440,5 +455,5 @@ def test_simulate_3d_conserves_energy(model_name):
     E0 = sum(nm.energy(q0, u0))
     assert np.max(np.abs(tr.energy - E0)) < ENERGY_DRIFT_ATOL
     # the mapped states carry the same energy in the reference
-    for q, u, E in zip(tr.q, tr.u, tr.energy):
+    for q, u, E in zip(tr.q, tr.u, tr.energy, strict=False):
         assert abs(sum(nm.energy(q, u)) - E) < ENERGY_DRIFT_ATOL

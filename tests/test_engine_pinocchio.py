@@ -16,16 +16,18 @@ States: hypothesis draws an integer seed, a numpy Generator makes a random (q, u
 NumericModel.project puts it on the constraint manifold. Every @settings has derandomize=True,
 so the examples are the same on every run whatever hypothesis profile is loaded.
 """
+
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pinocchio as pin
 import pytest
 import sympy as sp
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from crosscheck.engines.base import EngineForward, EngineUnsupported
@@ -80,23 +82,36 @@ SIM_RTOL = 1e-10
 
 ADAPTER = PinocchioAdapter()
 # T != 0 and motor torques != 0 so the torque maps are exercised
-PARAMS = {"slider_crank": {"T": 0.7}, "slider_crank_split": {"T": 0.7},
-          "slider_crank_free": {"T": 0.7}, "frame_bar": {"M_phi": 0.3, "M_theta": -0.2},
-          "knife_edge": {"P": 0.4, "T": -0.3}}
+PARAMS = {
+    "slider_crank": {"T": 0.7},
+    "slider_crank_split": {"T": 0.7},
+    "slider_crank_free": {"T": 0.7},
+    "frame_bar": {"M_phi": 0.3, "M_theta": -0.2},
+    "knife_edge": {"P": 0.4, "T": -0.3},
+}
 
-PLANAR = ["pendulum_angle", "pendulum_xy", "slider_crank", "slider_crank_split",
-          "slider_crank_free"]
+PLANAR = [
+    "pendulum_angle",
+    "pendulum_xy",
+    "slider_crank",
+    "slider_crank_split",
+    "slider_crank_free",
+]
 THREE_D = ["frame_bar", "double_pendulum_3d", "top_euler", "top_cartesian"]
-OTHERS = ["knife_edge", "pendulum_moving_support", "exercise_6_1", "exercise_6_2",
-          "exercise_6_4"]
+OTHERS = ["knife_edge", "pendulum_moving_support", "exercise_6_1", "exercise_6_2", "exercise_6_4"]
 MODELS = PLANAR + THREE_D + OTHERS
 # Models whose engine has fewer coordinates and whose from_engine_state recomputes the
 # reference's dependent coordinates from the engine's geometry: their round trip is limited by
 # how consistent the projected reference state is (MANIFOLD_ATOL), not by the map itself.
 # The Euler-parameter rates of the tops go eps' -> omega = 2 E eps' -> E^T omega / 2, the
 # identity only on |eps| = 1, eps . eps' = 0, which the projection also meets to 1e-13.
-MANIFOLD_LIMITED_MAP = {("exercise_6_2", None), ("exercise_6_4", None), ("top_euler", None),
-                        ("top_cartesian", "tree"), ("top_cartesian", "free")}
+MANIFOLD_LIMITED_MAP = {
+    ("exercise_6_2", None),
+    ("exercise_6_4", None),
+    ("top_euler", None),
+    ("top_cartesian", "tree"),
+    ("top_cartesian", "free"),
+}
 # Coordinates that are angles of a rotation recovered from a matrix: compared modulo 2 pi.
 ANGLE_MODELS = {"double_pendulum_3d"}
 # Models whose reference multipliers have no engine force (multipliers None), with the reason
@@ -112,14 +127,14 @@ def _id(case):
     return "-".join(str(x) for x in case if x is not None)
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference(model_name: str, formulation: str, params_key=()):
     params = dict(PARAMS.get(model_name, {}))
     params.update(dict(params_key))
     return NumericModel(get(model_name), formulation, params)
 
 
-@lru_cache(maxsize=None)
+@cache
 def engine(model_name: str, variant=None, params_key=()):
     params = dict(PARAMS.get(model_name, {}))
     params.update(dict(params_key))
@@ -186,10 +201,15 @@ def canonical_engine_state(em, qe):
     qe = np.array(qe, float)
     for jm in em.model.joints[1:]:
         kind, iq = jm.shortname(), jm.idx_q
-        k = iq if kind == "JointModelSpherical" else iq + 3 if kind == "JointModelFreeFlyer" \
+        k = (
+            iq
+            if kind == "JointModelSpherical"
+            else iq + 3
+            if kind == "JointModelFreeFlyer"
             else None
+        )
         if k is not None and qe[k + 3] < 0:
-            qe[k:k + 4] *= -1
+            qe[k : k + 4] *= -1
     return qe
 
 
@@ -237,8 +257,11 @@ def test_forward_agrees_with_reference(case, seed):
         if model_name == "top_euler":
             # raw carries the textbook value of the normalization's (formulation-dependent)
             # multiplier computed from the engine's K and V
-            key = ("normalization_lambda_lagrange" if formulation == "lagrange"
-                   else "normalization_lambda_dalembert_kane")
+            key = (
+                "normalization_lambda_lagrange"
+                if formulation == "lagrange"
+                else "normalization_lambda_dalembert_kane"
+            )
             assert rel_err([out.raw[key]], ref.multipliers) <= LAM_RTOL
     else:
         assert out.multipliers.shape == ref.multipliers.shape
@@ -295,11 +318,17 @@ def test_mass_matrix_and_forcing(case):
                 assert rel_err(M, Mr) <= MATRIX_RTOL
             if f is not None:
                 assert rel_err(f, fr) <= MATRIX_RTOL
-    expected_M = {"pendulum_angle", "pendulum_xy", "slider_crank_split", "slider_crank_free",
-                  "knife_edge", "pendulum_moving_support"}
-    assert (em.mass_matrix(q) is not None) == (model_name in expected_M
-                                               or (model_name, variant) ==
-                                               ("double_pendulum_3d", "free"))
+    expected_M = {
+        "pendulum_angle",
+        "pendulum_xy",
+        "slider_crank_split",
+        "slider_crank_free",
+        "knife_edge",
+        "pendulum_moving_support",
+    }
+    assert (em.mass_matrix(q) is not None) == (
+        model_name in expected_M or (model_name, variant) == ("double_pendulum_3d", "free")
+    )
     note = type(em).mass_matrix_note
     if em.mass_matrix(q) is None:
         assert isinstance(note, str) and len(note) > 20 and "\n" not in note
@@ -307,7 +336,7 @@ def test_mass_matrix_and_forcing(case):
         assert note is None
 
 
-@lru_cache(maxsize=None)
+@cache
 def _energy_functions(model_name):
     """The reference's K and V by sympy lambdify of its own expressions (the slow, obvious
     path, independent of the compiled code)."""
@@ -315,9 +344,11 @@ def _energy_functions(model_name):
     p = params_of(model_name)
     sub = {sp.Symbol(k, real=True): v for k, v in p.items()}
     args = [list(mod.coordinates), list(mod.speeds)]
-    return (sp.lambdify(args, kinetic_energy(mod).xreplace(sub), "math"),
-            sp.lambdify(args, potential_energy(mod).xreplace(sub), "math"),
-            sp.lambdify(args, sp.sympify(mod.potential).xreplace(sub), "math"))
+    return (
+        sp.lambdify(args, kinetic_energy(mod).xreplace(sub), "math"),
+        sp.lambdify(args, potential_energy(mod).xreplace(sub), "math"),
+        sp.lambdify(args, sp.sympify(mod.potential).xreplace(sub), "math"),
+    )
 
 
 @pytest.mark.parametrize("case", CASES, ids=_id)
@@ -338,8 +369,10 @@ def test_energy_same_datum(case):
         assert abs(V - Vr) <= ENERGY_RTOL * scale
         qe, _ = em.to_engine_state(q, u)
         V_gravity = V - V_spring_of(list(q), list(u))
-        assert abs(V_gravity - pin.computePotentialEnergy(em.model, em.data, qe)) \
+        assert (
+            abs(V_gravity - pin.computePotentialEnergy(em.model, em.data, qe))
             <= ENERGY_RTOL * scale
+        )
 
 
 def test_planar_in_plane_inertia_does_not_matter():
@@ -387,8 +420,11 @@ def test_pendulum_rod_tension():
     for th, thd in ((0.3, 1.0), (2.0, -3.0), (-1.2, 0.5)):
         T = m * L * thd**2 + m * g * math.cos(th)
         ea, _, _ = _both("pendulum_angle", [th], [thd])
-        exy, rxy, _ = _both("pendulum_xy", [L * math.sin(th), L * math.cos(th)],
-                            [L * thd * math.cos(th), -L * thd * math.sin(th)])
+        exy, rxy, _ = _both(
+            "pendulum_xy",
+            [L * math.sin(th), L * math.cos(th)],
+            [L * thd * math.cos(th), -L * thd * math.sin(th)],
+        )
         assert abs(ea.raw["rod_tension"] - T) <= 1e-13 * max(1.0, abs(T))
         assert abs(exy.raw["rod_tension"] - T) <= 1e-13 * max(1.0, abs(T))
         assert abs(-rxy.multipliers[0] * L - T) <= 1e-13 * max(1.0, abs(T))
@@ -404,14 +440,18 @@ def test_slider_crank_guide_force_static():
     params = {"T": 0.0, "r2": 0.3}
     p = resolve_parameters(get("slider_crank"), params)
     th2 = -math.asin(p["l1"] / p["l2"])
-    e, r, em = _both("slider_crank", [math.pi / 2, th2], [0.0, 0.0], params=params)
+    e, r, _em = _both("slider_crank", [math.pi / 2, th2], [0.0, 0.0], params=params)
     N = p["g"] * (p["m3"] + p["m2"] * p["r2"] / p["l2"])
     assert N > 0
     for lam in (e.multipliers[0], r.multipliers[0], e.raw["guide_force_rnea"]):
         assert abs(lam - N) <= 1e-13 * N
     # the engine's own force: slider on rod at C = (0, N - m3 g, 0) = (0, m2 g r2/l2, 0)
-    assert np.allclose(e.raw["force_on_rod_at_C"], [0.0, p["m2"] * p["g"] * p["r2"] / p["l2"],
-                                                    0.0], rtol=0, atol=1e-13 * N)
+    assert np.allclose(
+        e.raw["force_on_rod_at_C"],
+        [0.0, p["m2"] * p["g"] * p["r2"] / p["l2"], 0.0],
+        rtol=0,
+        atol=1e-13 * N,
+    )
     assert np.max(np.abs(e.accelerations)) <= 1e-13 and np.max(np.abs(r.accelerations)) <= 1e-13
 
 
@@ -422,7 +462,7 @@ def test_slider_crank_split_force_on_crank_static():
     opposite: (lambda1, lambda2) = (0, -m2 g r2 / l2), pointing DOWN; u' = 0."""
     params = {"T": 0.0, "r2": 0.3}
     p = resolve_parameters(get("slider_crank_split"), params)
-    c = math.sqrt(p["l2"]**2 - p["l1"]**2)
+    c = math.sqrt(p["l2"] ** 2 - p["l1"] ** 2)
     q = [math.pi / 2, c, math.atan2(p["l1"], -c)]
     e, r, _ = _both("slider_crank_split", q, [0.0, 0.0, 0.0], params=params)
     lam = np.array([0.0, -p["m2"] * p["g"] * p["r2"] / p["l2"]])
@@ -530,14 +570,17 @@ def test_euler_parameters_are_pinocchio_quaternions():
     (eps1, eps2, eps3, eps4) rotation and LOCAL angular velocity: checked through the engine's
     kinematics (the mass center position and velocity of the top)."""
     from reference.models.top import E_matrix, rotation
+
     em = engine("top_cartesian", "tree")
     for seed in range(5):
         q, u = random_state("top_cartesian", seed)
         eps, eps_dot = q[3:7], u[3:7]
         R = rotation(tuple(map(float, eps)))
         # the two formulas differ by a multiple of |eps|^2 - 1 (projection round-off)
-        assert np.max(np.abs(R - pin.Quaternion(eps[3], *eps[:3]).toRotationMatrix())) \
+        assert (
+            np.max(np.abs(R - pin.Quaternion(eps[3], *eps[:3]).toRotationMatrix()))
             <= STATE_MAP_RTOL
+        )
         qe, ve = em.to_engine_state(q, u)
         assert np.max(np.abs(ve - 2 * E_matrix(tuple(map(float, eps))) @ eps_dot)) <= 1e-13
         qr, ur = em.from_engine_state(qe, ve)  # x and x' from Pinocchio's forwardKinematics
@@ -587,19 +630,26 @@ def test_moving_support_tension(seed):
 
 
 # ---- the checks can fail ----------------------------------------------------------------
-@pytest.mark.parametrize("case", [("slider_crank", None, "m2"), ("slider_crank_split", None, "m2"),
-                                  ("double_pendulum_3d", "free", "m2"),
-                                  ("double_pendulum_3d", "tree", "m2"),
-                                  ("exercise_6_1", None, "m_p")], ids=_id)
+@pytest.mark.parametrize(
+    "case",
+    [
+        ("slider_crank", None, "m2"),
+        ("slider_crank_split", None, "m2"),
+        ("double_pendulum_3d", "free", "m2"),
+        ("double_pendulum_3d", "tree", "m2"),
+        ("exercise_6_1", None, "m_p"),
+    ],
+    ids=_id,
+)
 def test_perturbed_parameter_breaks_agreement(case):
     """A mass * (1 + 1e-6) in the engine only (m2; Exercise 6.1's block m_p): accelerations and
     multipliers move by ~1e-7 relative, far outside ACC_RTOL / LAM_RTOL, at every state
     tried."""
     model_name, variant, param = case
     p = params_of(model_name)
-    bad = ADAPTER.build(model_name,
-                        {**PARAMS.get(model_name, {}), param: p[param] * (1 + 1e-6)},
-                        variant=variant)
+    bad = ADAPTER.build(
+        model_name, {**PARAMS.get(model_name, {}), param: p[param] * (1 + 1e-6)}, variant=variant
+    )
     nm = reference(model_name, get(model_name).formulations[0])
     for seed in range(3):
         q, u = random_state(model_name, seed)
@@ -611,6 +661,7 @@ def test_perturbed_parameter_breaks_agreement(case):
 # ---- adapter contract -------------------------------------------------------------------
 def test_build_errors():
     from reference.models import names, user_names
+
     # every system of the unit is mapped (user models registered by other tests come on top)
     assert set(ADAPTER.models()) - set(user_names()) == set(names())
     with pytest.raises(EngineUnsupported, match="no_such_model"):
@@ -659,14 +710,29 @@ def _reference_trajectory(model_name, q0, u0, t_eval):
         ud, _lam, _piv = nm.forward_raw(list(y[:n]), list(y[n:]), t)
         return np.concatenate([y[n:], ud])
 
-    sol = solve_ivp(rhs, (0.0, t_eval[-1]), np.concatenate([q0, u0]), method="DOP853",
-                    rtol=SIM_RTOL, atol=SIM_RTOL, t_eval=t_eval)
+    sol = solve_ivp(
+        rhs,
+        (0.0, t_eval[-1]),
+        np.concatenate([q0, u0]),
+        method="DOP853",
+        rtol=SIM_RTOL,
+        atol=SIM_RTOL,
+        t_eval=t_eval,
+    )
     return sol.y.T
 
 
-@pytest.mark.parametrize("model_name", ["pendulum_angle", "pendulum_xy", "slider_crank",
-                                        "slider_crank_split", "knife_edge",
-                                        "pendulum_moving_support"])
+@pytest.mark.parametrize(
+    "model_name",
+    [
+        "pendulum_angle",
+        "pendulum_xy",
+        "slider_crank",
+        "slider_crank_split",
+        "knife_edge",
+        "pendulum_moving_support",
+    ],
+)
 def test_simulate_matches_reference_trajectory(model_name):
     em = engine(model_name)
     mod = get(model_name)
@@ -693,20 +759,26 @@ def test_simulate_3d_variants_agree():
     mod = get("double_pendulum_3d")
     q0, u0 = np.array(mod.initial_q), np.array(mod.initial_u)
     t_eval = np.linspace(0.0, 1.0, 11)
-    a = engine("double_pendulum_3d", "tree").simulate(q0, u0, t_eval, integrator="DOP853",
-                                                        rtol=SIM_RTOL)
-    b = engine("double_pendulum_3d", "free").simulate(q0, u0, t_eval, integrator="DOP853",
-                                                        rtol=SIM_RTOL)
+    a = engine("double_pendulum_3d", "tree").simulate(
+        q0, u0, t_eval, integrator="DOP853", rtol=SIM_RTOL
+    )
+    b = engine("double_pendulum_3d", "free").simulate(
+        q0, u0, t_eval, integrator="DOP853", rtol=SIM_RTOL
+    )
     assert np.max(np.abs(a.q - b.q)) <= SIM_TOL and np.max(np.abs(a.u - b.u)) <= SIM_TOL
     assert np.max(b.violation) <= SIM_TOL
     for tr in (a, b):
         assert np.max(np.abs(tr.energy - tr.energy[0])) <= SIM_TOL
     top = get("top_cartesian")
     tr = engine("top_cartesian", "free").simulate(
-        np.array(top.initial_q), np.array(top.initial_u), np.linspace(0.0, 0.2, 101),
-        integrator="DOP853", rtol=SIM_RTOL)
+        np.array(top.initial_q),
+        np.array(top.initial_u),
+        np.linspace(0.0, 0.2, 101),
+        integrator="DOP853",
+        rtol=SIM_RTOL,
+    )
     nm = reference("top_cartesian", "dalembert")
-    for q, u in zip(tr.q, tr.u):
+    for q, u in zip(tr.q, tr.u, strict=False):
         pos, vel = nm.residuals(q, u)
         assert np.max(np.abs(pos)) <= SIM_TOL and np.max(np.abs(vel)) <= SIM_TOL
 
@@ -725,10 +797,18 @@ def agreement_table(n_states: int = 200) -> list[dict]:
             ref, out = nm.forward(q, u), em.forward(q, u)
             lam = out.multipliers
             if lam is None and model_name == "top_euler":  # the textbook value from raw
-                lam = np.array([out.raw["normalization_lambda_lagrange" if formulation ==
-                                        "lagrange" else "normalization_lambda_dalembert_kane"]])
-            w["acc_abs"] = max(w["acc_abs"], float(np.max(np.abs(out.accelerations
-                                                                 - ref.accelerations))))
+                lam = np.array(
+                    [
+                        out.raw[
+                            "normalization_lambda_lagrange"
+                            if formulation == "lagrange"
+                            else "normalization_lambda_dalembert_kane"
+                        ]
+                    ]
+                )
+            w["acc_abs"] = max(
+                w["acc_abs"], float(np.max(np.abs(out.accelerations - ref.accelerations)))
+            )
             w["acc_rel"] = max(w["acc_rel"], rel_err(out.accelerations, ref.accelerations))
             if lam is None:
                 w["lam_abs"] = w["lam_rel"] = float("nan")  # no engine counterpart
@@ -736,8 +816,9 @@ def agreement_table(n_states: int = 200) -> list[dict]:
                 w["lam_abs"] = max(w["lam_abs"], float(np.max(np.abs(lam - ref.multipliers))))
                 w["lam_rel"] = max(w["lam_rel"], rel_err(lam, ref.multipliers))
             w["iter"] = max(w["iter"], int(out.raw["iterations"]))
-        rows.append({"model": model_name, "variant": variant or "-",
-                     "formulation": formulation, **w})
+        rows.append(
+            {"model": model_name, "variant": variant or "-", "formulation": formulation, **w}
+        )
     return rows
 
 
@@ -748,12 +829,18 @@ if __name__ == "__main__":  # pragma: no cover
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 200
     t0 = time.perf_counter()
     rows = agreement_table(n)
-    print(f"Pinocchio {pin.__version__} vs reference, {n} states per row "
-          f"(rel = max|err| / max(max|ref|, {REF_FLOOR}); tolerances ACC_RTOL={ACC_RTOL}, "
-          f"LAM_RTOL={LAM_RTOL})")
-    print(f"{'model':24s} {'variant':7s} {'formulation':11s} {'acc abs':>9s} {'acc rel':>9s} "
-          f"{'lam abs':>9s} {'lam rel':>9s} {'iter':>4s}")
+    print(
+        f"Pinocchio {pin.__version__} vs reference, {n} states per row "
+        f"(rel = max|err| / max(max|ref|, {REF_FLOOR}); tolerances ACC_RTOL={ACC_RTOL}, "
+        f"LAM_RTOL={LAM_RTOL})"
+    )
+    print(
+        f"{'model':24s} {'variant':7s} {'formulation':11s} {'acc abs':>9s} {'acc rel':>9s} "
+        f"{'lam abs':>9s} {'lam rel':>9s} {'iter':>4s}"
+    )
     for r in rows:
-        print(f"{r['model']:24s} {r['variant']:7s} {r['formulation']:11s} {r['acc_abs']:9.1e} "
-              f"{r['acc_rel']:9.1e} {r['lam_abs']:9.1e} {r['lam_rel']:9.1e} {r['iter']:4d}")
+        print(
+            f"{r['model']:24s} {r['variant']:7s} {r['formulation']:11s} {r['acc_abs']:9.1e} "
+            f"{r['acc_rel']:9.1e} {r['lam_abs']:9.1e} {r['lam_rel']:9.1e} {r['iter']:4d}"
+        )
     print(f"({time.perf_counter() - t0:.1f} s)")

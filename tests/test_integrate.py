@@ -8,6 +8,7 @@ Tolerances and why:
 - Unstabilized drift is bounded by DRIFT_GAIN x rtol over these horizons (measured 1-20x).
 - Trajectory errors: DOP853's global error over a few seconds is ~1-100 x rtol x |y|.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -19,10 +20,14 @@ import sympy as sp
 
 from reference import NumericModel, models
 from reference.errors import ModelInputError, OffManifoldError, SingularSystemError
-from reference.integrate import (METHODS, IntegrationTimeout, consistent_initial_state,
-                                 simulate)
-from reference.minimal import (TIGHT_RTOL, _ode_run, pendulum_exact, reference_final_state,
-                               slider_crank_one_coordinate)
+from reference.integrate import METHODS, IntegrationTimeout, consistent_initial_state, simulate
+from reference.minimal import (
+    TIGHT_RTOL,
+    _ode_run,
+    pendulum_exact,
+    reference_final_state,
+    slider_crank_one_coordinate,
+)
 
 PROJECTED = 1e-12
 DRIFT_GAIN = 1e3
@@ -86,8 +91,7 @@ def test_reference_states_its_accuracy(sc_ref):
 
 
 # ---- constraint guarantees -----------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["pendulum_xy", "slider_crank", "slider_crank_split",
-                                  "top_euler"])
+@pytest.mark.parametrize("name", ["pendulum_xy", "slider_crank", "slider_crank_split", "top_euler"])
 @pytest.mark.parametrize("method", ["projection", "nullspace"])
 def test_projection_and_nullspace_hold_the_constraints_at_round_off(name, method):
     nm = NumericModel(models.get(name))
@@ -149,8 +153,17 @@ def test_fixed_step_convergence_order_is_dop853s(pxy, method):
     ref = reference_final_state("pendulum_xy", T)
     errs = []
     for h in (0.2, 0.1, 0.05):
-        tr = simulate(pxy, *_start(pxy), T, method, rtol=1e3, atol=1e3, first_step=h,
-                      max_step=h, energy="none")
+        tr = simulate(
+            pxy,
+            *_start(pxy),
+            T,
+            method,
+            rtol=1e3,
+            atol=1e3,
+            first_step=h,
+            max_step=h,
+            energy="none",
+        )
         assert abs(tr.nsteps - round(T / h)) <= 1  # (+1: a round-off sliver at t_end)
         errs.append(float(np.max(np.abs(tr.final_state - ref.state))))
     orders = [math.log2(errs[i] / errs[i + 1]) for i in range(2)]
@@ -159,8 +172,9 @@ def test_fixed_step_convergence_order_is_dop853s(pxy, method):
 
 def test_dense_output_at_t_eval_is_projected(sc, sc_ref):
     t_eval = np.linspace(0.0, 1.0, 11)
-    tr = simulate(sc, *_start(sc), 1.0, "projection", rtol=1e-10, atol=1e-10, t_eval=t_eval,
-                  energy="none")
+    tr = simulate(
+        sc, *_start(sc), 1.0, "projection", rtol=1e-10, atol=1e-10, t_eval=t_eval, energy="none"
+    )
     assert np.allclose(tr.t, t_eval)
     assert max(tr.max_residual().values()) <= PROJECTED
     assert np.max(np.abs(tr.final_state - sc_ref.state)) < 1e-7
@@ -213,12 +227,14 @@ def test_inconsistent_start_is_projected_and_reported(pxy):
 def test_start_without_a_consistent_state_is_refused():
     """x^2 + y^2 = L^2 and x = 2 L have no common point: the projection cannot succeed."""
     base = models.get("pendulum_xy")
-    x, y = base.coordinates
+    x, _y = base.coordinates
     L = sp.Symbol("L", real=True)
-    bad = dataclasses.replace(base, name="pendulum_xy_unreachable",
-                              configuration_constraints=(base.configuration_constraints[0],
-                                                         x - 2 * L),
-                              constraint_names=("rod", "wall"))
+    bad = dataclasses.replace(
+        base,
+        name="pendulum_xy_unreachable",
+        configuration_constraints=(base.configuration_constraints[0], x - 2 * L),
+        constraint_names=("rod", "wall"),
+    )
     nm = NumericModel(bad)
     with pytest.raises(OffManifoldError):
         consistent_initial_state(nm, base.initial_q, base.initial_u)
@@ -228,8 +244,7 @@ def test_singular_pose_mid_run_raises_with_the_time():
     P = {"l1": 0.3, "l2": 0.3, "r2": 0.15, "I_G2": 2.0 * 0.09 / 12}
     nm = NumericModel(models.get("slider_crank"), params=P)
     with pytest.raises(SingularSystemError, match=r"at t = 0\.\d+.*singular"):
-        simulate(nm, [0.5, -0.5], [8.0, -8.0], 1.0, "index1", rtol=1e-12, atol=1e-12,
-                 energy="none")
+        simulate(nm, [0.5, -0.5], [8.0, -8.0], 1.0, "index1", rtol=1e-12, atol=1e-12, energy="none")
 
 
 def test_passing_close_to_a_singular_pose_leaves_a_warning():
@@ -237,12 +252,17 @@ def test_passing_close_to_a_singular_pose_leaves_a_warning():
     nm = NumericModel(models.get("slider_crank"), params=P)
     # measured: this run steps across theta1 = pi/2 with a pivot ratio of 1e-11 and changes
     # branch; the run completes, so the warning is what keeps it from being silent
-    tr = simulate(nm, [0.5, -0.5], [8.0, -8.0], 1.0, "index1", rtol=1e-8, atol=1e-8,
-                  energy="none")
+    tr = simulate(nm, [0.5, -0.5], [8.0, -8.0], 1.0, "index1", rtol=1e-8, atol=1e-8, energy="none")
     assert tr.stats["min_pivot_ratio"] < 1e-8
     assert tr.warnings and "singular pose" in tr.warnings[0]
-    calm = simulate(NumericModel(models.get("slider_crank")), [0.5, -0.19], [8.0, -3.1], 0.2,
-                    "index1", energy="none")
+    calm = simulate(
+        NumericModel(models.get("slider_crank")),
+        [0.5, -0.19],
+        [8.0, -3.1],
+        0.2,
+        "index1",
+        energy="none",
+    )
     assert not calm.warnings
 
 
@@ -262,8 +282,16 @@ def test_bad_settings_name_the_valid_ones(sc):
 
 @pytest.mark.parametrize("integrator", ["RK45", "Radau"])
 def test_projection_with_other_one_step_integrators(sc, sc_ref, integrator):
-    tr = simulate(sc, *_start(sc), 1.0, "projection", rtol=1e-9, atol=1e-9,
-                  integrator=integrator, energy="none")
+    tr = simulate(
+        sc,
+        *_start(sc),
+        1.0,
+        "projection",
+        rtol=1e-9,
+        atol=1e-9,
+        integrator=integrator,
+        energy="none",
+    )
     assert max(tr.max_residual().values()) <= PROJECTED
     # A one-step method that keeps each step's local error under rtol |y| ends a short
     # non-stiff run within C rtol |y| of the exact solution (tolerance proportionality);

@@ -7,6 +7,7 @@
   inertias, so Exercise 6.4's slender bar gets an axial inertia of LIGHT m l^2; the reference
   given the same inertia closes the gap to round-off (MUJOCO_LIGHT_EXACT's stated cause).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -39,8 +40,13 @@ RK4_SOFT_LOSS = 2e-4  # J at tc = 0.02 s (1.52e-4 measured)
 def _energy_error(integrator, timestep, tc=0.02):
     em = MujocoAdapter(solref=(tc, 1.0)).build("slider_crank_split")
     m = get("slider_crank_split")
-    tr = em.simulate(m.initial_q, m.initial_u, np.linspace(0.0, 0.5, 51), integrator=integrator,
-                     timestep=timestep)
+    tr = em.simulate(
+        m.initial_q,
+        m.initial_u,
+        np.linspace(0.0, 0.5, 51),
+        integrator=integrator,
+        timestep=timestep,
+    )
     return maxabs(tr.energy - tr.energy[0])
 
 
@@ -64,10 +70,10 @@ def _with_light_axial_inertia(model, scale: float = 1.0):
     sym = {p.name: p.symbol for p in model.parameters}
     m, length = sym["m"], sym["l"]
     bar = next(b for b in model.bodies if b.name == "bar")
-    light = dataclasses.replace(bar, inertia=sp.diag(m * length**2 / 12, m * length**2 / 12,
-                                                     scale * LIGHT * m * length**2))
-    return dataclasses.replace(model, bodies=tuple(light if b is bar else b
-                                                   for b in model.bodies))
+    light = dataclasses.replace(
+        bar, inertia=sp.diag(m * length**2 / 12, m * length**2 / 12, scale * LIGHT * m * length**2)
+    )
+    return dataclasses.replace(model, bodies=tuple(light if b is bar else b for b in model.bodies))
 
 
 def test_light_axial_inertia_is_the_cause_of_exercise_6_4s_exact_error():

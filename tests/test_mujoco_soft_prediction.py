@@ -2,6 +2,7 @@
 documented impedance (crosscheck/engines/mujoco/soft_prediction.py): it never reads MuJoCo's
 constraint solution, so it must catch a physics error the rigid recovery would absorb into the
 soft effect, and must not repeat the recovery."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -12,8 +13,14 @@ from crosscheck.engines.mujoco.soft_prediction import documented_R, impedance
 from reference import models
 from reference.numeric import NumericModel
 
-SOFT_MODELS = ["slider_crank", "slider_crank_split", "pendulum_xy", "double_pendulum_3d",
-               "top_cartesian", "exercise_6_1"]
+SOFT_MODELS = [
+    "slider_crank",
+    "slider_crank_split",
+    "pendulum_xy",
+    "double_pendulum_3d",
+    "top_cartesian",
+    "exercise_6_1",
+]
 # MuJoCo's solver stops ~1e-11..1e-10 (scaled) from the exact soft solution while the soft
 # effect is ~1e-4 of the answer (d = 0.9999): the relative miss measured here is <= 3.5e-7
 # (3 states per model), so 1e-5 leaves a 30x margin and a 1% mass error (miss ~1) fails.

@@ -2,6 +2,7 @@
 SOFT_LIMIT_*): its runs at solref tc and tc/2 extrapolated to tc -> 0 agree with the reference
 within the extrapolation's own bound, and a 1 % mass error, which the soft effect used to hide
 (state error 2.8e-4 under a one-size tolerance of 5e-2), fails there."""
+
 from __future__ import annotations
 
 import json
@@ -14,8 +15,9 @@ from reference.numeric import NumericModel
 
 
 def _mujoco_trajectory(records):
-    return {r["quantity"]: r for r in records
-            if r["engine"] == "mujoco" and r["check"] == "trajectory"}
+    return {
+        r["quantity"]: r for r in records if r["engine"] == "mujoco" and r["check"] == "trajectory"
+    }
 
 
 def test_unperturbed_slider_crank_passes_its_rigid_limit():
@@ -31,8 +33,19 @@ def test_unperturbed_slider_crank_passes_its_rigid_limit():
 def test_one_percent_mass_error_fails_a_trajectory_record(tmp_path, capsys):
     """The command of issue 16: `crosscheck run slider_crank --engines mujoco --perturb
     mujoco:m3=1e-2` exits non-zero, and a trajectory record is among its failures."""
-    code = main(["run", "slider_crank", "--engines", "mujoco", "--perturb", "mujoco:m3=1e-2",
-                 "--no-report", "--out", str(tmp_path)])
+    code = main(
+        [
+            "run",
+            "slider_crank",
+            "--engines",
+            "mujoco",
+            "--perturb",
+            "mujoco:m3=1e-2",
+            "--no-report",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     capsys.readouterr()
     assert code != 0
     records = json.loads((tmp_path / "results.json").read_text())["records"]

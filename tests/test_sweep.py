@@ -139,8 +139,7 @@ def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
     for variant in ad.variants(name):
         recs = engine_records(name, nm, [(q, u)], ad, nm.params, variant)
         em = build(ad, name, nm.params, variant)
-        sc = compare_at_state(em, q, u, t, reference_answer(nm, q, u, t), nm.m,
-                              ad.capabilities)
+        sc = compare_at_state(em, q, u, t, reference_answer(nm, q, u, t), nm.m, ad.capabilities)
         assert recs
         for r in recs:
             if r["skipped"]:

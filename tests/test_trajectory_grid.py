@@ -1,5 +1,6 @@
 """Short horizons: the reference, Pinocchio and both MuJoCo rungs share one output grid for
 every t_end > 0 (issue 15 item 1)."""
+
 from __future__ import annotations
 
 import json
@@ -34,8 +35,19 @@ def test_five_seconds_keeps_the_20_ms_grid():
 @pytest.mark.parametrize("t_end", ["0.13", "1e-9"])
 def test_short_horizon_runs_with_mujoco(tmp_path, capsys, t_end):
     out = tmp_path / "o"
-    code = main(["run", "pendulum_angle", "--engines", "mujoco,pinocchio", "--t-end", t_end,
-                 "--out", str(out), "--no-report"])
+    code = main(
+        [
+            "run",
+            "pendulum_angle",
+            "--engines",
+            "mujoco,pinocchio",
+            "--t-end",
+            t_end,
+            "--out",
+            str(out),
+            "--no-report",
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     res = json.loads((out / "results.json").read_text())
     traj = [r for r in res["records"] if r["check"] == "trajectory" and r["engine"] == "mujoco"]

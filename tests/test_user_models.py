@@ -9,9 +9,11 @@ projected onto the constraint manifold.
 TOL_MJCF = 1e-9 relative to max(1, max|qacc|): the issue's bar. Measured (kane and lagrange,
 `PYTHONPATH=$PWD python -m pytest -q tests/test_user_models.py -k mjcf -s` prints the figures):
 pendulum_hinge 6e-16, double_pendulum 1.2e-15, fourbar_connect 4e-15, fourbar_tilted 2e-15,
-fourbar_sites 4e-15, weld_sites 6e-16; slow tests: gripper 5e-15, spatial_mix 1e-14, so the bar has five orders of margin above round-off and far below any modelling error
-(a wrong armature, anchor or axis shows at 1e-3..1).
+fourbar_sites 4e-15, weld_sites 6e-16; slow tests: gripper 5e-15, spatial_mix 1e-14, so the
+bar has five orders of margin above round-off and far below any modelling error (a wrong
+armature, anchor or axis shows at 1e-3..1).
 """
+
 from __future__ import annotations
 
 from functools import cache
@@ -155,8 +157,9 @@ def test_fourbar_integrates_with_dependent_rows():
 def test_redundant_solver_refuses_contradicting_rows():
     M, f = np.eye(2), np.zeros(2)
     A = np.array([[1.0, 0.0], [2.0, 0.0]])  # the second row repeats the first ...
-    ud, lam, _piv, r = redundant.solve(M, f, A, np.array([1.0, 2.0]), rank_expected=1,
-                                       augment=False)
+    ud, lam, _piv, r = redundant.solve(
+        M, f, A, np.array([1.0, 2.0]), rank_expected=1, augment=False
+    )
     assert r == 1 and ud[0] == pytest.approx(1.0)
     np.testing.assert_allclose(lam, np.array([1.0, 2.0]) / 5.0)  # minimum norm
     with pytest.raises(InconsistentConstraintError, match="contradict"):
@@ -166,10 +169,14 @@ def test_redundant_solver_refuses_contradicting_rows():
 def test_builtin_models_still_refuse_dependent_rows():
     """The unit's models keep rank(A) = m: a built-in with a repeated row is refused."""
     from dataclasses import replace
+
     base = get("pendulum_xy")
-    twice = replace(base, name="pendulum_xy_twice",
-                    configuration_constraints=base.configuration_constraints * 2,
-                    constraint_names=("rod", "rod_again"))
+    twice = replace(
+        base,
+        name="pendulum_xy_twice",
+        configuration_constraints=base.configuration_constraints * 2,
+        constraint_names=("rod", "rod_again"),
+    )
     with pytest.raises(RedundantConstraintError, match="rod_again"):
         NumericModel(twice)
 
@@ -183,16 +190,36 @@ def _write(tmp_path, body: str, extra: str = "", name: str = "m.xml") -> Path:
     return p
 
 
-@pytest.mark.parametrize("body, extra, match", [
-    ("", '<actuator><motor name="mot" joint="j"/></actuator>', "actuator 'mot'"),
-    ('<site name="s1"/>', ('<tendon><fixed name="ten" stiffness="3"><joint joint="j" coef="1"/>'
-                           '</fixed></tendon>'), "tendon 'ten'"),
-    ('<geom name="hit" contype="1" conaffinity="1" size="0.1"/>',
-     ('<worldbody><geom name="floor" type="plane" size="1 1 .1" contype="1" conaffinity="1"/>'
-      '</worldbody>'), "geom 'floor' / geom 'hit'"),
-    ("", ('<option><flag gravity="enable"/></option><default><joint limited="true" '
-          'range="-1 1"/></default>'), "limit"),
-])
+@pytest.mark.parametrize(
+    "body, extra, match",
+    [
+        ("", '<actuator><motor name="mot" joint="j"/></actuator>', "actuator 'mot'"),
+        (
+            '<site name="s1"/>',
+            (
+                '<tendon><fixed name="ten" stiffness="3"><joint joint="j" coef="1"/>'
+                "</fixed></tendon>"
+            ),
+            "tendon 'ten'",
+        ),
+        (
+            '<geom name="hit" contype="1" conaffinity="1" size="0.1"/>',
+            (
+                '<worldbody><geom name="floor" type="plane" size="1 1 .1" contype="1" '
+                'conaffinity="1"/></worldbody>'
+            ),
+            "geom 'floor' / geom 'hit'",
+        ),
+        (
+            "",
+            (
+                '<option><flag gravity="enable"/></option><default><joint limited="true" '
+                'range="-1 1"/></default>'
+            ),
+            "limit",
+        ),
+    ],
+)
 def test_unsupported_elements_are_named(tmp_path, body, extra, match):
     p = _write(tmp_path, body, extra)
     with pytest.raises(UnsupportedModelError, match=match):
@@ -210,11 +237,10 @@ def test_joint_limit_named(tmp_path):
 def test_malformed_and_rejected_files(tmp_path):
     bad = tmp_path / "bad.xml"
     bad.write_text("<mujoco><worldbody><body></worldbody></mujoco>")
-    with pytest.raises(ModelFileError, match="MuJoCo rejects the file: .*XML"):
+    with pytest.raises(ModelFileError, match=r"MuJoCo rejects the file: .*XML"):
         load_model_file(bad)
     rejected = tmp_path / "rejected.xml"
-    rejected.write_text('<mujoco><worldbody><body><joint type="warp"/></body></worldbody>'
-                        '</mujoco>')
+    rejected.write_text('<mujoco><worldbody><body><joint type="warp"/></body></worldbody></mujoco>')
     with pytest.raises(ModelFileError, match="warp"):
         load_model_file(rejected)
     with pytest.raises(ModelFileError, match="no such file"):
@@ -226,11 +252,14 @@ def test_malformed_and_rejected_files(tmp_path):
 
 
 def test_off_manifold_keyframe_is_refused_then_projected(tmp_path):
-    text = (DATA / "fourbar_connect.xml").read_text().replace(
-        "</mujoco>", '<keyframe><key qpos="0.1 0 0"/></keyframe></mujoco>')
+    text = (
+        (DATA / "fourbar_connect.xml")
+        .read_text()
+        .replace("</mujoco>", '<keyframe><key qpos="0.1 0 0"/></keyframe></mujoco>')
+    )
     p = tmp_path / "fourbar_key.xml"
     p.write_text(text)
-    with pytest.raises(OffManifoldError, match="keyframe 0.*project=True"):
+    with pytest.raises(OffManifoldError, match=r"keyframe 0.*project=True"):
         import_mjcf(p)
     imp = import_mjcf(p, project=True)
     nm = numeric("fourbar_connect", "kane")  # same equations, so the same compiled code
@@ -239,15 +268,17 @@ def test_off_manifold_keyframe_is_refused_then_projected(tmp_path):
 
 
 def test_off_manifold_keyframe_velocity_is_refused(tmp_path):
-    text = (DATA / "fourbar_connect.xml").read_text().replace(
-        "</mujoco>", '<keyframe><key qpos="0 0 0" qvel="1 0 0"/></keyframe></mujoco>')
+    text = (
+        (DATA / "fourbar_connect.xml")
+        .read_text()
+        .replace("</mujoco>", '<keyframe><key qpos="0 0 0" qvel="1 0 0"/></keyframe></mujoco>')
+    )
     p = tmp_path / "fourbar_vel.xml"
     p.write_text(text)
     with pytest.raises(OffManifoldError, match="velocities"):
         import_mjcf(p)
     imp = import_mjcf(p, project=True)
-    numeric("fourbar_connect", "kane").check_consistent(imp.model.initial_q,
-                                                        imp.model.initial_u)
+    numeric("fourbar_connect", "kane").check_consistent(imp.model.initial_q, imp.model.initial_u)
 
 
 # ---- Python model files and entry points --------------------------------------------------------
@@ -261,13 +292,16 @@ def test_python_model_file_loads_with_origin():
     assert xml["kind"] == "mjcf" and xml["constraints"] == ["Q_x", "Q_y", "Q_z"]
 
 
-@pytest.mark.parametrize("source, match", [
-    ("raise RuntimeError('boom')", "raised RuntimeError while loading: boom"),
-    ("x = 1", r"defines no models\(\) function"),
-    ("def models():\n    return []", "returned no models"),
-    ("def models():\n    return [1]", "returned int"),
-    ("def models():\n    raise KeyError('k')", r"models\(\) raised KeyError"),
-])
+@pytest.mark.parametrize(
+    "source, match",
+    [
+        ("raise RuntimeError('boom')", "raised RuntimeError while loading: boom"),
+        ("x = 1", r"defines no models\(\) function"),
+        ("def models():\n    return []", "returned no models"),
+        ("def models():\n    return [1]", "returned int"),
+        ("def models():\n    raise KeyError('k')", r"models\(\) raised KeyError"),
+    ],
+)
 def test_bad_python_files(tmp_path, source, match):
     p = tmp_path / "user.py"
     p.write_text(source)
@@ -279,15 +313,13 @@ def test_duplicate_and_builtin_names_are_refused():
     with pytest.raises(ModelFileError, match="already used"):
         load_all([DATA / "user_mechanism.py"] * 2, entry_points=False)
     with pytest.raises(ModelFileError, match="built-in"):
-        load_all([DATA / "user_mechanism.py"], entry_points=False,
-                 builtin_names=["tethered_mass"])
+        load_all([DATA / "user_mechanism.py"], entry_points=False, builtin_names=["tethered_mass"])
 
 
 def test_entry_point_group_is_read(tmp_path, monkeypatch):
     """A distribution on sys.path declaring [crosscheck.models] (a real .dist-info, found by
     importlib.metadata as an installed package's would be)."""
-    (tmp_path / "userpkg_models.py").write_text(
-        (DATA / "user_mechanism.py").read_text())
+    (tmp_path / "userpkg_models.py").write_text((DATA / "user_mechanism.py").read_text())
     info = tmp_path / "userpkg-0.1.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: userpkg\nVersion: 0.1\n")
@@ -301,7 +333,10 @@ def test_entry_point_group_is_read(tmp_path, monkeypatch):
 def test_registered_user_model_is_found_by_get():
     from crosscheck.user_models import register_all
     from reference import models
-    ums = load_model_file(DATA / "user_mechanism.py") + load_model_file(DATA / "double_pendulum.xml")
+
+    ums = load_model_file(DATA / "user_mechanism.py") + load_model_file(
+        DATA / "double_pendulum.xml"
+    )
     assert register_all(ums) == ["tethered_mass", "driven_pendulum", "double_pendulum"]
     assert models.get("driven_pendulum") is ums[1].model
     assert models.origin("driven_pendulum") == "user_mechanism.py:models()"
@@ -331,8 +366,9 @@ def test_joint_damper_and_timed_torque_against_hand_physics():
     for form in model.formulations:
         nm = NumericModel(model, form)
         for t, th, thd in ((0.0, 0.4, 0.0), (0.7, -1.1, 2.3)):
-            expected = (-p["m"] * p["g"] * p["L"] * np.sin(th) - p["d"] * thd
-                        + p["A"] * np.sin(p["w"] * t)) / I
+            expected = (
+                -p["m"] * p["g"] * p["L"] * np.sin(th) - p["d"] * thd + p["A"] * np.sin(p["w"] * t)
+            ) / I
             got = nm.forward([th], [thd], t).accelerations[0]
             assert got == pytest.approx(expected, rel=1e-12)
         bal = nm.power_balance([0.3], [1.1], 0.5)
@@ -343,9 +379,15 @@ def test_force_function_must_take_sympy_symbols():
     import math
 
     from reference.forces import applied_torque
+
     with pytest.raises(Exception, match="sympy"):
-        applied_torque("bad", (0, 0, sp.Symbol("w")), lambda t, q, u: (0, 0, math.sin(t)),
-                       coordinates=(), speeds=())
+        applied_torque(
+            "bad",
+            (0, 0, sp.Symbol("w")),
+            lambda t, q, u: (0, 0, math.sin(t)),
+            coordinates=(),
+            speeds=(),
+        )
 
 
 def test_fourbar_trajectory_with_dependent_rows():
@@ -354,6 +396,7 @@ def test_fourbar_trajectory_with_dependent_rows():
     residuals 7e-16 / 3e-15, energy drift 5e-9 at rtol 1e-8 (the run's tolerances)."""
     from reference.errors import ModelInputError
     from reference.integrate import simulate
+
     imp, nm = imported("fourbar_connect"), numeric("fourbar_connect", "kane")
     tr = simulate(nm, imp.model.initial_q, imp.model.initial_u, 2.0, method="projection")
     s = tr.summary()
@@ -368,6 +411,7 @@ def test_contact_pairs_are_the_ones_mujoco_collides(flags):
     """Every geom overlaps every other, so MuJoCo's contacts are exactly the pairs its broad
     phase keeps: contype/conaffinity, same weld body, parent filter, <exclude>."""
     from reference.mjcf_checks import _contact_pairs
+
     xml = f"""<mujoco>{flags}<worldbody><geom name="w" size="1"/>
       <body name="a"><joint/><geom name="ga" size="1"/>
         <body name="b"><joint/><geom name="gb" size="1"/>
@@ -381,7 +425,7 @@ def test_contact_pairs_are_the_ones_mujoco_collides(flags):
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     collided = set()
-    for c in d.contact[:d.ncon]:
+    for c in d.contact[: d.ncon]:
         g1, g2 = sorted((c.geom1, c.geom2))
         collided.add(f"geom '{m.geom(g1).name}' / geom '{m.geom(g2).name}'")
     assert collided and set(_contact_pairs(m)) == collided

@@ -1,6 +1,7 @@
 """Engines on users' MJCF files (issue 11 items 3 and 4): MuJoCo loads the file as it is,
 Pinocchio gets a complete model built from MuJoCo's compiled one; dependent rows compare the
 accelerations and J^T lambda (the minimum-norm multipliers)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -36,6 +37,7 @@ def test_user_file_passes_in_engine(file, engine):
 
 def test_pin_parser_findings_name_the_lost_elements():
     from crosscheck.engines.pinocchio.parser_findings import findings_isolated
+
     found = findings_isolated(DATA / "fourbar_connect.xml")
     kinds = {(f["kind"], f["element"]) for f in found}
     # pin 4.1 reads only the first subtree of <worldbody> and no geom-derived masses
@@ -45,11 +47,17 @@ def test_pin_parser_findings_name_the_lost_elements():
 
 def test_pin_user_file_trajectory_follows_reference():
     import numpy as np
+
     (name,) = register_all(load_model_file(DATA / "fourbar_connect.xml"))
     mdl = models.get(name)
     em = get_engine("pinocchio").build(name)
-    tr = em.simulate(np.array(mdl.initial_q), np.array(mdl.initial_u), [0.0, 0.5, 1.0],
-                     integrator="DOP853", rtol=1e-10)
+    tr = em.simulate(
+        np.array(mdl.initial_q),
+        np.array(mdl.initial_u),
+        [0.0, 0.5, 1.0],
+        integrator="DOP853",
+        rtol=1e-10,
+    )
     assert tr.failure is None and tr.q.shape == (3, 3)
     assert np.max(tr.violation) < 1e-7  # no stabilization: drift of the integrator's size
     assert abs(tr.energy[-1] - tr.energy[0]) < 1e-7 * max(1.0, abs(tr.energy[0]))

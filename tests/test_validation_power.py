@@ -1,4 +1,5 @@
 """Issue 14: the blind spots of the suite, each closed and held here."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,6 +31,7 @@ def test_run_checks_the_generic_parameter_set_as_records_of_their_own():
     """`run` repeats the instantaneous checks at reference.generic's parameter set, under
     check names of their own (the gate sees them as new records, not as changed ones)."""
     from crosscheck.run import generic_model, run
+
     records, _ = run(["pendulum_xy"], ["pinocchio"], n_states=2, trajectories=False)
     checks = {r["check"] for r in records if r["engine"] == "pinocchio"}
     assert checks == {"instantaneous", "instantaneous_generic"}
@@ -39,25 +41,36 @@ def test_run_checks_the_generic_parameter_set_as_records_of_their_own():
     assert all(v != defaults[k] for k, v in generic_model("pendulum_xy").params.items())
 
 
-@pytest.mark.parametrize("argv,why", [
-    (["pendulum_xy", "--engines", "pinocchio", "--perturb", "pinocchio:L=1e-3"],
-     "does not contain L"),
-    (["slider_crank", "--engines", "mujoco", "--perturb", "mujoco:T=1e-3"],
-     "T is 0 at the model's defaults"),
-    (["slider_crank", "--engines", "pinocchio", "--perturb", "mujoco:m3=1e-3"],
-     "not among this run's engines"),
-])
+@pytest.mark.parametrize(
+    "argv,why",
+    [
+        (
+            ["pendulum_xy", "--engines", "pinocchio", "--perturb", "pinocchio:L=1e-3"],
+            "does not contain L",
+        ),
+        (
+            ["slider_crank", "--engines", "mujoco", "--perturb", "mujoco:T=1e-3"],
+            "T is 0 at the model's defaults",
+        ),
+        (
+            ["slider_crank", "--engines", "pinocchio", "--perturb", "mujoco:m3=1e-3"],
+            "not among this run's engines",
+        ),
+    ],
+)
 def test_perturbation_that_changes_nothing_is_refused(tmp_path, capsys, argv, why):
     """Exit 2 with the reason, before any work (no results.json)."""
     from crosscheck.cli import main
+
     code = main(["run", *argv, "--instantaneous", "--out", str(tmp_path)])
     assert code == 2 and why in capsys.readouterr().err
     assert not (tmp_path / "results.json").exists()
 
 
 @pytest.mark.parametrize("engine", ["pinocchio", "mujoco"])
-@pytest.mark.parametrize("name,param", [("slider_crank", "l1"), ("slider_crank", "m3"),
-                                        ("double_pendulum_3d", "l1")])
+@pytest.mark.parametrize(
+    "name,param", [("slider_crank", "l1"), ("slider_crank", "m3"), ("double_pendulum_3d", "l1")]
+)
 def test_perturbation_changes_the_physics_not_the_maps(engine, name, param):
     """With the nominal values given, a perturbed engine model maps states (and multipliers'
     conventions) exactly as the nominal one does, and its fingerprint differs."""
@@ -65,6 +78,7 @@ def test_perturbation_changes_the_physics_not_the_maps(engine, name, param):
     from crosscheck.engines.registry import get_engine
     from crosscheck.run import consistent_states
     from reference import NumericModel
+
     adapter = get_engine(engine)
     nm = NumericModel(models.get(name))
     bad = {**nm.params, param: nm.params[param] * (1 + 1e-3)}
@@ -73,7 +87,7 @@ def test_perturbation_changes_the_physics_not_the_maps(engine, name, param):
     bad_em = build(adapter, name, bad, variant, nominal=nm.params)
     assert good_em.fingerprint() != bad_em.fingerprint()
     for q, u in consistent_states(nm, 2):
-        for a, b in zip(good_em.to_engine_state(q, u), bad_em.to_engine_state(q, u)):
+        for a, b in zip(good_em.to_engine_state(q, u), bad_em.to_engine_state(q, u), strict=False):
             assert np.array_equal(a, b)
 
 
@@ -81,15 +95,20 @@ def test_reference_drift_is_held_to_the_projection_guarantee():
     """The reference's drift records carry the projection's own bounds, so a run without
     stabilization fails them: the same model integrated without projection (index1) exceeds
     both, with projection it stays inside."""
-    from crosscheck.trajectory import (REF_RTOL, _residual_series, output_grid,
-                                       projected_drift, projected_velocity_drift)
+    from crosscheck.trajectory import (
+        REF_RTOL,
+        _residual_series,
+        output_grid,
+        projected_drift,
+        projected_velocity_drift,
+    )
     from reference import NumericModel
     from reference.integrate import simulate
+
     nm = NumericModel(models.get("pendulum_xy"))
     q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
     for method, inside in (("projection", True), ("index1", False)):
-        r = simulate(nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL,
-                     t_eval=output_grid(5.0))
+        r = simulate(nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL, t_eval=output_grid(5.0))
         pos, vel = _residual_series(nm, r.t, r.q, r.u)
         assert bool(pos.max() <= projected_drift(r.q).value) is inside, (method, pos.max())
         assert bool(vel.max() <= projected_velocity_drift(r.u).value) is inside, (method, vel.max())
@@ -104,10 +123,12 @@ def test_failed_integration_is_a_failed_record_and_the_run_goes_on(monkeypatch):
 
     def underflow(*a, **k):
         raise IntegrationError("pendulum_xy: step size underflow at t = 0.31")
+
     monkeypatch.setattr(T, "simulate", underflow)
     from crosscheck.engines.registry import get_engine
+
     nm = NumericModel(models.get("pendulum_xy"))
-    records, series = T.trajectory_records("pendulum_xy", nm, [get_engine("pinocchio")], 0.1)
+    records, _series = T.trajectory_records("pendulum_xy", nm, [get_engine("pinocchio")], 0.1)
     ref = [r for r in records if r["engine"] == "reference"]
     assert len(ref) == 1 and ref[0]["passed"] is False and "underflow" in ref[0]["reason"]
     assert all(r["skipped"] for r in records if r["engine"] == "pinocchio")
@@ -119,11 +140,31 @@ def test_report_shows_sensitivity_beside_results(tmp_path, capsys):
     import json
 
     from crosscheck.cli import main
+
     out = str(tmp_path)
-    assert main(["run", "pendulum_xy", "--engines", "pinocchio", "--states", "2",
-                 "--instantaneous", "--no-report", "--out", out]) == 0
-    assert main(["sensitivity", "pendulum_xy", "--engines", "pinocchio", "--states", "1",
-                 "--out", out]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "pendulum_xy",
+                "--engines",
+                "pinocchio",
+                "--states",
+                "2",
+                "--instantaneous",
+                "--no-report",
+                "--out",
+                out,
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            ["sensitivity", "pendulum_xy", "--engines", "pinocchio", "--states", "1", "--out", out]
+        )
+        == 0
+    )
     doc = json.loads((tmp_path / "sensitivity.json").read_text())
     missed = [t for t in doc["thresholds"] if t["caught_at"] is None]
     assert missed, "pendulum_xy's L is not in Pinocchio's model: nothing can catch it"
@@ -131,6 +172,7 @@ def test_report_shows_sensitivity_beside_results(tmp_path, capsys):
     page = (tmp_path / "index.html").read_text()
     assert 'id="sensitivity"' in page and "not caught" in page and "sensitivity thresholds" in page
     import html
+
     assert html.escape(missed[0]["reason"], quote=True) in page
     md = (tmp_path / "report.md").read_text()
     assert "## Sensitivity" in md and "NOT CAUGHT" in md

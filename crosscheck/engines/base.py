@@ -14,20 +14,34 @@ What every adapter would otherwise write again is here once: TableAdapter (model
 and build from a table of engine models, through lookup_builder and resolve_params) and
 check_state (a reference state's sizes and finiteness, as the reference checks them).
 """
+
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Optional, Sequence
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ..compare import EXACT_KKT, Tolerance
 
-__all__ = ["Capabilities", "EngineAdapter", "EngineForward", "EngineModel", "EngineTrajectory",
-           "EngineUnsupported", "ModelTable", "TableAdapter", "check_state", "is_user_model",
-           "lookup_builder", "resolve_params", "table_variants"]
+__all__ = [
+    "Capabilities",
+    "EngineAdapter",
+    "EngineForward",
+    "EngineModel",
+    "EngineTrajectory",
+    "EngineUnsupported",
+    "ModelTable",
+    "TableAdapter",
+    "check_state",
+    "is_user_model",
+    "lookup_builder",
+    "resolve_params",
+    "table_variants",
+]
 
 
 class EngineUnsupported(Exception):
@@ -75,12 +89,18 @@ class Capabilities:
             raise ValueError(f"adaptive_integrators {sorted(extra)} are not in integrators")
 
     def as_dict(self) -> dict[str, Any]:
-        return {"multipliers": self.multipliers, "exact": self.exact,
-                "rigid_recovery": self.rigid_recovery, "mass_matrix": self.mass_matrix,
-                "nonholonomic": self.nonholonomic, "integrators": list(self.integrators),
-                "variants": self.variants,
-                "adaptive_integrators": list(self.adaptive_integrators),
-                "soft_prediction": self.soft_prediction, "soft_limit": self.soft_limit}
+        return {
+            "multipliers": self.multipliers,
+            "exact": self.exact,
+            "rigid_recovery": self.rigid_recovery,
+            "mass_matrix": self.mass_matrix,
+            "nonholonomic": self.nonholonomic,
+            "integrators": list(self.integrators),
+            "variants": self.variants,
+            "adaptive_integrators": list(self.adaptive_integrators),
+            "soft_prediction": self.soft_prediction,
+            "soft_limit": self.soft_limit,
+        }
 
 
 @dataclass
@@ -100,20 +120,21 @@ class EngineForward:
     """
 
     accelerations: np.ndarray
-    multipliers: Optional[np.ndarray]
+    multipliers: np.ndarray | None
     raw: dict = field(default_factory=dict)
-    multipliers_note: Optional[str] = None
-    rigid_accelerations: Optional[np.ndarray] = None
-    rigid_multipliers: Optional[np.ndarray] = None
-    iterations: Optional[int] = None
-    predicted_acceleration_error: Optional[np.ndarray] = None
-    predicted_multiplier_error: Optional[np.ndarray] = None
+    multipliers_note: str | None = None
+    rigid_accelerations: np.ndarray | None = None
+    rigid_multipliers: np.ndarray | None = None
+    iterations: int | None = None
+    predicted_acceleration_error: np.ndarray | None = None
+    predicted_multiplier_error: np.ndarray | None = None
 
     @property
     def soft(self) -> bool:
         """The answer is regularized here: compare its rigid recovery, predict the raw one."""
-        return (self.rigid_accelerations is not None
-                and self.predicted_acceleration_error is not None)
+        return (
+            self.rigid_accelerations is not None and self.predicted_acceleration_error is not None
+        )
 
 
 @dataclass
@@ -136,10 +157,10 @@ class EngineTrajectory:
     energy: np.ndarray
     integrator: str
     setting: dict = field(default_factory=dict)
-    wall_s: Optional[float] = None
-    steps: Optional[int] = None
+    wall_s: float | None = None
+    steps: int | None = None
     raw: dict = field(default_factory=dict)
-    failure: Optional[str] = None
+    failure: str | None = None
     warnings: dict = field(default_factory=dict)
 
 
@@ -148,14 +169,14 @@ class EngineModel(ABC):
 
     engine: str
     model_name: str
-    variant: Optional[str] = None
-    mass_matrix_note: Optional[str] = None
+    variant: str | None = None
+    mass_matrix_note: str | None = None
     # the engine's own constraint rows are regularized (soft): trajectories follow slightly
     # different dynamics, so they are characterized, not held to the rigid bounds
     soft_constraints: bool = False
     # the engine's native solver for this model (reported with timings), and whether it solves
     # constraint rows (False: a minimal-coordinate tree or an unconstrained model)
-    solver: Optional[str] = None
+    solver: str | None = None
     constrained_solve: bool = False
 
     @abstractmethod
@@ -174,30 +195,38 @@ class EngineModel(ABC):
     def energy(self, q: np.ndarray, u: np.ndarray) -> tuple[float, float]:
         """(kinetic, potential) in the engine, same datum as the reference."""
 
-    def mass_matrix(self, q: np.ndarray) -> Optional[np.ndarray]:
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray | None:
         """Engine mass matrix in reference speeds, or None (``mass_matrix_note`` says why)."""
         return None
 
-    def forcing(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> Optional[np.ndarray]:
+    def forcing(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray | None:
         """The reference's f (applied forces minus velocity products) from the engine, or None."""
         return None
 
-    def simulate(self, q0: np.ndarray, u0: np.ndarray, t_eval: Sequence[float], *,
-                 integrator: str, rtol: Optional[float] = None,
-                 timestep: Optional[float] = None) -> EngineTrajectory:
+    def simulate(
+        self,
+        q0: np.ndarray,
+        u0: np.ndarray,
+        t_eval: Sequence[float],
+        *,
+        integrator: str,
+        rtol: float | None = None,
+        timestep: float | None = None,
+    ) -> EngineTrajectory:
         """Integrate from a consistent reference state with one of the adapter's integrators:
         adaptive ones take ``rtol``, fixed-step ones ``timestep``."""
         raise EngineUnsupported(f"{self.engine} has no trajectories in this suite")
 
-    def predict_soft(self, q: np.ndarray, u: np.ndarray, reference_accelerations: np.ndarray
-                     ) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    def predict_soft(
+        self, q: np.ndarray, u: np.ndarray, reference_accelerations: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         """The raw soft (accelerations, multipliers) this model should return at a consistent
         reference state, predicted from the reference's accelerations and the engine's
         documented regularization, never from its constraint solution
         (Capabilities.soft_prediction); raises EngineUnsupported where it cannot."""
         raise EngineUnsupported(f"{self.engine} does not predict its soft answer")
 
-    def stiffened(self, factor: float) -> "EngineModel":
+    def stiffened(self, factor: float) -> EngineModel:
         """The same model (same parameters) with its soft rows' time constant divided by
         ``factor`` (Capabilities.soft_limit)."""
         raise EngineUnsupported(f"{self.engine} has no stiffer soft model")
@@ -211,7 +240,7 @@ class EngineModel(ABC):
     # figures) read: the nominal (unperturbed) set, given by crosscheck.comparison.build, so
     # that a perturbation (crosscheck.perturb) changes only the engine's physics; None: the
     # build's own values
-    nominal: Optional[dict[str, float]] = None
+    nominal: dict[str, float] | None = None
 
     @property
     def map_params(self) -> dict[str, float]:
@@ -248,13 +277,14 @@ class EngineAdapter(ABC):
         """Reference models the engine cannot express, each with the reason (shown as a skip)."""
         return {}
 
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
+    def variants(self, model_name: str) -> tuple[str | None, ...]:
         """The engine models of one reference model; the first is build's default."""
         return (None,)
 
     @abstractmethod
-    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
-              variant: Optional[str] = None) -> EngineModel:
+    def build(
+        self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
+    ) -> EngineModel:
         """Engine model for a reference model; raises EngineUnsupported with the reason."""
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
@@ -274,7 +304,7 @@ class EngineAdapter(ABC):
 ModelTable = dict[str, Any]
 
 
-def resolve_params(model_name: str, params: Optional[dict]) -> dict[str, float]:
+def resolve_params(model_name: str, params: dict | None) -> dict[str, float]:
     """The reference model's parameter values (defaults filled in, names and signs checked)."""
     from reference.models import get
     from reference.numeric import resolve_parameters
@@ -289,29 +319,34 @@ def is_user_model(table: ModelTable, model_name: str) -> bool:
     return model_name not in table and model_name in user_names()
 
 
-def table_variants(table: ModelTable, model_name: str) -> tuple[Optional[str], ...]:
+def table_variants(table: ModelTable, model_name: str) -> tuple[str | None, ...]:
     """The variants of a model in an adapter's table; (None,) for a single engine model."""
     entry = table.get(model_name)
     return tuple(entry) if isinstance(entry, dict) else (None,)
 
 
-def single_variant(engine: str, model_name: str, variant: Optional[str],
-                   what: str = "") -> None:
+def single_variant(engine: str, model_name: str, variant: str | None, what: str = "") -> None:
     """Refuse a variant for a model with one engine model (``what`` names it, e.g. a user's
     file; default the engine)."""
     if variant is not None:
         raise EngineUnsupported(f"{model_name}: {what or engine} has a single variant here")
 
 
-def lookup_builder(engine: str, table: ModelTable, model_name: str, variant: Optional[str],
-                   unsupported: Optional[dict[str, str]] = None) -> Any:
+def lookup_builder(
+    engine: str,
+    table: ModelTable,
+    model_name: str,
+    variant: str | None,
+    unsupported: dict[str, str] | None = None,
+) -> Any:
     """The builder of one variant of a model in an adapter's table (the default variant when
     ``variant`` is None); EngineUnsupported with the reason, or with the valid names."""
     if unsupported and model_name in unsupported:
         raise EngineUnsupported(unsupported[model_name])
     if model_name not in table:
         raise EngineUnsupported(
-            f"{engine} adapter has no model {model_name!r} (mapped: {', '.join(table)})")
+            f"{engine} adapter has no model {model_name!r} (mapped: {', '.join(table)})"
+        )
     entry = table[model_name]
     if not isinstance(entry, dict):
         single_variant(engine, model_name, variant)
@@ -319,12 +354,14 @@ def lookup_builder(engine: str, table: ModelTable, model_name: str, variant: Opt
     key = variant or next(iter(entry))
     if key not in entry:
         raise EngineUnsupported(
-            f"{model_name}: unknown {engine} variant {key!r}; valid: {', '.join(entry)}")
+            f"{model_name}: unknown {engine} variant {key!r}; valid: {', '.join(entry)}"
+        )
     return entry[key]
 
 
-def check_state(where: str, nq: int, n: int, q: Any, u: Any = None, t: float = 0.0
-                ) -> tuple[np.ndarray, Optional[np.ndarray]]:
+def check_state(
+    where: str, nq: int, n: int, q: Any, u: Any = None, t: float = 0.0
+) -> tuple[np.ndarray, np.ndarray | None]:
     """A reference state's sizes and finiteness, checked as the reference checks them;
     ``where`` names the model and engine in the error. Returns (q, u) as flat float arrays."""
     from reference.errors import ModelInputError
@@ -336,8 +373,7 @@ def check_state(where: str, nq: int, n: int, q: Any, u: Any = None, t: float = 0
         u = np.asarray(u, dtype=float).reshape(-1)
         if u.size != n:
             raise ModelInputError(f"{where}: expected {n} speeds, got {u.size}")
-    if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u)))
-            and math.isfinite(t)):
+    if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u))) and math.isfinite(t)):
         raise ModelInputError(f"{where}: state contains NaN or infinite values")
     return q, u
 
@@ -360,12 +396,12 @@ class TableAdapter(EngineAdapter):
     def unsupported(self) -> dict[str, str]:
         return dict(self.refused)
 
-    def variants(self, model_name: str) -> tuple[Optional[str], ...]:
+    def variants(self, model_name: str) -> tuple[str | None, ...]:
         return table_variants(self.model_table, model_name)
 
-    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
-              variant: Optional[str] = None) -> EngineModel:
-        builder = lookup_builder(self.name, self.model_table, model_name, variant,
-                                 self.refused)
+    def build(
+        self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
+    ) -> EngineModel:
+        builder = lookup_builder(self.name, self.model_table, model_name, variant, self.refused)
         model: EngineModel = builder(model_name, resolve_params(model_name, params))
         return model

@@ -6,6 +6,7 @@ eps'' = (E(eps')^T omega + E(eps)^T omega') / 2. Quaternion storage orders diffe
 (Pinocchio x, y, z, w; MuJoCo w, x, y, z), so their conversions stay with each engine and use
 the engine's own routines.
 """
+
 from __future__ import annotations
 
 import math
@@ -91,5 +92,7 @@ def frame_bar_to_engine(q, u) -> tuple[np.ndarray, np.ndarray]:
 def frame_bar_from_engine(qe, ve) -> tuple[np.ndarray, np.ndarray]:
     """The inverse of frame_bar_to_engine: omega = (-sin(theta) phi', theta', cos(theta) phi')."""
     th = float(qe[1])
-    return (np.array(qe, float).copy(),
-            np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]))
+    return (
+        np.array(qe, float).copy(),
+        np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]),
+    )

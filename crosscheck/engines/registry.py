@@ -8,12 +8,13 @@ in exactly one place and a third-party package adds an engine with one line of i
 
 The entry point names a class derived from ``EngineAdapter`` (constructed without arguments).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib import metadata
-from typing import Any, Optional
+from typing import Any
 
 from reference.errors import ModelInputError
 
@@ -30,7 +31,7 @@ class EngineImportError(ModelInputError):
     """A registered engine whose package does not import here."""
 
 
-@lru_cache(maxsize=None)
+@cache
 def _entry_points() -> dict[str, metadata.EntryPoint]:
     return {ep.name: ep for ep in metadata.entry_points(group=GROUP)}
 
@@ -41,24 +42,29 @@ def engine_names() -> tuple[str, ...]:
     if not names:
         raise UnknownEngineError(
             f"no engines are registered under the entry-point group {GROUP!r}: the package "
-            "metadata is missing; install the suite with `python -m pip install -e .`")
+            "metadata is missing; install the suite with `python -m pip install -e .`"
+        )
     return names
 
 
-@lru_cache(maxsize=None)
+@cache
 def _adapter_class(name: str) -> type[EngineAdapter]:
     eps = _entry_points()
     if name not in eps:
-        raise UnknownEngineError(f"unknown engine {name!r}; registered: "
-                                 f"{', '.join(engine_names())}")
+        raise UnknownEngineError(
+            f"unknown engine {name!r}; registered: {', '.join(engine_names())}"
+        )
     try:
         cls = eps[name].load()
     except ImportError as exc:
-        raise EngineImportError(f"engine {name!r} is registered but does not import here "
-                                f"({exc}); install its package or leave it out of --engines")
+        raise EngineImportError(
+            f"engine {name!r} is registered but does not import here "
+            f"({exc}); install its package or leave it out of --engines"
+        ) from None
     if not (isinstance(cls, type) and issubclass(cls, EngineAdapter)):
-        raise EngineImportError(f"engine {name!r}: entry point {eps[name].value!r} is not an "
-                                "EngineAdapter class")
+        raise EngineImportError(
+            f"engine {name!r}: entry point {eps[name].value!r} is not an EngineAdapter class"
+        )
     return cls
 
 
@@ -99,31 +105,39 @@ def engine_distributions() -> tuple[str, ...]:
     return tuple(_adapter_class(n).distribution for n in available_engines())
 
 
-def engine_versions() -> dict[str, Optional[str]]:
+def engine_versions() -> dict[str, str | None]:
     """{distribution: installed version} of every engine that imports here (results' meta)."""
-    return {_adapter_class(n).distribution: _version(_adapter_class(n).distribution)
-            for n in available_engines()}
+    return {
+        _adapter_class(n).distribution: _version(_adapter_class(n).distribution)
+        for n in available_engines()
+    }
 
 
 @dataclass(frozen=True)
 class EngineStatus:
     name: str
     entry_point: str
-    distribution: Optional[str]
-    version: Optional[str]
+    distribution: str | None
+    version: str | None
     imports: bool
-    error: Optional[str]
-    capabilities: Optional[dict]
+    error: str | None
+    capabilities: dict | None
     models: tuple[str, ...] = ()
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "entry_point": self.entry_point,
-                "distribution": self.distribution, "version": self.version,
-                "imports": self.imports, "error": self.error,
-                "capabilities": self.capabilities, "models": list(self.models)}
+        return {
+            "name": self.name,
+            "entry_point": self.entry_point,
+            "distribution": self.distribution,
+            "version": self.version,
+            "imports": self.imports,
+            "error": self.error,
+            "capabilities": self.capabilities,
+            "models": list(self.models),
+        }
 
 
-def _version(distribution: str) -> Optional[str]:
+def _version(distribution: str) -> str | None:
     try:
         return metadata.version(distribution)
     except metadata.PackageNotFoundError:
@@ -140,7 +154,16 @@ def engine_status() -> list[EngineStatus]:
         except EngineImportError as exc:
             out.append(EngineStatus(name, ep, None, None, False, str(exc), None))
             continue
-        out.append(EngineStatus(name, ep, adapter.distribution, _version(adapter.distribution),
-                                True, None, adapter.capabilities.as_dict(),
-                                tuple(adapter.models())))
+        out.append(
+            EngineStatus(
+                name,
+                ep,
+                adapter.distribution,
+                _version(adapter.distribution),
+                True,
+                None,
+                adapter.capabilities.as_dict(),
+                tuple(adapter.models()),
+            )
+        )
     return out

@@ -1,4 +1,5 @@
 """Registry of the unit's multiplier formulations: name -> function(model) -> EquationsOfMotion."""
+
 from __future__ import annotations
 
 from ..errors import ModelInputError
@@ -13,9 +14,11 @@ def derive(model, formulation: str):
     """Derive the equations of motion of `model` with the named formulation."""
     if formulation not in FORMULATIONS:
         raise ModelInputError(
-            f"unknown formulation {formulation!r}; valid: {', '.join(FORMULATIONS)}")
+            f"unknown formulation {formulation!r}; valid: {', '.join(FORMULATIONS)}"
+        )
     if formulation not in model.formulations:
         raise ModelInputError(
             f"model {model.name!r} does not declare formulation {formulation!r}; "
-            f"it has: {', '.join(model.formulations)}")
+            f"it has: {', '.join(model.formulations)}"
+        )
     return FORMULATIONS[formulation](model)

@@ -4,6 +4,7 @@ sum_i [ m_i a_Gi . dv_Gi/du_k + (I_Gi alpha_i + omega_i x H_Gi) . domega_i/du_k 
     = F_uk + sum_j lambda_j a_jk,   with sum_k a_jk u_k + a_j0 = 0 (Eq. 8)
 and the kinematic differential equations q' = N(q, u, t) closing the system.
 """
+
 from __future__ import annotations
 
 from ..constraints import constraint_set
@@ -15,5 +16,6 @@ from .projection import generalized_inertia_minus_active
 def kane(model: Model) -> EquationsOfMotion:
     ud = acceleration_symbols(model)
     M, f = split_linear(generalized_inertia_minus_active(model, ud), ud)
-    return EquationsOfMotion(model, "kane", M, f, constraint_set(model), ud,
-                             multiplier_symbols(model))
+    return EquationsOfMotion(
+        model, "kane", M, f, constraint_set(model), ud, multiplier_symbols(model)
+    )

@@ -5,6 +5,7 @@ K is the sum of 1/2 m v_G.v_G + 1/2 omega.I_G omega over the bodies; V is the mo
 potential plus the gravity potential -m g.r_G of each body; (F_qk)_nc = sum F.dv/dq'_k over the
 applied forces and torques.
 """
+
 from __future__ import annotations
 
 import sympy as sp
@@ -48,9 +49,10 @@ def lagrange(model: Model) -> EquationsOfMotion:
     L = kinetic_energy(model) - potential_energy(model)
     Fnc = nonconservative_forces(model, qd)
     E = sp.zeros(len(qd), 1)
-    for k, (q, v) in enumerate(zip(model.coordinates, qd)):
+    for k, (q, v) in enumerate(zip(model.coordinates, qd, strict=False)):
         dL_dv = sp.diff(L, v)
         E[k] = model.time_derivative(dL_dv, ud) - sp.diff(L, q) - Fnc[k]
     M, f = split_linear(E, ud)
-    return EquationsOfMotion(model, "lagrange", M, f, constraint_set(model), ud,
-                             multiplier_symbols(model))
+    return EquationsOfMotion(
+        model, "lagrange", M, f, constraint_set(model), ud, multiplier_symbols(model)
+    )

@@ -4,6 +4,7 @@ sum_i [ m_i a_Gi . dv_Gi/ds_k + (I_Gi alpha_i + omega_i x H_Gi) . domega_i/ds_k 
 where s are the coordinate rates (d'Alembert, Eq. 7) or the speeds (Kane, Eq. 9). The two
 principles differ only in which rates the partial velocities are taken with respect to.
 """
+
 from __future__ import annotations
 
 import sympy as sp
@@ -37,6 +38,6 @@ def generalized_inertia_minus_active(model: Model, ud) -> sp.Matrix:
             E[k] -= (load.T * vel.diff(s))[0]
     if model.potential != 0:  # springs: F_k = -sum_j dV/dq_j dq'_j/ds_k
         for k, s in enumerate(u):
-            for q, qdot in zip(model.coordinates, model.kinematics):
+            for q, qdot in zip(model.coordinates, model.kinematics, strict=False):
                 E[k] += sp.diff(model.potential, q) * sp.diff(qdot, s)
     return E

@@ -1,4 +1,5 @@
 """Registry of the unit's systems: name -> factory. Drives the CLI and test parametrization."""
+
 from __future__ import annotations
 
 from functools import cache
@@ -39,8 +40,9 @@ def register(model, origin: str, source=None) -> None:
     `source`: what the engines may need beside the Model (an MJCF import: the compiled MuJoCo
     model and the state maps, reference.mjcf.MjcfImport)."""
     if model.name in _FACTORIES:
-        raise ModelInputError(f"model name {model.name!r} ({origin}) is a built-in model's "
-                              f"name; rename it")
+        raise ModelInputError(
+            f"model name {model.name!r} ({origin}) is a built-in model's name; rename it"
+        )
     model.validate()
     _USER[model.name] = (model, origin, source)
 

@@ -1,4 +1,5 @@
 """Building blocks shared by the model declarations (bodies from positions, planar rotations)."""
+
 from __future__ import annotations
 
 import sympy as sp
@@ -19,7 +20,12 @@ def planar_body(name: str, mass, I_zz, r_G, angle, coordinates, kinematics) -> B
     Its central inertia about Z is I_zz; the in-plane components play no part in planar motion
     and are left 0 here (the engines' models give the body a full inertia, see crosscheck).
     """
-    return Body(name, mass, v_G=rate(r_G, coordinates, kinematics, T_SYM),
-                inertia=sp.diag(0, 0, I_zz),
-                omega=vec(0, 0, rate(angle, coordinates, kinematics, T_SYM)),
-                r_G=r_G, R=rot_z(angle))
+    return Body(
+        name,
+        mass,
+        v_G=rate(r_G, coordinates, kinematics, T_SYM),
+        inertia=sp.diag(0, 0, I_zz),
+        omega=vec(0, 0, rate(angle, coordinates, kinematics, T_SYM)),
+        r_G=r_G,
+        R=rot_z(angle),
+    )

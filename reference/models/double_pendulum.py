@@ -36,6 +36,7 @@ Inertia: the textbook's links are slender bars (I_11 = I_33, I_22 "small"); a tr
 bar (I_22 = 0) makes M singular (omega_i2 has no inertia), so the defaults give each bar a
 radius r = 0.02 m: I_22 = m r^2/2, I_11 = I_33 = m l^2/12 (docs/textbook.md, Example 4).
 """
+
 from __future__ import annotations
 
 import math
@@ -51,42 +52,67 @@ PARAMETERS = (
     Parameter("l2", L2, "m", "length of link 2", positive=True),
     Parameter("m1", M1, "kg", "mass of link 1", positive=True),
     Parameter("m2", M2, "kg", "mass of link 2", positive=True),
-    Parameter("I1_11", M1 * L1**2 / 12, "kg m^2", "link 1 central inertia about n11",
-              positive=True),
-    Parameter("I1_22", M1 * RADIUS**2 / 2, "kg m^2", "link 1 axial inertia about n12 (r = 0.02 m)",
-              positive=True),
-    Parameter("I1_33", M1 * L1**2 / 12, "kg m^2", "link 1 central inertia about n13",
-              positive=True),
-    Parameter("I2_11", M2 * L2**2 / 12, "kg m^2", "link 2 central inertia about n21",
-              positive=True),
-    Parameter("I2_22", M2 * RADIUS**2 / 2, "kg m^2", "link 2 axial inertia about n22 (r = 0.02 m)",
-              positive=True),
-    Parameter("I2_33", M2 * L2**2 / 12, "kg m^2", "link 2 central inertia about n23",
-              positive=True),
+    Parameter(
+        "I1_11", M1 * L1**2 / 12, "kg m^2", "link 1 central inertia about n11", positive=True
+    ),
+    Parameter(
+        "I1_22",
+        M1 * RADIUS**2 / 2,
+        "kg m^2",
+        "link 1 axial inertia about n12 (r = 0.02 m)",
+        positive=True,
+    ),
+    Parameter(
+        "I1_33", M1 * L1**2 / 12, "kg m^2", "link 1 central inertia about n13", positive=True
+    ),
+    Parameter(
+        "I2_11", M2 * L2**2 / 12, "kg m^2", "link 2 central inertia about n21", positive=True
+    ),
+    Parameter(
+        "I2_22",
+        M2 * RADIUS**2 / 2,
+        "kg m^2",
+        "link 2 axial inertia about n22 (r = 0.02 m)",
+        positive=True,
+    ),
+    Parameter(
+        "I2_33", M2 * L2**2 / 12, "kg m^2", "link 2 central inertia about n23", positive=True
+    ),
     Parameter("g", 9.81, "m/s^2", "gravitational acceleration (along -N2)", nonnegative=True),
 )
 (l1, l2, m1, m2, I1_11, I1_22, I1_33, I2_11, I2_22, I2_33, g) = (p.symbol for p in PARAMETERS)
 GRAVITY = vec(0, -g, 0)  # N2 up
 
 # Default state: both links swung away from the hanging pose (theta_i2 = pi/2 is regular)
-ANGLES0 = ((-math.pi / 2 + 0.4, math.pi / 2 + 0.3, math.pi / 2 - 0.2),
-           (-math.pi / 2 - 0.5, math.pi / 2 - 0.6, math.pi / 2 + 0.35))
+ANGLES0 = (
+    (-math.pi / 2 + 0.4, math.pi / 2 + 0.3, math.pi / 2 - 0.2),
+    (-math.pi / 2 - 0.5, math.pi / 2 - 0.6, math.pi / 2 + 0.35),
+)
 OMEGA0 = ((0.8, 0.3, -1.1), (-0.6, 0.5, 1.4))
 
 
 def R313(a, b, c):
     """The textbook's 3-1-3 matrix R (N components -> body components), sympy or float."""
     if all(isinstance(x, (int, float)) for x in (a, b, c)):
-        C1, S1, C2, S2, C3, S3 = (math.cos(a), math.sin(a), math.cos(b), math.sin(b),
-                                  math.cos(c), math.sin(c))
+        C1, S1, C2, S2, C3, S3 = (
+            math.cos(a),
+            math.sin(a),
+            math.cos(b),
+            math.sin(b),
+            math.cos(c),
+            math.sin(c),
+        )
         mk = np.array
     else:
-        C1, S1, C2, S2, C3, S3 = (sp.cos(a), sp.sin(a), sp.cos(b), sp.sin(b),
-                                  sp.cos(c), sp.sin(c))
+        C1, S1, C2, S2, C3, S3 = (sp.cos(a), sp.sin(a), sp.cos(b), sp.sin(b), sp.cos(c), sp.sin(c))
         mk = sp.Matrix
-    return mk([[C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
-               [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
-               [S1 * S2, -C1 * S2, C2]])
+    return mk(
+        [
+            [C1 * C3 - S1 * C2 * S3, S1 * C3 + C1 * C2 * S3, S2 * S3],
+            [-C1 * S3 - S1 * C2 * C3, -S1 * S3 + C1 * C2 * C3, S2 * C3],
+            [S1 * S2, -C1 * S2, C2],
+        ]
+    )
 
 
 def kinematics_313(angles, w):
@@ -117,8 +143,13 @@ def _sampler(rng, params):
     the other angles on the circle, omega ~ U(-3, 3)^3 per link."""
     ang = []
     for _ in range(2):
-        ang.append((rng.uniform(-math.pi, math.pi), rng.uniform(0.3, math.pi - 0.3),
-                    rng.uniform(-math.pi, math.pi)))
+        ang.append(
+            (
+                rng.uniform(-math.pi, math.pi),
+                rng.uniform(0.3, math.pi - 0.3),
+                rng.uniform(-math.pi, math.pi),
+            )
+        )
     w = [tuple(rng.uniform(-3, 3, 3)) for _ in range(2)]
     u = consistent_speeds(ang[0], ang[1], w[0], w[1], (params["l1"], params["l2"]))
     return (*ang[0], *ang[1]), u
@@ -142,24 +173,47 @@ def model() -> Model:
     c1 = vec(*v1) - R1.T * om1.cross(rho1)
     c2 = vec(*v2) - R1.T * om1.cross(rhoA) - R2.T * om2.cross(rho2)
     links = (
-        Body("link1", m1, v_G=vec(*v1), v_frame="inertial", inertia=sp.diag(I1_11, I1_22, I1_33),
-             omega=om1, r_G=r_G1, R=R1.T),
-        Body("link2", m2, v_G=vec(*v2), v_frame="inertial", inertia=sp.diag(I2_11, I2_22, I2_33),
-             omega=om2, r_G=r_G2, R=R2.T),
+        Body(
+            "link1",
+            m1,
+            v_G=vec(*v1),
+            v_frame="inertial",
+            inertia=sp.diag(I1_11, I1_22, I1_33),
+            omega=om1,
+            r_G=r_G1,
+            R=R1.T,
+        ),
+        Body(
+            "link2",
+            m2,
+            v_G=vec(*v2),
+            v_frame="inertial",
+            inertia=sp.diag(I2_11, I2_22, I2_33),
+            omega=om2,
+            r_G=r_G2,
+            R=R2.T,
+        ),
     )
     return Model(
-        name="double_pendulum_3d", source="Example 4",
+        name="double_pendulum_3d",
+        source="Example 4",
         title="3D double pendulum (ball joints at O and A), Kane with 12 dependent speeds",
-        parameters=PARAMETERS, coordinates=th1 + th2, speeds=w1 + w2 + v1 + v2, kinematics=kin,
-        bodies=links, gravity=GRAVITY,
+        parameters=PARAMETERS,
+        coordinates=th1 + th2,
+        speeds=w1 + w2 + v1 + v2,
+        kinematics=kin,
+        bodies=links,
+        gravity=GRAVITY,
         motion_constraints=tuple(c1) + tuple(c2),
         constraint_names=("G1_1", "G1_2", "G1_3", "G2_1", "G2_2", "G2_3"),
         multiplier_meaning="lambda[3:6]: force of link 1 on link 2 at A (N components); "
-                           "lambda[0:3] = F_O - lambda[3:6], with F_O the ground's force on "
-                           "link 1 at O",
+        "lambda[0:3] = F_O - lambda[3:6], with F_O the ground's force on "
+        "link 1 at O",
         geometry_note="N2 vertical up; links hang along -n_i2; bars of radius 0.02 m for the "
-                      "axial inertias",
+        "axial inertias",
         formulations=("kane",),
         initial_q=ANGLES0[0] + ANGLES0[1],
         initial_u=consistent_speeds(ANGLES0[0], ANGLES0[1], OMEGA0[0], OMEGA0[1]),
-        energy_conserved=True, state_sampler=_sampler)
+        energy_conserved=True,
+        state_sampler=_sampler,
+    )

@@ -35,6 +35,7 @@ single equation in theta of Exercises 4.3 and 5.1:
   (m l^2/3 + m_p l^2 S^2) theta'' + m_p l^2 S C theta'^2 + c l^2 C^2 theta' + k l^2 S C
     - ((1/2) m + m_p) g l S - F l S = 0.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,10 +50,14 @@ PARAMETERS = (
     Parameter("m", 2.0, "kg", "mass of the slender bar B", positive=True),
     Parameter("m_p", 1.0, "kg", "mass of the block P at end B", positive=True),
     Parameter("l", L_BAR, "m", "length of the bar", positive=True),
-    Parameter("k", 50.0, "N/m", "stiffness of the horizontal spring at end A (unstretched at "
-              "x = 0)", nonnegative=True),
-    Parameter("c", 2.0, "N s/m", "coefficient of the horizontal damper at end A",
-              nonnegative=True),
+    Parameter(
+        "k",
+        50.0,
+        "N/m",
+        "stiffness of the horizontal spring at end A (unstretched at x = 0)",
+        nonnegative=True,
+    ),
+    Parameter("c", 2.0, "N s/m", "coefficient of the horizontal damper at end A", nonnegative=True),
     Parameter("F", 5.0, "N", "force F(t) on the block P, pointing down (-Y), held constant"),
     Parameter("g", 9.81, "m/s^2", "gravitational acceleration", nonnegative=True),
 )
@@ -65,7 +70,8 @@ GEOMETRY_NOTE = (
     "axis at (x, 0) and end B on the Y axis at (0, y), theta from the vertical "
     "(x = l sin theta, y = l cos theta), mass center G = (x/2, y/2); spring k (unstretched at "
     "x = 0) and damper c horizontal at A; block P (m_p) fixed to B; F(t) (constant F) pushes P "
-    "down (-Y). Reproduces the printed answers' legible parts and sign patterns.")
+    "down (-Y). Reproduces the printed answers' legible parts and sign patterns."
+)
 
 
 def model() -> Model:
@@ -81,18 +87,26 @@ def model() -> Model:
     )
     s0, c0 = math.sin(THETA0), math.cos(THETA0)
     return Model(
-        name="exercise_6_1", source="Exercise 6.1",
+        name="exercise_6_1",
+        source="Exercise 6.1",
         title="Bar with ends in horizontal/vertical guides, spring-damper and block: "
-              "dependent coordinates (x, y, theta)",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(bar, block),
-        gravity=GRAVITY, loads=loads, potential=k * x**2 / 2,
+        "dependent coordinates (x, y, theta)",
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(bar, block),
+        gravity=GRAVITY,
+        loads=loads,
+        potential=k * x**2 / 2,
         configuration_constraints=(x - l * sp.sin(th), y - l * sp.cos(th)),
         constraint_names=("end_A", "end_B"),
         multiplier_meaning="(lambda1, lambda2): generalized constraint forces (Addendum) conjugate "
-                           "to x and y that tie the end coordinates to the bar angle "
-                           "(x = l sin theta, y = l cos theta)",
+        "to x and y that tie the end coordinates to the bar angle "
+        "(x = l sin theta, y = l cos theta)",
         geometry_note=GEOMETRY_NOTE,
         formulations=("lagrange", "dalembert", "kane"),
         initial_q=(L_BAR * s0, L_BAR * c0, THETA0),
         initial_u=(L_BAR * c0 * THETA_DOT0, -L_BAR * s0 * THETA_DOT0, THETA_DOT0),
-        energy_conserved=False)
+        energy_conserved=False,
+    )

@@ -24,6 +24,7 @@ of Exercises 4.4 and 5.2:
   (1/3) m2 l^2 theta'' + (1/2) m2 l C x'' + (1/2) m2 g l S = 0
 is checked in tests/test_models_exercises.py.
 """
+
 from __future__ import annotations
 
 import math
@@ -38,8 +39,9 @@ PARAMETERS = (
     Parameter("m1", 3.0, "kg", "mass of the block", positive=True),
     Parameter("m2", 1.5, "kg", "mass of the slender bar", positive=True),
     Parameter("l", L_BAR, "m", "length of the bar", positive=True),
-    Parameter("k", 40.0, "N/m", "stiffness of the block's spring (unstretched at x = 0)",
-              nonnegative=True),
+    Parameter(
+        "k", 40.0, "N/m", "stiffness of the block's spring (unstretched at x = 0)", nonnegative=True
+    ),
     Parameter("c", 1.5, "N s/m", "coefficient of the block's damper", nonnegative=True),
     Parameter("F", 4.0, "N", "force F(t) on the block along +X, held constant"),
     Parameter("g", 9.81, "m/s^2", "gravitational acceleration", nonnegative=True),
@@ -53,7 +55,8 @@ GEOMETRY_NOTE = (
     "(unstretched at x = 0) and damper c to ground, F(t) (constant F) on it along +X; slender bar "
     "(m2, l) pinned at its end A to the block and hanging, theta from the downward vertical; "
     "(x_G, y_G) = G relative to A = ((l/2) sin theta, (l/2) cos theta). Reproduces the printed "
-    "answers exactly.")
+    "answers exactly."
+)
 
 
 def model() -> Model:
@@ -70,17 +73,25 @@ def model() -> Model:
     s0, c0 = math.sin(THETA0), math.cos(THETA0)
     h = L_BAR / 2
     return Model(
-        name="exercise_6_2", source="Exercise 6.2",
+        name="exercise_6_2",
+        source="Exercise 6.2",
         title="Block on spring-damper with a pendulous bar: dependent coordinates "
-              "(x, theta, x_G, y_G)",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(block, bar),
-        gravity=GRAVITY, loads=loads, potential=k * x**2 / 2,
+        "(x, theta, x_G, y_G)",
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(block, bar),
+        gravity=GRAVITY,
+        loads=loads,
+        potential=k * x**2 / 2,
         configuration_constraints=(xG - l / 2 * sp.sin(th), yG - l / 2 * sp.cos(th)),
         constraint_names=("G_x", "G_y"),
         multiplier_meaning="(lambda1, lambda2): force of the pin A on the bar, X and Y (down) "
-                           "components",
+        "components",
         geometry_note=GEOMETRY_NOTE,
         formulations=("lagrange", "dalembert", "kane"),
         initial_q=(X0, THETA0, h * s0, h * c0),
         initial_u=(X_DOT0, THETA_DOT0, h * c0 * THETA_DOT0, -h * s0 * THETA_DOT0),
-        energy_conserved=False)
+        energy_conserved=False,
+    )

@@ -30,6 +30,7 @@ The derived equations equal the printed ones:
 with f1 = y_G - R - (l/2) S, f2 = z_G + (l/2) C; (lambda1, lambda2) is the force of the pin P on
 the bar along the disk-fixed y (radial) and z (vertical) axes.
 """
+
 from __future__ import annotations
 
 import math
@@ -45,8 +46,9 @@ PARAMETERS = (
     Parameter("R", R_DISK, "m", "radius of the disk (the pin P is on its rim)", positive=True),
     Parameter("m", 1.2, "kg", "mass of the slender bar B", positive=True),
     Parameter("l", L_BAR, "m", "length of the bar", positive=True),
-    Parameter("k", 6.0, "N m/rad", "torsional spring at P (unstretched at theta = 0)",
-              nonnegative=True),
+    Parameter(
+        "k", 6.0, "N m/rad", "torsional spring at P (unstretched at theta = 0)", nonnegative=True
+    ),
     Parameter("c", 0.3, "N m s/rad", "torsional damper at P", nonnegative=True),
     Parameter("M_phi", 0.8, "N m", "motor torque on the disk about Z"),
     Parameter("M_theta", 0.2, "N m", "motor torque on the bar about the pin's X axis"),
@@ -62,23 +64,35 @@ GEOMETRY_NOTE = (
     "outward: y_G = R + (l/2) sin theta, z_G = -(l/2) cos theta; disk inertia (1/2) m_d R^2 about "
     "Z; spring-damper and M_theta act between D and B, M_phi on D. Reproduces the printed "
     "answers exactly (the printed constraints are acceleration-level, so the pin position R, 0 "
-    "is an assumption).")
+    "is an assumption)."
+)
 
 
 def model() -> Model:
     phi, th, yG, zG = symbols("phi theta y_G z_G")
     phid, thd, yGd, zGd = symbols("phi_dot theta_dot y_G_dot z_G_dot")
     q, N = (phi, th, yG, zG), (phid, thd, yGd, zGd)
-    disk = Body("disk", m_d, v_G=vec(0, 0, 0),
-                inertia=sp.diag(m_d * R**2 / 4, m_d * R**2 / 4, m_d * R**2 / 2),
-                omega=vec(0, 0, phid), r_G=vec(0, 0, 0), R=rot_z(phi))
+    disk = Body(
+        "disk",
+        m_d,
+        v_G=vec(0, 0, 0),
+        inertia=sp.diag(m_d * R**2 / 4, m_d * R**2 / 4, m_d * R**2 / 2),
+        omega=vec(0, 0, phid),
+        r_G=vec(0, 0, 0),
+        R=rot_z(phi),
+    )
     # bar frame: disk frame turned by theta about x; its 3-axis points from G to P
     R_bar = rot_z(phi) * rot_x(th)
     r_G = rot_z(phi) * vec(0, yG, zG)
-    bar = Body("bar", m, v_G=rate(r_G, q, N, T_SYM),
-               inertia=sp.diag(m * l**2 / 12, m * l**2 / 12, 0),
-               omega=vec(thd, phid * sp.sin(th), phid * sp.cos(th)),  # (theta' x + phi' Z) in B
-               r_G=r_G, R=R_bar)
+    bar = Body(
+        "bar",
+        m,
+        v_G=rate(r_G, q, N, T_SYM),
+        inertia=sp.diag(m * l**2 / 12, m * l**2 / 12, 0),
+        omega=vec(thd, phid * sp.sin(th), phid * sp.cos(th)),  # (theta' x + phi' Z) in B
+        r_G=r_G,
+        R=R_bar,
+    )
     theta_rel = vec(thd, 0, 0)  # angular velocity of B relative to D, disk components
     loads = (
         Torque("M_phi", vec(0, 0, phid), vec(0, 0, M_phi)),
@@ -87,17 +101,25 @@ def model() -> Model:
     )
     s0, c0, h = math.sin(THETA0), math.cos(THETA0), L_BAR / 2
     return Model(
-        name="exercise_6_4", source="Exercise 6.4",
+        name="exercise_6_4",
+        source="Exercise 6.4",
         title="Rotating disk with a pinned slender bar: dependent coordinates "
-              "(phi, theta, y_G, z_G)",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(disk, bar),
-        gravity=GRAVITY, loads=loads, potential=k * th**2 / 2,
+        "(phi, theta, y_G, z_G)",
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(disk, bar),
+        gravity=GRAVITY,
+        loads=loads,
+        potential=k * th**2 / 2,
         configuration_constraints=(yG - R - l / 2 * sp.sin(th), zG + l / 2 * sp.cos(th)),
         constraint_names=("G_y", "G_z"),
         multiplier_meaning="(lambda1, lambda2): force of the pin P on the bar along the "
-                           "disk-fixed y (radial) and z (vertical) axes",
+        "disk-fixed y (radial) and z (vertical) axes",
         geometry_note=GEOMETRY_NOTE,
         formulations=("lagrange", "dalembert", "kane"),
         initial_q=(PHI0, THETA0, R_DISK + h * s0, -h * c0),
         initial_u=(PHI_DOT0, THETA_DOT0, h * c0 * THETA_DOT0, h * s0 * THETA_DOT0),
-        energy_conserved=False)
+        energy_conserved=False,
+    )

@@ -34,6 +34,7 @@ I3 = m(l^2 + b^2)/12 (three different values, so every inertia term of the equat
 exercised); the figure's bar orientation is lost in the extraction and plays no part in the
 equations, which hold for any central principal inertias.
 """
+
 from __future__ import annotations
 
 import math
@@ -45,14 +46,30 @@ from ..system import Body, Model, Parameter, Torque, rot_z, symbols, vec
 BAR_M, BAR_LEN, BAR_B, BAR_H = 2.0, 0.5, 0.04, 0.02
 PARAMETERS = (
     Parameter("m", BAR_M, "kg", "mass of the bar", positive=True),
-    Parameter("d", 0.25, "m", "distance of the bar's mass center G from the vertical axis",
-              positive=True),
-    Parameter("I1", BAR_M * (BAR_B**2 + BAR_H**2) / 12, "kg m^2",
-              "bar central inertia about e1", positive=True),
-    Parameter("I2", BAR_M * (BAR_LEN**2 + BAR_H**2) / 12, "kg m^2",
-              "bar central inertia about e2 = n2 (the arm)", positive=True),
-    Parameter("I3", BAR_M * (BAR_LEN**2 + BAR_B**2) / 12, "kg m^2",
-              "bar central inertia about e3", positive=True),
+    Parameter(
+        "d", 0.25, "m", "distance of the bar's mass center G from the vertical axis", positive=True
+    ),
+    Parameter(
+        "I1",
+        BAR_M * (BAR_B**2 + BAR_H**2) / 12,
+        "kg m^2",
+        "bar central inertia about e1",
+        positive=True,
+    ),
+    Parameter(
+        "I2",
+        BAR_M * (BAR_LEN**2 + BAR_H**2) / 12,
+        "kg m^2",
+        "bar central inertia about e2 = n2 (the arm)",
+        positive=True,
+    ),
+    Parameter(
+        "I3",
+        BAR_M * (BAR_LEN**2 + BAR_B**2) / 12,
+        "kg m^2",
+        "bar central inertia about e3",
+        positive=True,
+    ),
     Parameter("M_phi", 0.0, "N m", "motor torque on F about the vertical k (from the ground)"),
     Parameter("M_theta", 0.0, "N m", "motor torque on B about the arm n2 (from F)"),
 )
@@ -86,23 +103,39 @@ def model() -> Model:
     kin = (-w1 * S + w3 * C, w2)
     omega = vec(w1, w2, w3)
     k_body = vec(-S, 0, C)  # the vertical k in bar components
-    bar = Body("bar", m, v_G=d * vec(-w3, 0, w1), v_frame="body",
-               inertia=sp.diag(I1, I2, I3), omega=omega,
-               r_G=d * vec(-sp.sin(phi), sp.cos(phi), 0),  # d n2
-               R=rot_z(phi) * rot_y(theta))
+    bar = Body(
+        "bar",
+        m,
+        v_G=d * vec(-w3, 0, w1),
+        v_frame="body",
+        inertia=sp.diag(I1, I2, I3),
+        omega=omega,
+        r_G=d * vec(-sp.sin(phi), sp.cos(phi), 0),  # d n2
+        R=rot_z(phi) * rot_y(theta),
+    )
     return Model(
-        name="frame_bar", source="Example 3",
+        name="frame_bar",
+        source="Example 3",
         title="Rotating light frame and bar, Kane with the bar's body-fixed omega as dependent "
-              "speeds",
-        parameters=PARAMETERS, coordinates=q, speeds=u, kinematics=kin, bodies=(bar,),
-        loads=(Torque("M_phi", omega, M_phi * k_body),
-               Torque("M_theta", omega, vec(0, M_theta, 0))),
-        motion_constraints=(w1 * C + w3 * S,), constraint_names=("omega_n1",),
+        "speeds",
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=u,
+        kinematics=kin,
+        bodies=(bar,),
+        loads=(
+            Torque("M_phi", omega, M_phi * k_body),
+            Torque("M_theta", omega, vec(0, M_theta, 0)),
+        ),
+        motion_constraints=(w1 * C + w3 * S,),
+        constraint_names=("omega_n1",),
         multiplier_meaning="lambda: n1 component of the moment of the ground's bearing on the "
-                           "light frame F about O (= m d a_G.k + (I alpha + omega x H).n1 with "
-                           "the textbook's partial velocities)",
+        "light frame F about O (= m d a_G.k + (I alpha + omega x H).n1 with "
+        "the textbook's partial velocities)",
         geometry_note="bar orientation in the figure lost; defaults: a rectangular bar along e1",
         formulations=("kane",),
-        initial_q=(PHI0, THETA0), initial_u=speeds_from_rates(THETA0, PHI_DOT0, THETA_DOT0),
+        initial_q=(PHI0, THETA0),
+        initial_u=speeds_from_rates(THETA0, PHI_DOT0, THETA_DOT0),
         energy_conserved=False,  # the motor torques do work unless M_phi = M_theta = 0
-        state_sampler=_sampler)
+        state_sampler=_sampler,
+    )

@@ -18,6 +18,7 @@ With v = C x' + S y' (the speed of C along the blade) and w = theta', Newton-Eul
   m (v' - a w^2) = P,   (I_G + m a^2) w' = -m a v w + T,   lambda = m (v w + a w')
 (tests/test_models_exercises.py checks the formulations against these).
 """
+
 from __future__ import annotations
 
 import math
@@ -44,8 +45,15 @@ def model() -> Model:
     q, N = (x, y, th), (xd, yd, thd)
     e = vec(sp.cos(th), sp.sin(th), 0)
     r_G = vec(x, y, 0) + a * e
-    sled = Body("sled", m, v_G=rate(r_G, q, N, T_SYM), inertia=sp.diag(0, 0, I_G),
-                omega=vec(0, 0, thd), r_G=r_G, R=rot_z(th))
+    sled = Body(
+        "sled",
+        m,
+        v_G=rate(r_G, q, N, T_SYM),
+        inertia=sp.diag(0, 0, I_G),
+        omega=vec(0, 0, thd),
+        r_G=r_G,
+        R=rot_z(th),
+    )
     loads = (
         Force("P", vec(xd, yd, 0), P * e),
         Torque("T", vec(0, 0, thd), vec(0, 0, T)),
@@ -54,16 +62,21 @@ def model() -> Model:
         name="knife_edge",
         source="Supplement (nonholonomic)",
         title="Knife edge / Chaplygin sled on a horizontal plane, coordinates (x, y, theta): a "
-              "nonholonomic motion constraint (not in Unit 6)",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(sled,),
+        "nonholonomic motion constraint (not in Unit 6)",
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(sled,),
         loads=loads,
         motion_constraints=(-sp.sin(th) * xd + sp.cos(th) * yd,),
         constraint_names=("no_side_slip",),
         multiplier_meaning="lambda: lateral force of the ground on the blade at C, along "
-                           "(-sin theta, cos theta)",
+        "(-sin theta, cos theta)",
         geometry_note="Horizontal plane (no gravity); (x, y) is the contact point C, G = C + a "
-                      "(cos theta, sin theta).",
+        "(cos theta, sin theta).",
         formulations=("lagrange", "dalembert", "kane"),
         initial_q=(0.0, 0.0, THETA0),
         initial_u=(V0 * math.cos(THETA0), V0 * math.sin(THETA0), W0),
-        energy_conserved=False)  # True only with P = T = 0 (the defaults): see the tests
+        energy_conserved=False,
+    )  # True only with P = T = 0 (the defaults): see the tests

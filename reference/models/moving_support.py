@@ -14,6 +14,7 @@ manifold, and dE/dt equals it (there are no other non-conservative loads). As in
 lambda = -T/L with T the rod tension. In the angle theta from the vertical
 (x = x_s + L sin theta, y = L cos theta): theta'' = -(g sin theta + x_s'' cos theta)/L.
 """
+
 from __future__ import annotations
 
 import math
@@ -53,13 +54,19 @@ def model() -> Model:
         name="pendulum_moving_support",
         source="Supplement (rheonomic)",
         title="Example 1(b) with a support moving x_s(t) = a sin(Omega t): a rheonomic "
-              "constraint (not in Unit 6)",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(bob,),
+        "constraint (not in Unit 6)",
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(bob,),
         gravity=GRAVITY,
-        configuration_constraints=(((x - xs)**2 + y**2 - L**2) / 2,), constraint_names=("rod",),
+        configuration_constraints=(((x - xs) ** 2 + y**2 - L**2) / 2,),
+        constraint_names=("rod",),
         multiplier_meaning="lambda = -T/L: the rod tension per unit length (as in Example 1(b))",
         geometry_note="Y down; the support slides along X with x_s(t) = a sin(Omega t).",
         formulations=("lagrange", "dalembert", "kane"),
         initial_q=(L_ROD * s0, L_ROD * c0),
         initial_u=(L_ROD * THETA_DOT0 * c0 + A_SUPPORT * OMEGA, -L_ROD * THETA_DOT0 * s0),
-        energy_conserved=False)
+        energy_conserved=False,
+    )

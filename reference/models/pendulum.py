@@ -4,6 +4,7 @@
 velocity row the unit writes x x' + y y' = 0 (a11 = x, a12 = y), so f = (x^2 + y^2 - L^2)/2.
 Addendum: relaxing the rod gives m x'' + (x/L) T = 0, so the rod tension is T = -lambda L.
 """
+
 from __future__ import annotations
 
 import math
@@ -29,11 +30,20 @@ def angle_model() -> Model:
     q, N = (theta,), (theta_dot,)
     bob = particle("bob", m, vec(L * sp.sin(theta), L * sp.cos(theta), 0), q, N)
     return Model(
-        name="pendulum_angle", source="Example 1(a)",
+        name="pendulum_angle",
+        source="Example 1(a)",
         title="Simple pendulum, one coordinate theta",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(bob,),
-        gravity=GRAVITY, formulations=("lagrange", "dalembert", "kane"),
-        initial_q=(THETA0,), initial_u=(THETA_DOT0,), energy_conserved=True)
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(bob,),
+        gravity=GRAVITY,
+        formulations=("lagrange", "dalembert", "kane"),
+        initial_q=(THETA0,),
+        initial_u=(THETA_DOT0,),
+        energy_conserved=True,
+    )
 
 
 def xy_model() -> Model:
@@ -42,15 +52,23 @@ def xy_model() -> Model:
     q, N = (x, y), (x_dot, y_dot)
     bob = particle("bob", m, vec(x, y, 0), q, N)
     return Model(
-        name="pendulum_xy", source="Example 1(b)",
+        name="pendulum_xy",
+        source="Example 1(b)",
         title="Simple pendulum, dependent coordinates (x, y)",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=(bob,),
-        gravity=GRAVITY, formulations=("lagrange", "dalembert", "kane"),
-        configuration_constraints=((x**2 + y**2 - L**2) / 2,), constraint_names=("rod",),
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=(bob,),
+        gravity=GRAVITY,
+        formulations=("lagrange", "dalembert", "kane"),
+        configuration_constraints=((x**2 + y**2 - L**2) / 2,),
+        constraint_names=("rod",),
         multiplier_meaning="lambda = -T/L: the rod tension per unit length (Addendum)",
         initial_q=(0.8 * math.sin(THETA0), 0.8 * math.cos(THETA0)),
         initial_u=(0.8 * THETA_DOT0 * math.cos(THETA0), -0.8 * THETA_DOT0 * math.sin(THETA0)),
-        energy_conserved=True)
+        energy_conserved=True,
+    )
 
 
 def rod_tension(lam: float, L_value: float) -> float:

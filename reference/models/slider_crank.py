@@ -9,6 +9,7 @@ I_G2); end mass m3 at C, translating only.
   from C to B (Example 2's theta2 + pi) and r2 = |C G2| (Example 2's l2 - r2); (lambda1, lambda2)
   is the force of the rod on the crank at B.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,12 +28,15 @@ PARAMETERS = (
     Parameter("l1", L1, "m", "crank length", positive=True),
     Parameter("l2", L2, "m", "rod length", positive=True),
     Parameter("r1", L1 / 2, "m", "distance A to G1", nonnegative=True),
-    Parameter("r2", L2 / 2, "m", "distance to G2 (from B in Example 2, from C in 6.3)",
-              nonnegative=True),
-    Parameter("I_G1", M1 * L1**2 / 12, "kg m^2", "crank central inertia (slender bar)",
-              positive=True),
-    Parameter("I_G2", M2 * L2**2 / 12, "kg m^2", "rod central inertia (slender bar)",
-              positive=True),
+    Parameter(
+        "r2", L2 / 2, "m", "distance to G2 (from B in Example 2, from C in 6.3)", nonnegative=True
+    ),
+    Parameter(
+        "I_G1", M1 * L1**2 / 12, "kg m^2", "crank central inertia (slender bar)", positive=True
+    ),
+    Parameter(
+        "I_G2", M2 * L2**2 / 12, "kg m^2", "rod central inertia (slender bar)", positive=True
+    ),
     Parameter("g", 9.81, "m/s^2", "gravitational acceleration", nonnegative=True),
     Parameter("T", 0.0, "N m", "driving torque on the crank at A"),
 )
@@ -42,7 +46,8 @@ THETA1_0, THETA1_DOT0 = 0.5, 8.0
 
 
 def _closure(theta1, theta1_dot):
-    """Example 2's rod angle on the +x branch (C right of A) and its rate, from l1 S1 + l2 S2 = 0."""
+    """Example 2's rod angle on the +x branch (C right of A) and its rate, from
+    l1 S1 + l2 S2 = 0."""
     theta2 = math.asin(-L1 * math.sin(theta1) / L2)
     theta2_dot = -L1 * math.cos(theta1) * theta1_dot / (L2 * math.cos(theta2))
     return theta2, theta2_dot
@@ -60,15 +65,25 @@ def _two_link(name: str, constrained: bool) -> Model:
     )
     th2_0, th2_dot0 = _closure(THETA1_0, THETA1_DOT0)
     return Model(
-        name=name, source="Example 2(b)" if constrained else "Example 2(a)",
+        name=name,
+        source="Example 2(b)" if constrained else "Example 2(a)",
         title="Slider-crank" if constrained else "Slider-crank with the slider constraint removed",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=bodies,
-        gravity=GRAVITY, loads=(Torque("T", vec(0, 0, w1), vec(0, 0, T)),),
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=bodies,
+        gravity=GRAVITY,
+        loads=(Torque("T", vec(0, 0, w1), vec(0, 0, T)),),
         configuration_constraints=(l1 * sp.sin(th1) + l2 * sp.sin(th2),) if constrained else (),
         constraint_names=("slider",) if constrained else (),
-        multiplier_meaning="lambda: vertical force of the guide on the slider C" if constrained else "",
+        multiplier_meaning="lambda: vertical force of the guide on the slider C"
+        if constrained
+        else "",
         formulations=("lagrange", "dalembert", "kane"),
-        initial_q=(THETA1_0, th2_0), initial_u=(THETA1_DOT0, th2_dot0))
+        initial_q=(THETA1_0, th2_0),
+        initial_u=(THETA1_DOT0, th2_dot0),
+    )
 
 
 def free_model() -> Model:
@@ -93,15 +108,25 @@ def split_model() -> Model:
     x0 = L1 * math.cos(THETA1_0) + L2 * math.cos(th2_ex2)
     x_dot0 = -L1 * math.sin(THETA1_0) * THETA1_DOT0 - L2 * math.sin(th2_ex2) * th2_dot
     return Model(
-        name="slider_crank_split", source="Note 2 / Exercise 6.3",
+        name="slider_crank_split",
+        source="Note 2 / Exercise 6.3",
         title="Slider-crank as crank + (rod, slider) joined at B by two constraints",
-        parameters=PARAMETERS, coordinates=q, speeds=N, kinematics=N, bodies=bodies,
-        gravity=GRAVITY, loads=(Torque("T", vec(0, 0, w1), vec(0, 0, T)),),
-        configuration_constraints=(l1 * sp.cos(th1) - l2 * sp.cos(th2) - x,
-                                   l1 * sp.sin(th1) - l2 * sp.sin(th2)),
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=N,
+        kinematics=N,
+        bodies=bodies,
+        gravity=GRAVITY,
+        loads=(Torque("T", vec(0, 0, w1), vec(0, 0, T)),),
+        configuration_constraints=(
+            l1 * sp.cos(th1) - l2 * sp.cos(th2) - x,
+            l1 * sp.sin(th1) - l2 * sp.sin(th2),
+        ),
         constraint_names=("B_x", "B_y"),
         multiplier_meaning="(lambda1, lambda2): force of the rod on the crank at B",
         geometry_note="theta2 is measured from C to B (Example 2's theta2 + pi); "
-                      "r2 = |C G2| (Example 2's l2 - r2)",
+        "r2 = |C G2| (Example 2's l2 - r2)",
         formulations=("lagrange", "dalembert", "kane"),
-        initial_q=(THETA1_0, x0, th2_ex2 + math.pi), initial_u=(THETA1_DOT0, x_dot0, th2_dot))
+        initial_q=(THETA1_0, x0, th2_ex2 + math.pi),
+        initial_u=(THETA1_DOT0, x_dot0, th2_dot),
+    )

@@ -31,6 +31,7 @@ M + rho A^T A, which leaves the solution unchanged because M is definite on the 
 Default top: m = 0.5 kg, L = 0.05 m, I = 2.5e-4 kg m^2, I3 = 4e-4 kg m^2 (a disk-like top of
 radius ~4 cm), spun at 60 rad/s about e3 with its axis tilted ~0.5 rad from the vertical.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -40,11 +41,11 @@ from ..system import Body, Model, Parameter, symbols, vec
 
 PARAMETERS = (
     Parameter("m", 0.5, "kg", "mass of the top", positive=True),
-    Parameter("L", 0.05, "m", "distance from the fixed point O to the mass center G",
-              positive=True),
+    Parameter(
+        "L", 0.05, "m", "distance from the fixed point O to the mass center G", positive=True
+    ),
     Parameter("I", 2.5e-4, "kg m^2", "central inertia about e1 and e2", positive=True),
-    Parameter("I3", 4.0e-4, "kg m^2", "central inertia about the symmetry axis e3",
-              positive=True),
+    Parameter("I3", 4.0e-4, "kg m^2", "central inertia about the symmetry axis e3", positive=True),
     Parameter("g", 9.81, "m/s^2", "gravitational acceleration (along -N3)", nonnegative=True),
 )
 m, L, I, I3, g = (p.symbol for p in PARAMETERS)
@@ -65,9 +66,11 @@ def E_matrix(e):
 def rotation(e):
     """Body -> inertial rotation matrix, homogeneous quadratic in eps (sympy or numpy)."""
     e1, e2, e3, e4 = e
-    rows = [[e4**2 + e1**2 - e2**2 - e3**2, 2 * (e1 * e2 - e3 * e4), 2 * (e1 * e3 + e2 * e4)],
-            [2 * (e1 * e2 + e3 * e4), e4**2 - e1**2 + e2**2 - e3**2, 2 * (e2 * e3 - e1 * e4)],
-            [2 * (e1 * e3 - e2 * e4), 2 * (e2 * e3 + e1 * e4), e4**2 - e1**2 - e2**2 + e3**2]]
+    rows = [
+        [e4**2 + e1**2 - e2**2 - e3**2, 2 * (e1 * e2 - e3 * e4), 2 * (e1 * e3 + e2 * e4)],
+        [2 * (e1 * e2 + e3 * e4), e4**2 - e1**2 + e2**2 - e3**2, 2 * (e2 * e3 - e1 * e4)],
+        [2 * (e1 * e3 - e2 * e4), 2 * (e2 * e3 + e1 * e4), e4**2 - e1**2 - e2**2 + e3**2],
+    ]
     return np.array(rows, float) if all(isinstance(x, float) for x in e) else sp.Matrix(rows)
 
 
@@ -80,11 +83,16 @@ def position_and_velocity(eps, eps_dot, L_value):
     """x = L R e3 and x' = its rate (floats), the consistent G coordinates of Exercise 6.7."""
     e1, e2, e3, e4 = eps
     d1, d2, d3, d4 = eps_dot
-    x = L_value * np.array([2 * (e1 * e3 + e2 * e4), 2 * (e2 * e3 - e1 * e4),
-                            e3**2 + e4**2 - e1**2 - e2**2])
-    xd = L_value * np.array([2 * (d1 * e3 + e1 * d3 + d2 * e4 + e2 * d4),
-                             2 * (d2 * e3 + e2 * d3 - d1 * e4 - e1 * d4),
-                             2 * (e3 * d3 + e4 * d4 - e1 * d1 - e2 * d2)])
+    x = L_value * np.array(
+        [2 * (e1 * e3 + e2 * e4), 2 * (e2 * e3 - e1 * e4), e3**2 + e4**2 - e1**2 - e2**2]
+    )
+    xd = L_value * np.array(
+        [
+            2 * (d1 * e3 + e1 * d3 + d2 * e4 + e2 * d4),
+            2 * (d2 * e3 + e2 * d3 - d1 * e4 - e1 * d4),
+            2 * (e3 * d3 + e4 * d4 - e1 * d1 - e2 * d2),
+        ]
+    )
     return tuple(map(float, x)), tuple(map(float, xd))
 
 
@@ -106,36 +114,59 @@ def _cartesian_sampler(rng, params):
     return x + eps, xd + eps_dot
 
 
-_NORM_REASON = ("the Euler-parameter normalization: Lagrange's K(eps, eps') and V(eps) see "
-                "variations off the unit sphere that d'Alembert's partial velocities 2 E_k do "
-                "not (Exercise 6.6: lambda = 0 with d'Alembert, 2V - 4K with Lagrange)")
+_NORM_REASON = (
+    "the Euler-parameter normalization: Lagrange's K(eps, eps') and V(eps) see "
+    "variations off the unit sphere that d'Alembert's partial velocities 2 E_k do "
+    "not (Exercise 6.6: lambda = 0 with d'Alembert, 2V - 4K with Lagrange)"
+)
 
 
 def _top_body(eps, eps_dot, v_G, v_frame, r_G) -> Body:
-    return Body("top", m, v_G=v_G, v_frame=v_frame, inertia=sp.diag(I, I, I3),
-                omega=2 * E_matrix(eps) * sp.Matrix(eps_dot), r_G=r_G, R=rotation(eps))
+    return Body(
+        "top",
+        m,
+        v_G=v_G,
+        v_frame=v_frame,
+        inertia=sp.diag(I, I, I3),
+        omega=2 * E_matrix(eps) * sp.Matrix(eps_dot),
+        r_G=r_G,
+        R=rotation(eps),
+    )
 
 
 def euler_model() -> Model:
     eps = symbols("eps1 eps2 eps3 eps4")
     eps_dot = symbols("eps1_dot eps2_dot eps3_dot eps4_dot")
     omega = 2 * E_matrix(eps) * sp.Matrix(eps_dot)
-    top = _top_body(eps, eps_dot, v_G=omega.cross(vec(0, 0, L)), v_frame="body",
-                    r_G=rotation(eps) * vec(0, 0, L))
+    top = _top_body(
+        eps,
+        eps_dot,
+        v_G=omega.cross(vec(0, 0, L)),
+        v_frame="body",
+        r_G=rotation(eps) * vec(0, 0, L),
+    )
     return Model(
-        name="top_euler", source="Exercises 6.5/6.6",
+        name="top_euler",
+        source="Exercises 6.5/6.6",
         title="Symmetric top on a fixed point, four Euler parameters (d'Alembert)",
-        parameters=PARAMETERS, coordinates=eps, speeds=eps_dot, kinematics=eps_dot,
-        bodies=(top,), gravity=GRAVITY,
+        parameters=PARAMETERS,
+        coordinates=eps,
+        speeds=eps_dot,
+        kinematics=eps_dot,
+        bodies=(top,),
+        gravity=GRAVITY,
         configuration_constraints=((sum(e**2 for e in eps) - 1) / 2,),
         constraint_names=("norm",),
         multiplier_meaning="d'Alembert and Kane: lambda = 0 (Exercise 6.6); Lagrange: "
-                           "lambda = 2V - 4K (V = m g L R33 homogeneous in eps). The "
-                           "normalization's multiplier is formulation-dependent",
+        "lambda = 2V - 4K (V = m g L R33 homogeneous in eps). The "
+        "normalization's multiplier is formulation-dependent",
         formulations=("dalembert", "lagrange", "kane"),
         formulation_dependent_rows=(("norm", _NORM_REASON),),
-        initial_q=EPS0, initial_u=eps_rates(EPS0, OMEGA0),
-        energy_conserved=True, state_sampler=_euler_sampler)
+        initial_q=EPS0,
+        initial_u=eps_rates(EPS0, OMEGA0),
+        energy_conserved=True,
+        state_sampler=_euler_sampler,
+    )
 
 
 def cartesian_model() -> Model:
@@ -148,15 +179,23 @@ def cartesian_model() -> Model:
     tie = vec(*x) - L * rotation(eps) * vec(0, 0, 1)  # x - L R e3 = 0, +1 on x (as printed)
     x0, xd0 = position_and_velocity(EPS0, eps_rates(EPS0, OMEGA0), PARAMETERS[1].default)
     return Model(
-        name="top_cartesian", source="Exercise 6.7",
+        name="top_cartesian",
+        source="Exercise 6.7",
         title="Symmetric top, mass-center coordinates and Euler parameters (d'Alembert)",
-        parameters=PARAMETERS, coordinates=q, speeds=u, kinematics=u, bodies=(top,),
+        parameters=PARAMETERS,
+        coordinates=q,
+        speeds=u,
+        kinematics=u,
+        bodies=(top,),
         gravity=GRAVITY,
-        configuration_constraints=tuple(tie) + ((sum(e**2 for e in eps) - 1) / 2,),
+        configuration_constraints=(*tuple(tie), (sum(e**2 for e in eps) - 1) / 2),
         constraint_names=("O_1", "O_2", "O_3", "norm"),
         multiplier_meaning="(lambda1, lambda2, lambda3): force of the socket on the top at O "
-                           "(N components); lambda4: normalization, formulation-dependent",
+        "(N components); lambda4: normalization, formulation-dependent",
         formulations=("dalembert", "kane"),
         formulation_dependent_rows=(("norm", _NORM_REASON),),
-        initial_q=x0 + EPS0, initial_u=xd0 + eps_rates(EPS0, OMEGA0),
-        energy_conserved=True, state_sampler=_cartesian_sampler)
+        initial_q=x0 + EPS0,
+        initial_u=xd0 + eps_rates(EPS0, OMEGA0),
+        energy_conserved=True,
+        state_sampler=_cartesian_sampler,
+    )

@@ -6,6 +6,7 @@ finite-difference step, is in base.py; the state and multiplier maps of every mo
 its class docstring (planar.py, special.py, spatial.py, exercises.py); docs/engines/exudyn.md
 has the measured agreement and the commands that measure it.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -48,14 +49,16 @@ _MODELS: dict[str, Callable[[str, dict[str, float]], ExudynModel]] = {
 _UNSUPPORTED: dict[str, str] = {}
 
 EXUDYN_EXACT = Tolerance(
-    1e-9, "Exudyn's answer Richardson-extrapolated over its finite-difference step (three "
-          "InitializeSolver calls, relativeEpsilon 3e-4, 1.5e-4, 7.5e-5, minimumCoordinateSize "
-          "1; base.py): measured worst 6.6e-11 scaled error over 100 sampled states per model "
-          "on all 14 models (slider_crank's multiplier; accelerations <= 5.2e-11, frame_bar), "
-          "against 2.4e-8..9.8e-7 for Exudyn's plain answer at its default relativeEpsilon "
-          "1e-7 (PYTHONPATH=$PWD python -m crosscheck.engines.exudyn.measure --samples 100); "
-          "1e-9 is the issue's bound, 15x above the worst figure, ~100x below the effect of a "
-          "1e-6 parameter fault")
+    1e-9,
+    "Exudyn's answer Richardson-extrapolated over its finite-difference step (three "
+    "InitializeSolver calls, relativeEpsilon 3e-4, 1.5e-4, 7.5e-5, minimumCoordinateSize "
+    "1; base.py): measured worst 6.6e-11 scaled error over 100 sampled states per model "
+    "on all 14 models (slider_crank's multiplier; accelerations <= 5.2e-11, frame_bar), "
+    "against 2.4e-8..9.8e-7 for Exudyn's plain answer at its default relativeEpsilon "
+    "1e-7 (PYTHONPATH=$PWD python -m crosscheck.engines.exudyn.measure --samples 100); "
+    "1e-9 is the issue's bound, 15x above the worst figure, ~100x below the effect of a "
+    "1e-6 parameter fault",
+)
 
 
 class ExudynAdapter(TableAdapter):
@@ -63,11 +66,11 @@ class ExudynAdapter(TableAdapter):
 
     name = "exudyn"
     distribution = "exudyn"
-    capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=True,
-                                integrators=tuple(INTEGRATORS))
+    capabilities = Capabilities(
+        multipliers=True, exact=True, nonholonomic=True, integrators=tuple(INTEGRATORS)
+    )
     model_table = _MODELS
     refused = _UNSUPPORTED
-
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return EXUDYN_EXACT

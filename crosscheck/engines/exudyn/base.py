@@ -30,6 +30,7 @@ nodes' reference coordinates, which are zero except the Euler parameters' (1, 0,
 engine world is the reference model's own frame (gravity as the reference writes it, e.g. +g Y
 for the Y-down pendulum), so no axis is flipped in any map.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -40,8 +41,7 @@ import numpy as np
 
 import exudyn as exu
 
-from ..base import (EngineForward, EngineModel, EngineTrajectory, EngineUnsupported,
-                    check_state)
+from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
 
 __all__ = ["DEFAULT_EPSILON", "INTEGRATORS", "RICHARDSON_EPSILON", "ExudynModel"]
 
@@ -62,7 +62,6 @@ VELOCITY_STEP = 1e-6  # Exudyn's default relativeEpsilon (the "plain" answer in 
 from .trajectory import INTEGRATORS  # noqa: E402 - its own module, imported by both
 
 
-
 def _settings() -> exu.SimulationSettings:
     ss = exu.SimulationSettings()
     ss.solution.file.write = False
@@ -72,8 +71,9 @@ def _settings() -> exu.SimulationSettings:
     ss.show.computationTime = False
     # the velocity term of the initial accelerations exists only in dense mode (Exudyn warns)
     ss.linearSolver.solverType = exu.LinearSolverType.EXUdense
-    ss.timeIntegration.newton.numericalDifferentiation.minimumCoordinateSize = \
+    ss.timeIntegration.newton.numericalDifferentiation.minimumCoordinateSize = (
         MINIMUM_COORDINATE_SIZE
+    )
     return ss
 
 
@@ -85,9 +85,11 @@ class ExudynModel(EngineModel):
     n_ref: int
     gravity = (0.0, 0.0, 0.0)  # subclasses set the reference's gravity vector in _build
     rheonomic = False
-    mass_matrix_note = ("Exudyn's coordinates are every body's absolute position and angle or "
-                        "Euler parameters, not the reference's; its mass matrix is not mapped "
-                        "onto the reference's speeds (Capabilities.mass_matrix is False)")
+    mass_matrix_note = (
+        "Exudyn's coordinates are every body's absolute position and angle or "
+        "Euler parameters, not the reference's; its mass matrix is not mapped "
+        "onto the reference's speeds (Capabilities.mass_matrix is False)"
+    )
     energy_dofs: tuple[int, ...] | None = None  # engine speeds in K (None: all)
     # reference coordinates that from_engine_state reads with atan2 (made continuous along a
     # trajectory, trajectory._continuous_angles)
@@ -110,8 +112,9 @@ class ExudynModel(EngineModel):
         self.n_engine = self.mbs.systemData.ODE2Size()
         # engine states hold total coordinates; Exudyn stores them relative to the nodes'
         # reference coordinates (zero except Euler parameters: (1, 0, 0, 0))
-        self.q_reference = np.array(self.mbs.systemData.GetODE2Coordinates(
-            configuration=exu.ConfigurationType.Reference))
+        self.q_reference = np.array(
+            self.mbs.systemData.GetODE2Coordinates(configuration=exu.ConfigurationType.Reference)
+        )
 
     # ---- hooks ---------------------------------------------------------------------------
     def _build(self) -> None:
@@ -144,15 +147,16 @@ class ExudynModel(EngineModel):
         VELOCITY_STEP (truncation ~1e-12 of the rows' second derivatives)."""
         qe, ve = np.asarray(qe, float), np.asarray(ve, float)
         h = VELOCITY_STEP
-        d = (self._position_rows(qe + h * ve, t + h) - self._position_rows(qe - h * ve, t - h))
+        d = self._position_rows(qe + h * ve, t + h) - self._position_rows(qe - h * ve, t - h)
         return float(np.max(np.abs(d))) / (2 * h) if d.size else 0.0
 
     # ---- engine calls --------------------------------------------------------------------
     def _set_state(self, qe, ve, t: float) -> None:
         sd = self.mbs.systemData
         init = exu.ConfigurationType.Initial
-        sd.SetODE2Coordinates((np.asarray(qe, float) - self.q_reference).tolist(),
-                              configuration=init)
+        sd.SetODE2Coordinates(
+            (np.asarray(qe, float) - self.q_reference).tolist(), configuration=init
+        )
         sd.SetODE2Coordinates_t(np.asarray(ve, float).tolist(), configuration=init)
         ti = self.settings.timeIntegration
         ti.startTime = float(t)
@@ -203,11 +207,16 @@ class ExudynModel(EngineModel):
         qe, ve = self.to_engine_state(q, u)
         ae, lam_e = self._solve(qe, ve, t)
         a_plain, l_plain = self._plain_answer(qe, ve, t)
-        raw = {"engine_q": qe, "engine_v": ve, "engine_accelerations": ae,
-               "engine_multipliers": lam_e, "richardson_epsilon": RICHARDSON_EPSILON,
-               "plain_accelerations": self._acc_to_reference(qe, ve, a_plain),
-               "plain_multipliers": self._multipliers(qe, ve, a_plain, l_plain),
-               "constraint_violation": self.constraint_violation(qe, t)}
+        raw = {
+            "engine_q": qe,
+            "engine_v": ve,
+            "engine_accelerations": ae,
+            "engine_multipliers": lam_e,
+            "richardson_epsilon": RICHARDSON_EPSILON,
+            "plain_accelerations": self._acc_to_reference(qe, ve, a_plain),
+            "plain_multipliers": self._multipliers(qe, ve, a_plain, l_plain),
+            "constraint_violation": self.constraint_violation(qe, t),
+        }
         self._extra_raw(qe, ve, ae, lam_e, raw)
         lam = self._multipliers(qe, ve, ae, lam_e)
         return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw, iterations=1)
@@ -216,8 +225,12 @@ class ExudynModel(EngineModel):
         """World positions of the mass-carrying nodes (for the potential)."""
         self._set_state(qe, np.zeros(self.n_engine), 0.0)
         init = exu.ConfigurationType.Initial
-        return [np.asarray(self.mbs.GetNodeOutput(n, exu.OutputVariableType.Position,
-                                                  configuration=init)) for n, _, _ in self.masses]
+        return [
+            np.asarray(
+                self.mbs.GetNodeOutput(n, exu.OutputVariableType.Position, configuration=init)
+            )
+            for n, _, _ in self.masses
+        ]
 
     def _energy_engine(self, qe, ve) -> tuple[float, float]:
         """K = v^T M v / 2 with Exudyn's mass matrix; V = -sum m g . p over the bodies' mass
@@ -235,8 +248,8 @@ class ExudynModel(EngineModel):
         K = 0.5 * float(v @ M @ v)
         gvec = np.asarray(self.gravity, float)
         V = self._spring_potential(qe)
-        for (_, _, mass), p in zip(self.masses, self._positions(qe)):
-            V -= mass * float(gvec[:len(p)] @ p[:3])
+        for (_, _, mass), p in zip(self.masses, self._positions(qe), strict=False):
+            V -= mass * float(gvec[: len(p)] @ p[:3])
         return K, V
 
     def energy(self, q, u) -> tuple[float, float]:
@@ -244,17 +257,27 @@ class ExudynModel(EngineModel):
         qe, ve = self.to_engine_state(q, u)
         return self._energy_engine(qe, ve)
 
-    def simulate(self, q0, u0, t_eval: Sequence[float], *, integrator: str = "generalized-alpha",
-                 rtol: float | None = None, timestep: float | None = None
-                 ) -> EngineTrajectory:
+    def simulate(
+        self,
+        q0,
+        u0,
+        t_eval: Sequence[float],
+        *,
+        integrator: str = "generalized-alpha",
+        rtol: float | None = None,
+        timestep: float | None = None,
+    ) -> EngineTrajectory:
         from .trajectory import simulate
 
         if integrator not in INTEGRATORS:
-            raise EngineUnsupported(f"exudyn: unknown integrator {integrator!r}; valid: "
-                                    f"{', '.join(INTEGRATORS)}")
+            raise EngineUnsupported(
+                f"exudyn: unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}"
+            )
         if timestep is None or not timestep > 0:
-            raise EngineUnsupported(f"exudyn's {integrator} is a fixed-step method: pass "
-                                    "timestep > 0 (rtol is not used)")
+            raise EngineUnsupported(
+                f"exudyn's {integrator} is a fixed-step method: pass "
+                "timestep > 0 (rtol is not used)"
+            )
         q0, u0 = self._check(q0, u0)
         return simulate(self, q0, u0, np.asarray(t_eval, float), integrator, float(timestep))
 
@@ -265,11 +288,15 @@ class ExudynModel(EngineModel):
         knife edge's a, the support's a and Omega). The parameter dict is not in it: a
         parameter the built system does not contain leaves the digest unchanged."""
         sd = self.mbs.systemData
-        items = {kind: [_plain(get(i)) for i in range(count())] for kind, get, count in (
-            ("nodes", self.mbs.GetNode, sd.NumberOfNodes),
-            ("objects", self.mbs.GetObject, sd.NumberOfObjects),
-            ("markers", self.mbs.GetMarker, sd.NumberOfMarkers),
-            ("loads", self.mbs.GetLoad, sd.NumberOfLoads))}
+        items = {
+            kind: [_plain(get(i)) for i in range(count())]
+            for kind, get, count in (
+                ("nodes", self.mbs.GetNode, sd.NumberOfNodes),
+                ("objects", self.mbs.GetObject, sd.NumberOfObjects),
+                ("markers", self.mbs.GetMarker, sd.NumberOfMarkers),
+                ("loads", self.mbs.GetLoad, sd.NumberOfLoads),
+            )
+        }
         blob = {"model": type(self).__name__, "gravity": list(self.gravity), **items}
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -279,14 +306,16 @@ def _plain(v):
     a user function as its name and the numbers it closes over (its parameters)."""
     if callable(v):
         cells = [c.cell_contents for c in getattr(v, "__closure__", None) or ()]
-        return {"function": getattr(v, "__qualname__", type(v).__name__),
-                "closes_over": [_plain(c) for c in cells
-                                if isinstance(c, (int, float, np.ndarray))]}
+        return {
+            "function": getattr(v, "__qualname__", type(v).__name__),
+            "closes_over": [_plain(c) for c in cells if isinstance(c, (int, float, np.ndarray))],
+        }
     if isinstance(v, np.ndarray):
         return v.tolist()
     if isinstance(v, dict):
-        return {k: _plain(x) for k, x in v.items()
-                if k != "visualization" and not k.startswith("V")}
+        return {
+            k: _plain(x) for k, x in v.items() if k != "visualization" and not k.startswith("V")
+        }
     if isinstance(v, (list, tuple)):
         return [_plain(x) for x in v]
     return v if isinstance(v, (int, float, str, bool, type(None))) else str(v)

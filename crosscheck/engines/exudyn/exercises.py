@@ -3,6 +3,7 @@ geometry as the reference's docstrings assume it). Springs and dampers are Exudy
 (ObjectConnectorCoordinateSpringDamper, ObjectConnectorCartesianSpringDamper), loads are
 Exudyn loads; the reference's frame is the engine world.
 """
+
 from __future__ import annotations
 
 import math
@@ -41,14 +42,25 @@ class Exercise62(ExudynModel):
         self.gravity = (0.0, p["g"], 0.0)
         block_node, block = items.point_mass_2d(self, p["m1"])
         _, bar = items.rigid_body_2d(self, p["m2"], p["m2"] * p["l"] ** 2 / 12)
-        self.hinge = items.hinge_2d(self, items.point(self, block),
-                                    items.point(self, bar, 0.0, -p["l"] / 2))
-        self.mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[
-            items.ground_coordinate(self), items.coordinate_marker(self, block_node, 1)]))
+        self.hinge = items.hinge_2d(
+            self, items.point(self, block), items.point(self, bar, 0.0, -p["l"] / 2)
+        )
+        self.mbs.AddObject(
+            ObjectConnectorCoordinate(
+                markerNumbers=[
+                    items.ground_coordinate(self),
+                    items.coordinate_marker(self, block_node, 1),
+                ]
+            )
+        )
         x_marker = items.coordinate_marker(self, block_node, 0)
-        self.mbs.AddObject(ObjectConnectorCoordinateSpringDamper(
-            markerNumbers=[items.ground_coordinate(self), x_marker], stiffness=p["k"],
-            damping=p["c"]))
+        self.mbs.AddObject(
+            ObjectConnectorCoordinateSpringDamper(
+                markerNumbers=[items.ground_coordinate(self), x_marker],
+                stiffness=p["k"],
+                damping=p["c"],
+            )
+        )
         if p["F"] != 0.0:
             self.mbs.AddLoad(LoadCoordinate(markerNumber=x_marker, load=p["F"]))
 
@@ -61,8 +73,10 @@ class Exercise62(ExudynModel):
         return np.array([x, 0.0, x + xg, yg, -th]), np.array([xd, 0.0, xd + xgd, ygd, -thd])
 
     def from_engine_state(self, qe, ve):
-        return (np.array([qe[0], -qe[4], qe[2] - qe[0], qe[3] - qe[1]]),
-                np.array([ve[0], -ve[4], ve[2] - ve[0], ve[3] - ve[1]]))
+        return (
+            np.array([qe[0], -qe[4], qe[2] - qe[0], qe[3] - qe[1]]),
+            np.array([ve[0], -ve[4], ve[2] - ve[0], ve[3] - ve[1]]),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         return np.array([ae[0], -ae[4], ae[2] - ae[0], ae[3] - ae[1]])
@@ -73,8 +87,9 @@ class Exercise62(ExudynModel):
 
     def _position_rows(self, qe, t):  # hinge A (bar point (0, -l/2) at the block), y_block
         h = self.params["l"] / 2
-        return np.array([qe[2] + h * math.sin(qe[4]) - qe[0],
-                         qe[3] - h * math.cos(qe[4]) - qe[1], qe[1]])
+        return np.array(
+            [qe[2] + h * math.sin(qe[4]) - qe[0], qe[3] - h * math.cos(qe[4]) - qe[1], qe[1]]
+        )
 
 
 class Exercise61(ExudynModel):
@@ -109,34 +124,56 @@ class Exercise61(ExudynModel):
         at_a = items.point(self, bar, h)
         rigid_o = self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=g0, localPosition=[0, 0, 0]))
         rigid_a = self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=bar, localPosition=[h, 0, 0]))
-        self.slide = self.mbs.AddObject(ObjectJointPrismatic2D(
-            markerNumbers=[rigid_a, rigid_o], axisMarker0=[1.0, 0.0, 0.0],
-            normalMarker1=[0.0, 1.0, 0.0], constrainRotation=False))
-        self.mbs.AddObject(ObjectConnectorCartesianSpringDamper(
-            markerNumbers=[items.point(self, g0), at_a], stiffness=[p["k"], 0.0, 0.0],
-            damping=[p["c"], 0.0, 0.0]))
+        self.slide = self.mbs.AddObject(
+            ObjectJointPrismatic2D(
+                markerNumbers=[rigid_a, rigid_o],
+                axisMarker0=[1.0, 0.0, 0.0],
+                normalMarker1=[0.0, 1.0, 0.0],
+                constrainRotation=False,
+            )
+        )
+        self.mbs.AddObject(
+            ObjectConnectorCartesianSpringDamper(
+                markerNumbers=[items.point(self, g0), at_a],
+                stiffness=[p["k"], 0.0, 0.0],
+                damping=[p["c"], 0.0, 0.0],
+            )
+        )
         self.hinge_B = items.hinge_2d(self, items.point(self, bar, -h), items.point(self, block))
-        self.mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[
-            items.ground_coordinate(self), items.coordinate_marker(self, block_node, 0)]))
+        self.mbs.AddObject(
+            ObjectConnectorCoordinate(
+                markerNumbers=[
+                    items.ground_coordinate(self),
+                    items.coordinate_marker(self, block_node, 0),
+                ]
+            )
+        )
         if p["F"] != 0.0:
-            self.mbs.AddLoad(LoadCoordinate(
-                markerNumber=items.coordinate_marker(self, block_node, 1), load=-p["F"]))
+            self.mbs.AddLoad(
+                LoadCoordinate(
+                    markerNumber=items.coordinate_marker(self, block_node, 1), load=-p["F"]
+                )
+            )
 
     def _spring_potential(self, qe):
         x_a = qe[0] + 0.5 * self.params["l"] * math.cos(qe[2])
-        return 0.5 * self.params["k"] * x_a ** 2
+        return 0.5 * self.params["k"] * x_a**2
 
     def to_engine_state(self, q, u):
         x, y, th = (float(v) for v in q)
         xd, yd, thd = (float(v) for v in u)
-        return (np.array([x / 2, y / 2, th - math.pi / 2, 0.0, y]),
-                np.array([xd / 2, yd / 2, thd, 0.0, yd]))
+        return (
+            np.array([x / 2, y / 2, th - math.pi / 2, 0.0, y]),
+            np.array([xd / 2, yd / 2, thd, 0.0, yd]),
+        )
 
     def from_engine_state(self, qe, ve):
         h = self.map_params["l"] / 2
         s, c = math.sin(qe[2]), math.cos(qe[2])
-        return (np.array([qe[0] + h * c, qe[4], qe[2] + math.pi / 2]),
-                np.array([ve[0] - h * s * ve[2], ve[4], ve[2]]))
+        return (
+            np.array([qe[0] + h * c, qe[4], qe[2] + math.pi / 2]),
+            np.array([ve[0] - h * s * ve[2], ve[4], ve[2]]),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         h = self.map_params["l"] / 2
@@ -222,21 +259,31 @@ class Exercise64(ExudynModel):
         def frame(body, pos, rot=None):
             return items.rigid_frame(self, body, pos, rot)
 
-        self.axis = mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
-            frame(g0, [0, 0, 0]), frame(disk, [0, 0, 0])]))
+        self.axis = mbs.AddObject(
+            ObjectJointRevoluteZ(markerNumbers=[frame(g0, [0, 0, 0]), frame(disk, [0, 0, 0])])
+        )
         pin_d = frame(disk, [0, p["R"], 0], _JOINT_Z_ALONG_X)
         pin_b = frame(bar, [0, 0, p["l"] / 2], _JOINT_Z_ALONG_X)
         self.pin = mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[pin_d, pin_b]))
-        mbs.AddObject(ObjectConnectorTorsionalSpringDamper(
-            markerNumbers=[pin_d, pin_b], stiffness=p["k"], damping=p["c"]))
+        mbs.AddObject(
+            ObjectConnectorTorsionalSpringDamper(
+                markerNumbers=[pin_d, pin_b], stiffness=p["k"], damping=p["c"]
+            )
+        )
         at_disk, at_bar = frame(disk, [0, 0, 0]), frame(bar, [0, 0, 0])
         if p["M_phi"] != 0.0:
             mbs.AddLoad(LoadTorqueVector(markerNumber=at_disk, loadVector=[0, 0, p["M_phi"]]))
         if p["M_theta"] != 0.0:
-            mbs.AddLoad(LoadTorqueVector(markerNumber=at_bar, loadVector=[p["M_theta"], 0, 0],
-                                         bodyFixed=True))
-            mbs.AddLoad(LoadTorqueVector(markerNumber=at_disk,
-                                         loadVector=[-p["M_theta"], 0, 0], bodyFixed=True))
+            mbs.AddLoad(
+                LoadTorqueVector(
+                    markerNumber=at_bar, loadVector=[p["M_theta"], 0, 0], bodyFixed=True
+                )
+            )
+            mbs.AddLoad(
+                LoadTorqueVector(
+                    markerNumber=at_disk, loadVector=[-p["M_theta"], 0, 0], bodyFixed=True
+                )
+            )
 
     def _spring_potential(self, qe):
         q, _ = self.from_engine_state(qe, np.zeros(14))
@@ -254,8 +301,10 @@ class Exercise64(ExudynModel):
         r_d, w = np.array([0.0, yg, zg]), np.array([0.0, 0.0, phid])
         v = Ad @ (np.cross(w, r_d) + np.array([0.0, ygd, zgd]))
         wb = np.array([thd, phid * math.sin(th), phid * math.cos(th)])
-        return (np.concatenate([[0.0, 0.0, 0.0], pd, Ad @ r_d, pb]),
-                np.concatenate([[0.0, 0.0, 0.0], G(pd).T @ w / 4, v, G(pb).T @ wb / 4]))
+        return (
+            np.concatenate([[0.0, 0.0, 0.0], pd, Ad @ r_d, pb]),
+            np.concatenate([[0.0, 0.0, 0.0], G(pd).T @ w / 4, v, G(pb).T @ wb / 4]),
+        )
 
     def _frames(self, qe):
         from exudyn.rigidBodyUtilities import EulerParameters2RotationMatrix as A
@@ -271,8 +320,10 @@ class Exercise64(ExudynModel):
         w = G(qe[3:7]) @ ve[3:7]
         r_d = Ad.T @ qe[7:10]
         rd_t = Ad.T @ ve[7:10] - np.cross(w, r_d)
-        return (np.array([phi, th, r_d[1], r_d[2]]),
-                np.array([w[2], (G(qe[10:14]) @ ve[10:14])[0], rd_t[1], rd_t[2]]))
+        return (
+            np.array([phi, th, r_d[1], r_d[2]]),
+            np.array([w[2], (G(qe[10:14]) @ ve[10:14])[0], rd_t[1], rd_t[2]]),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         from exudyn.rigidBodyUtilities import EulerParameters2GLocal as G
@@ -281,8 +332,12 @@ class Exercise64(ExudynModel):
         w, alpha = G(qe[3:7]) @ ve[3:7], G(qe[3:7]) @ ae[3:7]
         r_d = Ad.T @ qe[7:10]
         rd_t = Ad.T @ ve[7:10] - np.cross(w, r_d)
-        rd_tt = (Ad.T @ ae[7:10] - np.cross(alpha, r_d) - 2 * np.cross(w, rd_t)
-                 - np.cross(w, np.cross(w, r_d)))
+        rd_tt = (
+            Ad.T @ ae[7:10]
+            - np.cross(alpha, r_d)
+            - 2 * np.cross(w, rd_t)
+            - np.cross(w, np.cross(w, r_d))
+        )
         return np.array([alpha[2], (G(qe[10:14]) @ ae[10:14])[0], rd_tt[1], rd_tt[2]])
 
     def _multipliers(self, qe, ve, ae, lam_e):
@@ -301,8 +356,14 @@ class Exercise64(ExudynModel):
     def _position_rows(self, qe, t):
         Ad, Ab = self._frames(qe)
         p = self.params
-        pin = (Ad @ np.array([0.0, p["R"], 0.0]) - qe[7:10]
-               - Ab @ np.array([0.0, 0.0, p["l"] / 2]))
+        pin = Ad @ np.array([0.0, p["R"], 0.0]) - qe[7:10] - Ab @ np.array([0.0, 0.0, p["l"] / 2])
         rel = Ad.T @ Ab  # a rotation about x: its x column is (1, 0, 0)
-        return np.concatenate([qe[0:3], [Ad[2, 0], Ad[2, 1]], pin, rel[1:3, 0],
-                               [qe[3:7] @ qe[3:7] - 1, qe[10:14] @ qe[10:14] - 1]])
+        return np.concatenate(
+            [
+                qe[0:3],
+                [Ad[2, 0], Ad[2, 1]],
+                pin,
+                rel[1:3, 0],
+                [qe[3:7] @ qe[3:7] - 1, qe[10:14] @ qe[10:14] - 1],
+            ]
+        )

@@ -1,5 +1,6 @@
 """Small builders of Exudyn items shared by the model modules (nodes at zero reference
 coordinates, so every ODE2 coordinate is an absolute position or angle)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -8,8 +9,8 @@ import exudyn as exu
 from exudyn.itemInterface import (
     LoadMassProportional,
     MarkerBodyMass,
-    MarkerBodyRigid,
     MarkerBodyPosition,
+    MarkerBodyRigid,
     MarkerNodeCoordinate,
     NodePoint2D,
     NodePointGround,
@@ -29,8 +30,11 @@ def ground(model) -> int:
 def _gravity(model, body: int) -> None:
     g = list(model.gravity)
     if any(g):
-        model.mbs.AddLoad(LoadMassProportional(
-            markerNumber=model.mbs.AddMarker(MarkerBodyMass(bodyNumber=body)), loadVector=g))
+        model.mbs.AddLoad(
+            LoadMassProportional(
+                markerNumber=model.mbs.AddMarker(MarkerBodyMass(bodyNumber=body)), loadVector=g
+            )
+        )
 
 
 def point_mass_2d(model, mass: float) -> tuple[int, int]:
@@ -66,8 +70,11 @@ def rigid_frame(model, body: int, pos, rot=None) -> int:
     """A rigid-body marker (a frame) at local position ``pos`` of a body (or the ground), its
     axes ``rot`` (body components; default the body's axes): what 3-D joints connect."""
     rot = np.eye(3) if rot is None else np.asarray(rot)
-    return model.mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(
-        rotation=rot.tolist(), translation=list(pos))))
+    return model.mbs.AddMarker(
+        MarkerBodyRigid(
+            bodyNumber=body, localHT=exu.HT(rotation=rot.tolist(), translation=list(pos))
+        )
+    )
 
 
 def coordinate_marker(model, node: int, index: int) -> int:

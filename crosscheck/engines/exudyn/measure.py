@@ -16,6 +16,7 @@ calls forward() makes (timed_forward) and one plain call.
 projection integrator (rtol = atol = 1e-11), with the largest engine-side position violation
 and the wall time of Exudyn's stepping.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -63,17 +64,20 @@ def measure(name: str, samples: int, seed: int) -> dict:
         em = adapter.build(name, params)
         out = em.forward(q, u, t)
         worst["acc"] = max(worst["acc"], _scaled(out.accelerations, ref.accelerations))
-        worst["plain_acc"] = max(worst["plain_acc"],
-                                 _scaled(out.raw["plain_accelerations"], ref.accelerations))
+        worst["plain_acc"] = max(
+            worst["plain_acc"], _scaled(out.raw["plain_accelerations"], ref.accelerations)
+        )
         if len(ref.multipliers):
             worst["lam"] = max(worst["lam"], _scaled(out.multipliers, ref.multipliers))
-            worst["plain_lam"] = max(worst["plain_lam"],
-                                     _scaled(out.raw["plain_multipliers"], ref.multipliers))
+            worst["plain_lam"] = max(
+                worst["plain_lam"], _scaled(out.raw["plain_multipliers"], ref.multipliers)
+            )
         if i < 5:  # timing on the first states only (the machine is shared)
             us.append(_median_us(em.timed_forward(q, u, t)))
             qe, ve = em.to_engine_state(q, u)
-            us_plain.append(_median_us(lambda em=em, qe=qe, ve=ve, t=t:
-                                       em._plain_answer(qe, ve, t)))
+            us_plain.append(
+                _median_us(lambda em=em, qe=qe, ve=ve, t=t: em._plain_answer(qe, ve, t))
+            )
     return dict(worst, us=float(np.median(us)), us_plain=float(np.median(us_plain)))
 
 
@@ -86,19 +90,30 @@ def trajectories(name: str) -> None:
 
     model = get(name)
     t_eval = np.linspace(0.0, 1.0, 11)
-    ref = simulate(NumericModel(model), model.initial_q, model.initial_u, 1.0, "projection",
-                   rtol=1e-11, atol=1e-11, t_eval=t_eval)
+    ref = simulate(
+        NumericModel(model),
+        model.initial_q,
+        model.initial_u,
+        1.0,
+        "projection",
+        rtol=1e-11,
+        atol=1e-11,
+        t_eval=t_eval,
+    )
     em = ExudynAdapter().build(name)
     for integrator in ExudynAdapter.capabilities.integrators:
         for h in (1e-2, 1e-3, 1e-4):
             try:
-                tr = em.simulate(model.initial_q, model.initial_u, t_eval,
-                                 integrator=integrator, timestep=h)
+                tr = em.simulate(
+                    model.initial_q, model.initial_u, t_eval, integrator=integrator, timestep=h
+                )
             except ExudynIntegrationError:
                 print(f"{name:25s} {integrator:19s} {h:7.0e}   Newton failed")
                 continue
-            print(f"{name:25s} {integrator:19s} {h:7.0e} {np.max(np.abs(tr.q - ref.q)):9.1e} "
-                  f"{np.max(tr.violation):9.1e} {tr.wall_s:8.3f}")
+            print(
+                f"{name:25s} {integrator:19s} {h:7.0e} {np.max(np.abs(tr.q - ref.q)):9.1e} "
+                f"{np.max(tr.violation):9.1e} {tr.wall_s:8.3f}"
+            )
 
 
 def main(argv=None) -> None:
@@ -111,17 +126,23 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     names = args.models or ExudynAdapter().models()
     if args.trajectories:
-        print(f"{'model':25s} {'integrator':19s} {'step':>7s} {'|q-q_ref|':>9s} "
-              f"{'violation':>9s} {'wall s':>8s}")
+        print(
+            f"{'model':25s} {'integrator':19s} {'step':>7s} {'|q-q_ref|':>9s} "
+            f"{'violation':>9s} {'wall s':>8s}"
+        )
         for name in names:
             trajectories(name)
         return
-    print(f"{'model':25s} {'acc':>8s} {'lam':>8s} {'plain acc':>10s} {'plain lam':>10s} "
-          f"{'us/state':>9s} {'us/plain':>9s}   ({args.samples} states, seed {args.seed})")
+    print(
+        f"{'model':25s} {'acc':>8s} {'lam':>8s} {'plain acc':>10s} {'plain lam':>10s} "
+        f"{'us/state':>9s} {'us/plain':>9s}   ({args.samples} states, seed {args.seed})"
+    )
     for name in names:
         r = measure(name, args.samples, args.seed)
-        print(f"{name:25s} {r['acc']:8.1e} {r['lam']:8.1e} {r['plain_acc']:10.1e} "
-              f"{r['plain_lam']:10.1e} {r['us']:9.0f} {r['us_plain']:9.0f}")
+        print(
+            f"{name:25s} {r['acc']:8.1e} {r['lam']:8.1e} {r['plain_acc']:10.1e} "
+            f"{r['plain_lam']:10.1e} {r['us']:9.0f} {r['us_plain']:9.0f}"
+        )
 
 
 if __name__ == "__main__":

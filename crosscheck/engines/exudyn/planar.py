@@ -5,6 +5,7 @@ rigid bodies held by joints), never the reference's equations: Exudyn assembles 
 and the constraint Jacobians from its own objects. The engine world is the reference frame
 (Example 1: Y DOWN, gravity +g Y; Example 2: Y up, gravity -g Y).
 """
+
 from __future__ import annotations
 
 import math
@@ -37,8 +38,11 @@ class PendulumXY(ExudynModel):
         self.gravity = (0.0, p["g"], 0.0)
         g0 = items.ground(self)
         _, bob = items.point_mass_2d(self, p["m"])
-        self.mbs.AddObject(ObjectConnectorDistance(
-            markerNumbers=[items.point(self, g0), items.point(self, bob)], distance=p["L"]))
+        self.mbs.AddObject(
+            ObjectConnectorDistance(
+                markerNumbers=[items.point(self, g0), items.point(self, bob)], distance=p["L"]
+            )
+        )
 
     def to_engine_state(self, q, u):
         return np.array(q, float), np.array(u, float)
@@ -75,8 +79,9 @@ class PendulumAngle(ExudynModel):
         self.gravity = (0.0, p["g"], 0.0)
         g0 = items.ground(self)
         _, self.body = items.rigid_body_2d(self, p["m"], 0.0)
-        self.hinge = items.hinge_2d(self, items.point(self, g0),
-                                    items.point(self, self.body, 0.0, -p["L"]))
+        self.hinge = items.hinge_2d(
+            self, items.point(self, g0), items.point(self, self.body, 0.0, -p["L"])
+        )
 
     def to_engine_state(self, q, u):
         L, th, w = self.map_params["L"], float(q[0]), float(u[0])
@@ -125,17 +130,28 @@ class _SliderCrankBase(ExudynModel):
         r1, l1, l2, b = p["r1"], p["l1"], p["l2"], self._rod_b_to_g(p)
         d = self.rod_direction
         self.hinge_A = items.hinge_2d(self, items.point(self, g0), items.point(self, crank, -r1))
-        self.hinge_B = items.hinge_2d(self, items.point(self, crank, l1 - r1),
-                                      items.point(self, rod, -d * b))
-        self.hinge_C = items.hinge_2d(self, items.point(self, rod, d * (l2 - b)),
-                                      items.point(self, slider))
+        self.hinge_B = items.hinge_2d(
+            self, items.point(self, crank, l1 - r1), items.point(self, rod, -d * b)
+        )
+        self.hinge_C = items.hinge_2d(
+            self, items.point(self, rod, d * (l2 - b)), items.point(self, slider)
+        )
         if self.guide:  # y_C = 0: ground coordinate (marker 0) and the slider's y (marker 1)
-            self.mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[
-                items.ground_coordinate(self), items.coordinate_marker(self, slider_node, 1)]))
+            self.mbs.AddObject(
+                ObjectConnectorCoordinate(
+                    markerNumbers=[
+                        items.ground_coordinate(self),
+                        items.coordinate_marker(self, slider_node, 1),
+                    ]
+                )
+            )
         if p["T"] != 0.0:
-            self.mbs.AddLoad(LoadTorqueVector(
-                markerNumber=self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=crank)),
-                loadVector=[0.0, 0.0, p["T"]]))
+            self.mbs.AddLoad(
+                LoadTorqueVector(
+                    markerNumber=self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=crank)),
+                    loadVector=[0.0, 0.0, p["T"]],
+                )
+            )
 
     def _engine_from_angles(self, th1, w1, th2, w2, psi):
         """Engine state from Example 2's crank and rod angles (rod angle B -> C) and the rod
@@ -145,8 +161,9 @@ class _SliderCrankBase(ExudynModel):
         e1, e2 = np.array([math.cos(th1), math.sin(th1)]), np.array([math.cos(th2), math.sin(th2)])
         n1, n2 = np.array([-e1[1], e1[0]]), np.array([-e2[1], e2[0]])
         qe = np.concatenate([r1 * e1, [th1], l1 * e1 + b * e2, [psi], l1 * e1 + l2 * e2])
-        ve = np.concatenate([r1 * w1 * n1, [w1], l1 * w1 * n1 + b * w2 * n2, [w2],
-                             l1 * w1 * n1 + l2 * w2 * n2])
+        ve = np.concatenate(
+            [r1 * w1 * n1, [w1], l1 * w1 * n1 + b * w2 * n2, [w2], l1 * w1 * n1 + l2 * w2 * n2]
+        )
         return qe, ve
 
     def _position_rows(self, qe, t):
@@ -156,8 +173,7 @@ class _SliderCrankBase(ExudynModel):
         e1 = np.array([math.cos(qe[2]), math.sin(qe[2])])
         ep = np.array([math.cos(qe[5]), math.sin(qe[5])])
         g1, g2, c = qe[0:2], qe[3:5], qe[6:8]
-        rows = [g1 - r1 * e1, g1 + (l1 - r1) * e1 - (g2 - d * b * ep),
-                g2 + d * (l2 - b) * ep - c]
+        rows = [g1 - r1 * e1, g1 + (l1 - r1) * e1 - (g2 - d * b * ep), g2 + d * (l2 - b) * ep - c]
         if self.guide:
             rows.append(qe[7:8])
         return np.concatenate(rows)

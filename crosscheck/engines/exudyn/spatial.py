@@ -11,6 +11,7 @@ identity G(p') p' = 0). Ball joints are ObjectJointSpherical (3 AE coordinates, 
 the force on marker 1's body is -lam, on marker 0's +lam: verified against the reference's
 multipliers in tests/test_engine_exudyn.py).
 """
+
 from __future__ import annotations
 
 import math
@@ -24,8 +25,8 @@ from exudyn.rigidBodyUtilities import (
     RotationMatrix2EulerParameters,
 )
 
-from . import items
 from ..kinematics import R313, angles313
+from . import items
 from .base import ExudynModel
 
 __all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
@@ -36,8 +37,9 @@ def _rigid_body_ep(model, mass: float, inertia_diag) -> tuple[int, int]:
     ObjectRigidBody with the principal central inertias along the body axes, gravity on."""
     n = model.mbs.AddNode(NodeRigidBodyEP(referenceCoordinates=[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
     Ixx, Iyy, Izz = (float(v) for v in inertia_diag)
-    b = model.mbs.AddObject(ObjectRigidBody(mass=mass, inertia=[Ixx, Iyy, Izz, 0.0, 0.0, 0.0],
-                                            nodeNumber=n))
+    b = model.mbs.AddObject(
+        ObjectRigidBody(mass=mass, inertia=[Ixx, Iyy, Izz, 0.0, 0.0, 0.0], nodeNumber=n)
+    )
     items._gravity(model, b)
     model.masses.append((n, b, mass))
     return n, b
@@ -66,10 +68,19 @@ class DoublePendulum3D(ExudynModel):
         _, b1 = _rigid_body_ep(self, p["m1"], (p["I1_11"], p["I1_22"], p["I1_33"]))
         _, b2 = _rigid_body_ep(self, p["m2"], (p["I2_11"], p["I2_22"], p["I2_33"]))
         l1, l2 = p["l1"], p["l2"]
-        self.joint_O = self.mbs.AddObject(ObjectJointSpherical(markerNumbers=[
-            items.point(self, g0), items.point(self, b1, 0.0, l1 / 2)]))
-        self.joint_A = self.mbs.AddObject(ObjectJointSpherical(markerNumbers=[
-            items.point(self, b1, 0.0, -l1 / 2), items.point(self, b2, 0.0, l2 / 2)]))
+        self.joint_O = self.mbs.AddObject(
+            ObjectJointSpherical(
+                markerNumbers=[items.point(self, g0), items.point(self, b1, 0.0, l1 / 2)]
+            )
+        )
+        self.joint_A = self.mbs.AddObject(
+            ObjectJointSpherical(
+                markerNumbers=[
+                    items.point(self, b1, 0.0, -l1 / 2),
+                    items.point(self, b2, 0.0, l2 / 2),
+                ]
+            )
+        )
 
     def _ae(self, lam_e, obj) -> np.ndarray:
         return np.asarray(lam_e)[list(self.mbs.systemData.GetObjectLTGAE(obj))]
@@ -78,28 +89,29 @@ class DoublePendulum3D(ExudynModel):
         q, u = np.asarray(q, float), np.asarray(u, float)
         qe, ve = [], []
         for i in range(2):
-            ep = np.asarray(RotationMatrix2EulerParameters(R313(*q[3 * i:3 * i + 3]).T))
+            ep = np.asarray(RotationMatrix2EulerParameters(R313(*q[3 * i : 3 * i + 3]).T))
             ep = ep / np.linalg.norm(ep)
             G = EulerParameters2GLocal(ep)
             qe.append((None, ep))
-            ve.append((u[6 + 3 * i:9 + 3 * i], G.T @ u[3 * i:3 * i + 3] / 4))
+            ve.append((u[6 + 3 * i : 9 + 3 * i], G.T @ u[3 * i : 3 * i + 3] / 4))
         l1, l2 = self.map_params["l1"], self.map_params["l2"]
         A1 = EulerParameters2RotationMatrix(qe[0][1])
         A2 = EulerParameters2RotationMatrix(qe[1][1])
         r1 = A1 @ np.array([0.0, -l1 / 2, 0.0])
         r2 = A1 @ np.array([0.0, -l1, 0.0]) + A2 @ np.array([0.0, -l2 / 2, 0.0])
-        return (np.concatenate([r1, qe[0][1], r2, qe[1][1]]),
-                np.concatenate([ve[0][0], ve[0][1], ve[1][0], ve[1][1]]))
+        return (
+            np.concatenate([r1, qe[0][1], r2, qe[1][1]]),
+            np.concatenate([ve[0][0], ve[0][1], ve[1][0], ve[1][1]]),
+        )
 
     def from_engine_state(self, qe, ve):
         qe, ve = np.asarray(qe, float), np.asarray(ve, float)
         angles, omegas = [], []
         for i in (0, 7):
-            ep = qe[i + 3:i + 7]
+            ep = qe[i + 3 : i + 7]
             angles.append(angles313(EulerParameters2RotationMatrix(ep).T))
-            omegas.append(EulerParameters2GLocal(ep) @ ve[i + 3:i + 7])
-        return (np.concatenate(angles),
-                np.concatenate([omegas[0], omegas[1], ve[0:3], ve[7:10]]))
+            omegas.append(EulerParameters2GLocal(ep) @ ve[i + 3 : i + 7])
+        return (np.concatenate(angles), np.concatenate([omegas[0], omegas[1], ve[0:3], ve[7:10]]))
 
     def _acc_to_reference(self, qe, ve, ae):
         w1 = EulerParameters2GLocal(qe[3:7]) @ ae[3:7]
@@ -115,8 +127,12 @@ class DoublePendulum3D(ExudynModel):
         A1 = EulerParameters2RotationMatrix(qe[3:7])
         A2 = EulerParameters2RotationMatrix(qe[10:14])
         O = qe[0:3] + A1 @ np.array([0.0, l1 / 2, 0.0])
-        gap = (qe[0:3] + A1 @ np.array([0.0, -l1 / 2, 0.0])
-               - qe[7:10] - A2 @ np.array([0.0, l2 / 2, 0.0]))
+        gap = (
+            qe[0:3]
+            + A1 @ np.array([0.0, -l1 / 2, 0.0])
+            - qe[7:10]
+            - A2 @ np.array([0.0, l2 / 2, 0.0])
+        )
         return np.concatenate([O, gap, [qe[3:7] @ qe[3:7] - 1, qe[10:14] @ qe[10:14] - 1]])
 
 
@@ -141,8 +157,11 @@ class TopCartesian(ExudynModel):
         self.gravity = (0.0, 0.0, -p["g"])
         g0 = items.ground(self)
         self.node, body = _rigid_body_ep(self, p["m"], (p["I"], p["I"], p["I3"]))
-        self.joint = self.mbs.AddObject(ObjectJointSpherical(markerNumbers=[
-            items.point(self, g0), items.point(self, body, 0.0, 0.0, -p["L"])]))
+        self.joint = self.mbs.AddObject(
+            ObjectJointSpherical(
+                markerNumbers=[items.point(self, g0), items.point(self, body, 0.0, 0.0, -p["L"])]
+            )
+        )
 
     _PERM = (0, 1, 2, 6, 3, 4, 5)  # reference index of each engine coordinate
 
@@ -192,8 +211,7 @@ class TopEuler(TopCartesian):
         A = EulerParameters2RotationMatrix(ep)
         lever = np.array([0.0, 0.0, self.map_params["L"]])
         omega = EulerParameters2GLocal(ep) @ ep_t
-        return (np.concatenate([A @ lever, ep]),
-                np.concatenate([A @ np.cross(omega, lever), ep_t]))
+        return (np.concatenate([A @ lever, ep]), np.concatenate([A @ np.cross(omega, lever), ep_t]))
 
     def from_engine_state(self, qe, ve):
         return np.asarray(qe, float)[[4, 5, 6, 3]], np.asarray(ve, float)[[4, 5, 6, 3]]
@@ -265,19 +283,29 @@ class FrameBar(ExudynModel):
         def frame(body, pos, rot=None):
             return items.rigid_frame(self, body, pos, rot)
 
-        self.bearing = mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
-            frame(g0, [0, 0, 0]), frame(frame_body, [0, 0, 0])]))
-        mbs.AddObject(ObjectJointRevoluteZ(markerNumbers=[
-            frame(frame_body, [0, p["d"], 0], _JOINT_Z_ALONG_Y),
-            frame(bar, [0, 0, 0], _JOINT_Z_ALONG_Y)]))
+        self.bearing = mbs.AddObject(
+            ObjectJointRevoluteZ(markerNumbers=[frame(g0, [0, 0, 0]), frame(frame_body, [0, 0, 0])])
+        )
+        mbs.AddObject(
+            ObjectJointRevoluteZ(
+                markerNumbers=[
+                    frame(frame_body, [0, p["d"], 0], _JOINT_Z_ALONG_Y),
+                    frame(bar, [0, 0, 0], _JOINT_Z_ALONG_Y),
+                ]
+            )
+        )
         at_f, at_b = frame(frame_body, [0, 0, 0]), frame(bar, [0, 0, 0])
         if p["M_phi"] != 0.0:
             mbs.AddLoad(LoadTorqueVector(markerNumber=at_f, loadVector=[0, 0, p["M_phi"]]))
         if p["M_theta"] != 0.0:
-            mbs.AddLoad(LoadTorqueVector(markerNumber=at_b, loadVector=[0, p["M_theta"], 0],
-                                         bodyFixed=True))
-            mbs.AddLoad(LoadTorqueVector(markerNumber=at_f, loadVector=[0, -p["M_theta"], 0],
-                                         bodyFixed=True))
+            mbs.AddLoad(
+                LoadTorqueVector(markerNumber=at_b, loadVector=[0, p["M_theta"], 0], bodyFixed=True)
+            )
+            mbs.AddLoad(
+                LoadTorqueVector(
+                    markerNumber=at_f, loadVector=[0, -p["M_theta"], 0], bodyFixed=True
+                )
+            )
 
     def to_engine_state(self, q, u):
         phi, th = (float(v) for v in q)
@@ -290,9 +318,17 @@ class FrameBar(ExudynModel):
         r = Af @ np.array([0.0, d, 0.0])
         v = Af @ np.array([-d * phid, 0.0, 0.0])
         wf = np.array([0.0, 0.0, phid])
-        return (np.concatenate([[0.0, 0.0, 0.0], pf, r, pb]),
-                np.concatenate([[0.0, 0.0, 0.0], EulerParameters2GLocal(pf).T @ wf / 4, v,
-                                EulerParameters2GLocal(pb).T @ w / 4]))
+        return (
+            np.concatenate([[0.0, 0.0, 0.0], pf, r, pb]),
+            np.concatenate(
+                [
+                    [0.0, 0.0, 0.0],
+                    EulerParameters2GLocal(pf).T @ wf / 4,
+                    v,
+                    EulerParameters2GLocal(pb).T @ w / 4,
+                ]
+            ),
+        )
 
     def from_engine_state(self, qe, ve):
         Af = EulerParameters2RotationMatrix(qe[3:7])
@@ -321,6 +357,16 @@ class FrameBar(ExudynModel):
         Af = EulerParameters2RotationMatrix(qe[3:7])
         Ab = EulerParameters2RotationMatrix(qe[10:14])
         arm = Af @ np.array([0.0, self.params["d"], 0.0]) - qe[7:10]
-        return np.concatenate([qe[0:3], Af[2, 0:2], arm, [Ab[:, 1] @ Af[:, 0],
-                               Ab[:, 1] @ Af[:, 2], qe[3:7] @ qe[3:7] - 1,
-                               qe[10:14] @ qe[10:14] - 1]])
+        return np.concatenate(
+            [
+                qe[0:3],
+                Af[2, 0:2],
+                arm,
+                [
+                    Ab[:, 1] @ Af[:, 0],
+                    Ab[:, 1] @ Af[:, 2],
+                    qe[3:7] @ qe[3:7] - 1,
+                    qe[10:14] @ qe[10:14] - 1,
+                ],
+            ]
+        )

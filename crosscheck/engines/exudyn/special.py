@@ -19,6 +19,7 @@ give the same solve rows whose (C_q q')_q q' IS the missing term:
   support's prescribed x_s = a sin(Omega tau) is a position-level user row in (x_s, tau), so
   its (C_q q')_q q' contains a Omega^2 sin(Omega tau) tau'^2: every explicit time term.
 """
+
 from __future__ import annotations
 
 import math
@@ -63,8 +64,11 @@ class KnifeEdge(ExudynModel):
         p = self.params
         a = p["a"]
         node, body = items.rigid_body_2d(self, p["m"], p["I_G"])
-        m0 = self.mbs.AddMarker(MarkerNodeCoordinates(nodeNumber=self.mbs.AddNode(
-            NodePointGround(referenceCoordinates=[0.0, 0.0, 0.0]))))  # no coordinates
+        m0 = self.mbs.AddMarker(
+            MarkerNodeCoordinates(
+                nodeNumber=self.mbs.AddNode(NodePointGround(referenceCoordinates=[0.0, 0.0, 0.0]))
+            )
+        )  # no coordinates
         m1 = self.mbs.AddMarker(MarkerNodeCoordinates(nodeNumber=node))
 
         def row(mbs, t, item, q, q_t, velocity_level):
@@ -74,18 +78,27 @@ class KnifeEdge(ExudynModel):
         def jacobian(mbs, t, item, q, q_t, velocity_level):
             return np.array([[-math.sin(q[2]), math.cos(q[2]), -a]])
 
-        self.mbs.AddObject(ObjectConnectorCoordinateVector(
-            markerNumbers=[m0, m1], scalingMarker0=np.zeros((1, 1)),
-            velocityLevel=self.simulation, constraintUserFunction=row,
-            jacobianUserFunction=jacobian))
+        self.mbs.AddObject(
+            ObjectConnectorCoordinateVector(
+                markerNumbers=[m0, m1],
+                scalingMarker0=np.zeros((1, 1)),
+                velocityLevel=self.simulation,
+                constraintUserFunction=row,
+                jacobianUserFunction=jacobian,
+            )
+        )
         if p["P"] != 0.0:
             at_c = self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=body, localPosition=[-a, 0, 0]))
-            self.mbs.AddLoad(LoadForceVector(markerNumber=at_c, loadVector=[p["P"], 0.0, 0.0],
-                                             bodyFixed=True))
+            self.mbs.AddLoad(
+                LoadForceVector(markerNumber=at_c, loadVector=[p["P"], 0.0, 0.0], bodyFixed=True)
+            )
         if p["T"] != 0.0:
-            self.mbs.AddLoad(LoadTorqueVector(
-                markerNumber=self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=body)),
-                loadVector=[0.0, 0.0, p["T"]]))
+            self.mbs.AddLoad(
+                LoadTorqueVector(
+                    markerNumber=self.mbs.AddMarker(MarkerBodyRigid(bodyNumber=body)),
+                    loadVector=[0.0, 0.0, p["T"]],
+                )
+            )
 
     def to_engine_state(self, q, u):
         a = self.map_params["a"]
@@ -97,15 +110,16 @@ class KnifeEdge(ExudynModel):
     def from_engine_state(self, qe, ve):
         a = self.map_params["a"]
         s, c = math.sin(qe[2]), math.cos(qe[2])
-        return (np.array([qe[0] - a * c, qe[1] - a * s, qe[2]]),
-                np.array([ve[0] + a * s * ve[2], ve[1] - a * c * ve[2], ve[2]]))
+        return (
+            np.array([qe[0] - a * c, qe[1] - a * s, qe[2]]),
+            np.array([ve[0] + a * s * ve[2], ve[1] - a * c * ve[2], ve[2]]),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         a = self.map_params["a"]
         s, c = math.sin(qe[2]), math.cos(qe[2])
         w2 = ve[2] ** 2
-        return np.array([ae[0] + a * (c * w2 + s * ae[2]), ae[1] + a * (s * w2 - c * ae[2]),
-                         ae[2]])
+        return np.array([ae[0] + a * (c * w2 + s * ae[2]), ae[1] + a * (s * w2 - c * ae[2]), ae[2]])
 
     def _multipliers(self, qe, ve, ae, lam_e):
         return np.array([-lam_e[0]])
@@ -142,10 +156,19 @@ class MovingSupport(ExudynModel):
         self.gravity = saved
         clock = self.mbs.AddNode(Node1D(referenceCoordinates=[0.0]))
         self.mbs.AddObject(ObjectMass1D(mass=1.0, nodeNumber=clock))
-        self.mbs.AddObject(ObjectConnectorDistance(
-            markerNumbers=[items.point(self, support), items.point(self, bob)], distance=p["L"]))
-        self.mbs.AddObject(ObjectConnectorCoordinate(markerNumbers=[
-            items.ground_coordinate(self), items.coordinate_marker(self, s_node, 1)]))
+        self.mbs.AddObject(
+            ObjectConnectorDistance(
+                markerNumbers=[items.point(self, support), items.point(self, bob)], distance=p["L"]
+            )
+        )
+        self.mbs.AddObject(
+            ObjectConnectorCoordinate(
+                markerNumbers=[
+                    items.ground_coordinate(self),
+                    items.coordinate_marker(self, s_node, 1),
+                ]
+            )
+        )
         m0 = self.mbs.AddMarker(MarkerNodeCoordinates(nodeNumber=s_node))
         m1 = self.mbs.AddMarker(MarkerNodeCoordinates(nodeNumber=clock))
 
@@ -157,14 +180,24 @@ class MovingSupport(ExudynModel):
         def jacobian(mbs, t, item, q, q_t, velocity_level):
             return np.array([[1.0, 0.0, -a * om * math.cos(om * q[2])]])
 
-        self.mbs.AddObject(ObjectConnectorCoordinateVector(
-            markerNumbers=[m0, m1], scalingMarker0=np.zeros((1, 1)),
-            constraintUserFunction=row, jacobianUserFunction=jacobian))
-        self.mbs.AddObject(ObjectConnectorCoordinate(
-            markerNumbers=[items.ground_coordinate(self),
-                           items.coordinate_marker(self, clock, 0)],
-            offsetUserFunction=lambda mbs, t, item, offset: t,
-            offsetUserFunction_t=lambda mbs, t, item, offset: 1.0))
+        self.mbs.AddObject(
+            ObjectConnectorCoordinateVector(
+                markerNumbers=[m0, m1],
+                scalingMarker0=np.zeros((1, 1)),
+                constraintUserFunction=row,
+                jacobianUserFunction=jacobian,
+            )
+        )
+        self.mbs.AddObject(
+            ObjectConnectorCoordinate(
+                markerNumbers=[
+                    items.ground_coordinate(self),
+                    items.coordinate_marker(self, clock, 0),
+                ],
+                offsetUserFunction=lambda mbs, t, item, offset: t,
+                offsetUserFunction_t=lambda mbs, t, item, offset: 1.0,
+            )
+        )
 
     def _support(self, t, p):
         """The support's x_s and x_s' at time t with the parameter values p."""
@@ -173,8 +206,7 @@ class MovingSupport(ExudynModel):
 
     def to_engine_state(self, q, u):
         xs, xsd = self._support(self.time, self.map_params)
-        return (np.array([q[0], q[1], xs, 0.0, self.time]),
-                np.array([u[0], u[1], xsd, 0.0, 1.0]))
+        return (np.array([q[0], q[1], xs, 0.0, self.time]), np.array([u[0], u[1], xsd, 0.0, 1.0]))
 
     def from_engine_state(self, qe, ve):
         return np.array(qe[:2], float), np.array(ve[:2], float)
@@ -191,5 +223,11 @@ class MovingSupport(ExudynModel):
 
     def _position_rows(self, qe, t):
         xs, _ = self._support(qe[4], self.params)
-        return np.array([np.hypot(qe[0] - qe[2], qe[1] - qe[3]) - self.params["L"], qe[3],
-                         qe[2] - xs, qe[4] - t])
+        return np.array(
+            [
+                np.hypot(qe[0] - qe[2], qe[1] - qe[3]) - self.params["L"],
+                qe[3],
+                qe[2] - xs,
+                qe[4] - t,
+            ]
+        )

@@ -8,6 +8,7 @@ tightened from Exudyn's defaults (relative 1e-8) to NEWTON_RTOL so the integrato
 not the iteration's, is what a work-precision plot shows; the step is never changed
 (adaptiveStep off: a failed Newton iteration is an error, not a silently smaller step).
 """
+
 from __future__ import annotations
 
 import time
@@ -21,8 +22,10 @@ from exudyn.itemInterface import SensorNode
 from ..base import EngineTrajectory, EngineUnsupported
 
 # Exudyn's own integrators for simulate() (the first is the one `crosscheck run` uses)
-INTEGRATORS = {"generalized-alpha": exu.DynamicSolverType.GeneralizedAlpha,
-               "trapezoidal-index2": exu.DynamicSolverType.TrapezoidalIndex2}
+INTEGRATORS = {
+    "generalized-alpha": exu.DynamicSolverType.GeneralizedAlpha,
+    "trapezoidal-index2": exu.DynamicSolverType.TrapezoidalIndex2,
+}
 
 __all__ = ["ExudynIntegrationError", "simulate"]
 
@@ -54,13 +57,19 @@ def failure_reason(solver) -> str:
     """Why Exudyn's implicit solver stopped, from its convergence flags (what its banner says,
     without the generic hints)."""
     conv, it = solver.conv, solver.it
-    why = [text for flag, text in (
-        (conv.newtonSolutionDiverged, "Newton iteration diverged"),
-        (conv.stepReductionFailed, "Newton iteration did not converge at the fixed step"),
-        (conv.linearSolverFailed, f"linear solver failed (row {conv.linearSolverCausingRow})"),
-        (conv.massMatrixNotInvertible, "mass matrix not invertible")) if flag]
-    return (f"{'; '.join(why) or 'stopped'} at t = {it.currentTime:.6g} "
-            f"(residual {conv.residual:.3g})")
+    why = [
+        text
+        for flag, text in (
+            (conv.newtonSolutionDiverged, "Newton iteration diverged"),
+            (conv.stepReductionFailed, "Newton iteration did not converge at the fixed step"),
+            (conv.linearSolverFailed, f"linear solver failed (row {conv.linearSolverCausingRow})"),
+            (conv.massMatrixNotInvertible, "mass matrix not invertible"),
+        )
+        if flag
+    ]
+    return (
+        f"{'; '.join(why) or 'stopped'} at t = {it.currentTime:.6g} (residual {conv.residual:.3g})"
+    )
 
 
 def _sensors(mbs) -> list[tuple[int, int, int]]:
@@ -69,10 +78,22 @@ def _sensors(mbs) -> list[tuple[int, int, int]]:
     for n in range(mbs.systemData.NumberOfNodes()):
         if not len(mbs.systemData.GetNodeLTGODE2(n)):
             continue
-        s_q = mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
-                                       outputVariableType=exu.OutputVariableType.Coordinates))
-        s_v = mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
-                                       outputVariableType=exu.OutputVariableType.Coordinates_t))
+        s_q = mbs.AddSensor(
+            SensorNode(
+                nodeNumber=n,
+                storeInternal=True,
+                writeToFile=False,
+                outputVariableType=exu.OutputVariableType.Coordinates,
+            )
+        )
+        s_v = mbs.AddSensor(
+            SensorNode(
+                nodeNumber=n,
+                storeInternal=True,
+                writeToFile=False,
+                outputVariableType=exu.OutputVariableType.Coordinates_t,
+            )
+        )
         out.append((n, s_q, s_v))
     return out
 
@@ -82,7 +103,8 @@ def _grid_indices(t_eval: np.ndarray, t0: float, timestep: float) -> np.ndarray:
     if np.any(np.abs(t_eval - t0 - k * timestep) > GRID_TOL * timestep) or np.any(k < 0):
         raise EngineUnsupported(
             f"exudyn: output times must lie on the step grid t0 + k * {timestep:g} (fixed-step "
-            "integrator); choose t_eval as multiples of the timestep")
+            "integrator); choose t_eval as multiples of the timestep"
+        )
     return k.astype(int)
 
 
@@ -96,8 +118,9 @@ def _continuous_angles(Q: np.ndarray, q0: np.ndarray, indices) -> np.ndarray:
     return Q
 
 
-def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
-             ) -> EngineTrajectory:
+def simulate(
+    model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
+) -> EngineTrajectory:
     t0 = float(t_eval[0]) if t_eval.size else 0.0
     steps = _grid_indices(t_eval, t0, timestep)
     sim = type(model)(model.model_name, model.params, simulation=True)
@@ -124,14 +147,15 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
         reason = failure_reason(mbs.sys["dynamicSolver"]) if "dynamicSolver" in mbs.sys else exc
         raise ExudynIntegrationError(
             f"{model.model_name}: Exudyn's {integrator} stopped with timestep {timestep:g} "
-            f"({reason}): use a smaller timestep") from exc
+            f"({reason}): use a smaller timestep"
+        ) from exc
     wall = time.perf_counter() - start
     # every node's record: rows (time, coordinates...), one row per step from t0
     rec_q = [np.asarray(mbs.GetSensorStoredData(s_q)) for _, s_q, _ in sensors]
     rec_v = [np.asarray(mbs.GetSensorStoredData(s_v)) for _, _, s_v in sensors]
     order = np.concatenate([np.asarray(mbs.systemData.GetNodeLTGODE2(n)) for n, _, _ in sensors])
     Q, U, viol, vviol, E = [], [], [], [], []
-    for t, k in zip(t_eval, steps):
+    for t, k in zip(t_eval, steps, strict=False):
         qe, ve = np.empty(order.size), np.empty(order.size)
         qe[order] = np.concatenate([r[k, 1:] for r in rec_q])
         qe += sim.q_reference
@@ -145,8 +169,19 @@ def simulate(model, q0, u0, t_eval: np.ndarray, integrator: str, timestep: float
         E.append(sum(model._energy_engine(qe, ve)))
     q_out = _continuous_angles(np.array(Q), np.asarray(q0, float), model.angle_indices)
     return EngineTrajectory(
-        t=np.asarray(t_eval, float), q=q_out, u=np.array(U), violation=np.array(viol),
-        velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
-        setting={"timestep": timestep, "newton_rtol": NEWTON_RTOL, "newton_atol": NEWTON_ATOL,
-                 "spectral_radius": ti.generalizedAlpha.spectralRadius},
-        wall_s=wall, steps=n_steps)
+        t=np.asarray(t_eval, float),
+        q=q_out,
+        u=np.array(U),
+        violation=np.array(viol),
+        velocity_violation=np.array(vviol),
+        energy=np.array(E),
+        integrator=integrator,
+        setting={
+            "timestep": timestep,
+            "newton_rtol": NEWTON_RTOL,
+            "newton_atol": NEWTON_ATOL,
+            "spectral_radius": ti.generalizedAlpha.spectralRadius,
+        },
+        wall_s=wall,
+        steps=n_steps,
+    )

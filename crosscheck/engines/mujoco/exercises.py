@@ -1,11 +1,13 @@
 """MuJoCo models (and their MJCF) of Exercises 6.1, 6.2 and 6.4 (geometry as assumed
 in the reference's docstrings)."""
+
 from __future__ import annotations
 
 import math
 
-import mujoco
 import numpy as np
+
+import mujoco
 
 from .machinery import LIGHT, MjEngineModel, document, lamina, num, vec
 
@@ -37,12 +39,18 @@ def _xml_exercise_6_1(p, **kw) -> str:
       </body>
 """
     eq = '    <connect name="B" site1="B_bar" site2="B_block"/>\n'
-    return document("exercise_6_1", (0, -p["g"], 0), bodies, eq,
-                     note="Exercise 6.1 (assumed geometry, reference docstring): Y UP; light "
-                          "slider A on slide x (spring k, springref 0, damper c: joint "
-                          "stiffness/damping), bar hinged at A about +Z (hinge angle = theta, "
-                          "from +Y), block P on slide y; bar end B connected to P; F on y is "
-                          "qfrc_applied", **kw)
+    return document(
+        "exercise_6_1",
+        (0, -p["g"], 0),
+        bodies,
+        eq,
+        note="Exercise 6.1 (assumed geometry, reference docstring): Y UP; light "
+        "slider A on slide x (spring k, springref 0, damper c: joint "
+        "stiffness/damping), bar hinged at A about +Z (hinge angle = theta, "
+        "from +Y), block P on slide y; bar end B connected to P; F on y is "
+        "qfrc_applied",
+        **kw,
+    )
 
 
 def _xml_exercise_6_2(p, **kw) -> str:
@@ -61,11 +69,16 @@ def _xml_exercise_6_2(p, **kw) -> str:
         </body>
       </body>
 """
-    return document("exercise_6_2", (0, p["g"], 0), bodies,
-                     note="Exercise 6.2 (assumed geometry, reference docstring): Y DOWN "
-                          "(gravity +Y); block on slide x (spring k, springref 0, damper c: "
-                          "joint stiffness/damping; F as qfrc_applied), bar hinged at A about "
-                          "-Z (hinge angle = theta, from the downward vertical)", **kw)
+    return document(
+        "exercise_6_2",
+        (0, p["g"], 0),
+        bodies,
+        note="Exercise 6.2 (assumed geometry, reference docstring): Y DOWN "
+        "(gravity +Y); block on slide x (spring k, springref 0, damper c: "
+        "joint stiffness/damping; F as qfrc_applied), bar hinged at A about "
+        "-Z (hinge angle = theta, from the downward vertical)",
+        **kw,
+    )
 
 
 def _xml_exercise_6_4(p, **kw) -> str:
@@ -80,17 +93,23 @@ def _xml_exercise_6_4(p, **kw) -> str:
         <body name="bar" pos="{vec(0, R, 0)}">
           <joint name="theta" type="hinge" axis="1 0 0"
                  stiffness="{num(k)}" damping="{num(c)}" springref="0"/>
-          <inertial pos="{vec(0, 0, -l / 2)}" mass="{num(m)}" diaginertia="{vec(I_b, I_b, eps_ax)}"/>
+          <inertial pos="{vec(0, 0, -l / 2)}" mass="{num(m)}"
+                    diaginertia="{vec(I_b, I_b, eps_ax)}"/>
           <geom type="capsule" fromto="0 0 0 0 0 {num(-l)}" size="0.01"/>
         </body>
       </body>
 """
-    return document("exercise_6_4", (0, 0, -p["g"]), bodies,
-                     note="Exercise 6.4 (assumed geometry, reference docstring): Z UP; disk "
-                          "hinge phi about +Z at O, bar hinge theta about the disk's +X at "
-                          "P = (0, R, 0) (torsional spring k, springref 0, damper c: joint "
-                          "stiffness/damping); motor torques as qfrc_applied; the bar's axial "
-                          "inertia is 1e-12 m l^2 (MuJoCo rejects 0)", **kw)
+    return document(
+        "exercise_6_4",
+        (0, 0, -p["g"]),
+        bodies,
+        note="Exercise 6.4 (assumed geometry, reference docstring): Z UP; disk "
+        "hinge phi about +Z at O, bar hinge theta about the disk's +X at "
+        "P = (0, R, 0) (torsional spring k, springref 0, damper c: joint "
+        "stiffness/damping); motor torques as qfrc_applied; the bar's axial "
+        "inertia is 1e-12 m l^2 (MuJoCo rejects 0)",
+        **kw,
+    )
 
 
 # ======================================================================================
@@ -123,13 +142,14 @@ class _ExerciseBase(MjEngineModel):
     model of the mechanism has."""
 
     _loads: tuple[tuple[str, str, float], ...] = ()  # (joint, parameter, sign) -> qfrc_applied
-    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates (the "
-                        "bar's mass-center coordinates free of the bar angle), which no engine "
-                        "model of the mechanism has")
+    mass_matrix_note = (
+        "the reference's M belongs to its relaxed dependent coordinates (the "
+        "bar's mass-center coordinates free of the bar angle), which no engine "
+        "model of the mechanism has"
+    )
 
     def _dof(self, joint: str) -> int:
-        return int(self.m.jnt_dofadr[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT,
-                                                         joint)])
+        return int(self.m.jnt_dofadr[mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, joint)])
 
     def _body(self, body: str) -> int:
         return mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, body)
@@ -188,8 +208,9 @@ class Exercise61(_ExerciseBase):
 
     def _force_at_A(self, qe, ve, ae, F_B):
         m = self.m
-        _, _, a_rel = _hinge_point(m.jnt_axis[self.j_th], m.body_ipos[self.bar], float(qe[1]),
-                                   float(ve[1]), float(ae[1]))
+        _, _, a_rel = _hinge_point(
+            m.jnt_axis[self.j_th], m.body_ipos[self.bar], float(qe[1]), float(ve[1]), float(ae[1])
+        )
         a_G = np.array([ae[0], 0.0, 0.0]) + a_rel
         mb = m.body_mass[self.bar]
         return mb * a_G - mb * m.opt.gravity - np.asarray(F_B, float)
@@ -229,8 +250,7 @@ class Exercise62(_ExerciseBase):
         self.j_th = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, "theta")
 
     def _G(self, th, thd, thdd):
-        return _hinge_point(self.m.jnt_axis[self.j_th], self.m.body_ipos[self.bar], th, thd,
-                            thdd)
+        return _hinge_point(self.m.jnt_axis[self.j_th], self.m.body_ipos[self.bar], th, thd, thdd)
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
@@ -238,8 +258,10 @@ class Exercise62(_ExerciseBase):
 
     def from_engine_state(self, qe, ve):
         r, v, _ = self._G(float(qe[1]), float(ve[1]), 0.0)
-        return (np.array([qe[0], qe[1], r[0], r[1]], float),
-                np.array([ve[0], ve[1], v[0], v[1]], float))
+        return (
+            np.array([qe[0], qe[1], r[0], r[1]], float),
+            np.array([ve[0], ve[1], v[0], v[1]], float),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         _, _, a = self._G(float(qe[1]), float(ve[1]), float(ae[1]))
@@ -278,8 +300,9 @@ class Exercise64(_ExerciseBase):
         self.j_th = mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_JOINT, "theta")
 
     def _G(self, th, thd, thdd):
-        r, v, a = _hinge_point(self.m.jnt_axis[self.j_th], self.m.body_ipos[self.bar], th,
-                               thd, thdd)
+        r, v, a = _hinge_point(
+            self.m.jnt_axis[self.j_th], self.m.body_ipos[self.bar], th, thd, thdd
+        )
         return self.m.body_pos[self.bar] + r, v, a
 
     def to_engine_state(self, q, u):
@@ -288,8 +311,10 @@ class Exercise64(_ExerciseBase):
 
     def from_engine_state(self, qe, ve):
         r, v, _ = self._G(float(qe[1]), float(ve[1]), 0.0)
-        return (np.array([qe[0], qe[1], r[1], r[2]], float),
-                np.array([ve[0], ve[1], v[1], v[2]], float))
+        return (
+            np.array([qe[0], qe[1], r[1], r[2]], float),
+            np.array([ve[0], ve[1], v[1], v[2]], float),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         _, _, a = self._G(float(qe[1]), float(ve[1]), float(ae[1]))
@@ -311,5 +336,3 @@ class Exercise64(_ExerciseBase):
         w = np.zeros(6)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self.bar, w, 1)  # inertial axes
         return K - 0.5 * float(m.body_inertia[self.bar, 2]) * float(w[2]) ** 2, V
-
-

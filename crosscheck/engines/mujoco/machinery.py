@@ -1,13 +1,13 @@
 """MuJoCo machinery shared by every engine model: the MJCF conventions and text helpers,
 the soft-constraint recovery (forward), energy, mass matrix, trajectories. The
 conventions are in the package's adapter docstring."""
+
 from __future__ import annotations
 
 import copy
 import hashlib
 import time
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -22,26 +22,32 @@ SOLREF = (0.02, 1.0)
 # relative mass/inertia of the bodies the reference does not have (light rods, the light frame)
 LIGHT = 1e-12
 # MuJoCo's fixed-step integrators; the first is the one `crosscheck run` uses for trajectories
-INTEGRATORS = {"RK4": mujoco.mjtIntegrator.mjINT_RK4,
-               "Euler": mujoco.mjtIntegrator.mjINT_EULER,
-               "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-               "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
+INTEGRATORS = {
+    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
 MJCF_DIR = Path(__file__).with_name("mjcf")
 MUJOCO_EXACT = Tolerance(
-    1e-11, "an exact answer in MuJoCo (a tree, no equality rows) against the reference's: "
-           "round-off plus the bias of the 1e-12 relative mass or inertia MuJoCo's light bodies "
-           "get (it rejects massless ones): measured <= 1.0e-12 (pendulum_angle's light rod, "
-           "frame_bar's light frame) over 2000 random parameter sets and states per model "
-           "(crosscheck sweep pendulum_angle slider_crank_free double_pendulum_3d top_euler "
-           "frame_bar exercise_6_2 --engines mujoco --samples 2000 --seed 4, and --seed 5); "
-           "10x")
+    1e-11,
+    "an exact answer in MuJoCo (a tree, no equality rows) against the reference's: "
+    "round-off plus the bias of the 1e-12 relative mass or inertia MuJoCo's light bodies "
+    "get (it rejects massless ones): measured <= 1.0e-12 (pendulum_angle's light rod, "
+    "frame_bar's light frame) over 2000 random parameter sets and states per model "
+    "(crosscheck sweep pendulum_angle slider_crank_free double_pendulum_3d top_euler "
+    "frame_bar exercise_6_2 --engines mujoco --samples 2000 --seed 4, and --seed 5); "
+    "10x",
+)
 # the models whose light regularization is amplified past MUJOCO_EXACT (adapter.exact_tolerance)
 MUJOCO_LIGHT_EXACT = Tolerance(
-    1e-10, "Exercise 6.4's slender bar has no axial inertia; MuJoCo rejects a zero principal "
-           "inertia, so it gets 1e-12 m l^2, and the disk's spin makes that bias reach 3.7e-11 "
-           "(crosscheck sweep exercise_6_4 --engines mujoco --samples 2000 --seed 4; 4.54e-11 "
-           "at seed 5); the reference given the same inertia agrees to 2.8e-14 "
-           "(tests/test_mujoco_bounds.py), so that inertia is the whole gap; 2x over 4.5e-11")
+    1e-10,
+    "Exercise 6.4's slender bar has no axial inertia; MuJoCo rejects a zero principal "
+    "inertia, so it gets 1e-12 m l^2, and the disk's spin makes that bias reach 3.7e-11 "
+    "(crosscheck sweep exercise_6_4 --engines mujoco --samples 2000 --seed 4; 4.54e-11 "
+    "at seed 5); the reference given the same inertia agrees to 2.8e-14 "
+    "(tests/test_mujoco_bounds.py), so that inertia is the whole gap; 2x over 4.5e-11",
+)
 
 
 def num(x: float) -> str:
@@ -60,19 +66,32 @@ def vec(*xs) -> str:
 # ======================================================================================
 
 
-def document(name: str, gravity, bodies: str, equality: str = "", note: str = "",
-              solref=SOLREF, solimp=SOLIMP, timestep: float = 1e-3, wrap: bool = True) -> str:
+def document(
+    name: str,
+    gravity,
+    bodies: str,
+    equality: str = "",
+    note: str = "",
+    solref=SOLREF,
+    solimp=SOLIMP,
+    timestep: float = 1e-3,
+    wrap: bool = True,
+) -> str:
     """The MJCF document; `bodies` go inside the static top-level body "frame" (wrap=True) or
     directly under <worldbody> (MuJoCo 4.0 accepts free joints only on top-level bodies)."""
     eq = f"\n  <equality>\n{equality}  </equality>" if equality else ""
     comment = f"  <!-- {note} -->\n" if note else ""
     if wrap:
-        bodies = ('    <body name="frame">\n'
-                  '      <inertial pos="0 0 0" mass="0" diaginertia="0 0 0"/>\n'
-                  + bodies + "    </body>\n")
+        bodies = (
+            '    <body name="frame">\n'
+            '      <inertial pos="0 0 0" mass="0" diaginertia="0 0 0"/>\n'
+            + bodies
+            + "    </body>\n"
+        )
     else:
-        bodies = "\n".join(line[2:] if line.startswith("  ") else line
-                           for line in bodies.split("\n"))
+        bodies = "\n".join(
+            line[2:] if line.startswith("  ") else line for line in bodies.split("\n")
+        )
     return f"""<mujoco model="{name}">
 {comment}  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
   <option gravity="{vec(*gravity)}" timestep="{num(timestep)}" integrator="Euler" solver="Newton"
@@ -114,9 +133,9 @@ def dense_efc_J(m, d) -> np.ndarray:
         J = np.zeros((nefc, nv))
         for i in range(nefc):
             adr, nnz = d.efc_J_rowadr[i], d.efc_J_rownnz[i]
-            J[i, d.efc_J_colind[adr:adr + nnz]] = d.efc_J[adr:adr + nnz]
+            J[i, d.efc_J_colind[adr : adr + nnz]] = d.efc_J[adr : adr + nnz]
         return J
-    return np.array(d.efc_J[:nefc * nv]).reshape(nefc, nv)
+    return np.array(d.efc_J[: nefc * nv]).reshape(nefc, nv)
 
 
 def full_M(m, d) -> np.ndarray:
@@ -146,7 +165,7 @@ def kkt_lstsq(M, J, rhs_c):
     K[:nv, nv:] = -J.T
     K[nv:, :nv] = J
     rhs_c = np.asarray(rhs_c, float)
-    rhs = np.concatenate([np.zeros((nv,) + rhs_c.shape[1:]), rhs_c])
+    rhs = np.concatenate([np.zeros((nv, *rhs_c.shape[1:])), rhs_c])
     sol, _res, rank, _sv = np.linalg.lstsq(K, rhs, rcond=None)
     return sol[:nv], sol[nv:], int(rank)
 
@@ -179,9 +198,9 @@ class MjEngineModel(EngineModel):
     nq_ref: int
     n_ref: int
     light_bodies: tuple[str, ...] = ()  # bodies absent from the reference: energy subtracted
-    variant: Optional[str] = None
+    variant: str | None = None
     # q_engine_velocity = P u_ref exactly (constant P): M and f map as P^T M P, P^T f
-    _P: Optional[np.ndarray] = None
+    _P: np.ndarray | None = None
 
     def __init__(self, model_name: str, params: dict[str, float], solref=SOLREF, solimp=SOLIMP):
         self.model_name = model_name
@@ -197,15 +216,34 @@ class MjEngineModel(EngineModel):
         self.d = mujoco.MjData(self.m)
         self.soft_constraints = self.m.neq > 0
         self.applied = self._applied()
-        self._light_ids = [mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, b)
-                           for b in self.light_bodies]
+        self._light_ids = [
+            mujoco.mj_name2id(self.m, mujoco.mjtObj.mjOBJ_BODY, b) for b in self.light_bodies
+        ]
         self._post_build()
 
     # the compiled model's arrays that carry its physics (fingerprint)
-    _PHYSICS_FIELDS = ("body_mass", "body_inertia", "body_pos", "body_quat", "body_ipos",
-                       "body_iquat", "jnt_type", "jnt_pos", "jnt_axis", "jnt_stiffness",
-                       "qpos_spring", "dof_damping", "dof_armature", "eq_type", "eq_obj1id",
-                       "eq_obj2id", "eq_data", "site_pos", "site_quat", "geom_size")
+    _PHYSICS_FIELDS = (
+        "body_mass",
+        "body_inertia",
+        "body_pos",
+        "body_quat",
+        "body_ipos",
+        "body_iquat",
+        "jnt_type",
+        "jnt_pos",
+        "jnt_axis",
+        "jnt_stiffness",
+        "qpos_spring",
+        "dof_damping",
+        "dof_armature",
+        "eq_type",
+        "eq_obj1id",
+        "eq_obj2id",
+        "eq_data",
+        "site_pos",
+        "site_quat",
+        "geom_size",
+    )
 
     def fingerprint(self) -> str:
         """SHA-256 of the compiled model's physics (masses, inertias, body/joint/site
@@ -240,15 +278,16 @@ class MjEngineModel(EngineModel):
             m.eq_solref[:, 0] /= self._stiffness
         return m
 
-    def stiffened(self, factor: float) -> "MjEngineModel":
+    def stiffened(self, factor: float) -> MjEngineModel:
         """The same model with every equality's solref time constant divided by factor
         (damping ratio kept): the soft effect on a trajectory shrinks as the time constant
         squared (docs/engines/mujoco.md), which the rigid-limit record extrapolates."""
         if self.m.neq == 0:
             raise EngineUnsupported("no equality rows: nothing to stiffen")
         if np.any(self.m.eq_solref[:, 0] <= 0):
-            raise EngineUnsupported("solref given as a direct stiffness (negative): its time "
-                                    "constant cannot be scaled")
+            raise EngineUnsupported(
+                "solref given as a direct stiffness (negative): its time constant cannot be scaled"
+            )
         other = copy.copy(self)
         other._stiffness = self._stiffness * float(factor)
         if self.solref:  # the generated models' setting (a user's file keeps its own per row)
@@ -270,9 +309,16 @@ class MjEngineModel(EngineModel):
             raise EngineUnsupported("no equality rows: MuJoCo's answer is not soft here")
         G = self._affine_gain(lambda z: self._acc_to_reference(qe, ve, z), np.zeros(m.nv))
         c = np.asarray(self._acc_to_reference(qe, ve, np.zeros(m.nv)), float)
-        soft = predict(full_M(m, d), dense_efc_J(m, d), d.qfrc_smooth.copy(),
-                       d.efc_aref[:d.nefc].copy(), documented_R(m, d), G, c,
-                       reference_accelerations)
+        soft = predict(
+            full_M(m, d),
+            dense_efc_J(m, d),
+            d.qfrc_smooth.copy(),
+            d.efc_aref[: d.nefc].copy(),
+            documented_R(m, d),
+            G,
+            c,
+            reference_accelerations,
+        )
         acc = np.asarray(self._acc_to_reference(qe, ve, soft.engine_accelerations), float)
         lam = self._multipliers(qe, ve, soft.engine_accelerations, soft.engine_forces)
         return acc, (None if lam is None else np.asarray(lam, float))
@@ -298,7 +344,7 @@ class MjEngineModel(EngineModel):
     def _extra_raw(self, raw) -> None:
         """Model-specific raw quantities after mj_forward (self.d holds the state)."""
 
-    def _jdot_v(self) -> Optional[np.ndarray]:
+    def _jdot_v(self) -> np.ndarray | None:
         """J-dot v of the equality rows from mj_jacDot (connect rows only, else None): the
         anchors are the sites (site-based) or eq_data[0:3] / eq_data[3:6] in the bodies' frames
         (body-based)."""
@@ -314,7 +360,7 @@ class MjEngineModel(EngineModel):
                     body, point = m.site_bodyid[obj], d.site_xpos[obj].copy()
                 else:
                     body = obj
-                    anchor = m.eq_data[e, 3 * k:3 * k + 3]
+                    anchor = m.eq_data[e, 3 * k : 3 * k + 3]
                     point = d.xpos[body] + d.xmat[body].reshape(3, 3) @ anchor
                 if body == 0:
                     continue
@@ -359,17 +405,24 @@ class MjEngineModel(EngineModel):
         qe, ve = d.qpos.copy(), d.qvel.copy()
         qacc = d.qacc.copy()
         nefc = d.nefc
-        raw: dict = {"engine_q": qe, "engine_v": ve, "engine_accelerations": qacc,
-                     "nefc": nefc, "solver_niter": int(d.solver_niter[0]),
-                     "sparse_jacobian": bool(mujoco.mj_isSparse(m))}
+        raw: dict = {
+            "engine_q": qe,
+            "engine_v": ve,
+            "engine_accelerations": qacc,
+            "nefc": nefc,
+            "solver_niter": int(d.solver_niter[0]),
+            "sparse_jacobian": bool(mujoco.mj_isSparse(m)),
+        }
         if self.variant is not None:
             raw["variant"] = self.variant
         acc = self._acc_to_reference(qe, ve, qacc)
         if nefc == 0:
             self._extra_raw(raw)  # may call mj_rnePostConstraint (cfrc_int): do it first
             lam = self._multipliers(qe, ve, qacc, np.zeros(0))
-            raw.update(rigid_accelerations=acc.copy(),
-                       rigid_multipliers=None if lam is None else np.array(lam, float))
+            raw.update(
+                rigid_accelerations=acc.copy(),
+                rigid_multipliers=None if lam is None else np.array(lam, float),
+            )
             return self._answer(acc, lam, raw)
         if not np.all(d.efc_type[:nefc] == mujoco.mjtConstraint.mjCNSTR_EQUALITY):
             raise RuntimeError(f"{self.model_name}: unexpected non-equality constraint rows")
@@ -415,38 +468,46 @@ class MjEngineModel(EngineModel):
         bound_acc = e_max * float(np.linalg.norm(G_acc @ Y, np.inf)) * f_inf
         # the rigid KKT assembled directly from MuJoCo's matrices (M, J, qfrc_smooth, aref),
         # independent of the soft solve: a diagnostic of the recovery's precision floor
-        sol = np.linalg.lstsq(np.block([[M, -J.T], [J, np.zeros((nefc, nefc))]]),
-                              np.concatenate([d.qfrc_smooth, aref]), rcond=None)[0]
-        raw["kkt_accelerations"] = self._acc_to_reference(qe, ve, sol[:m.nv])
-        raw["kkt_multipliers"] = self._multipliers(qe, ve, sol[:m.nv], sol[m.nv:])
+        sol = np.linalg.lstsq(
+            np.block([[M, -J.T], [J, np.zeros((nefc, nefc))]]),
+            np.concatenate([d.qfrc_smooth, aref]),
+            rcond=None,
+        )[0]
+        raw["kkt_accelerations"] = self._acc_to_reference(qe, ve, sol[: m.nv])
+        raw["kkt_multipliers"] = self._multipliers(qe, ve, sol[: m.nv], sol[m.nv :])
         jdv = self._jdot_v()
-        raw.update({
-            "engine_forces": f,
-            "impedance": imp,
-            "soft_eps": float(np.max(eps)),
-            "efc_R": R, "efc_diagA": diagA,
-            "R_model_rel_mismatch": float(np.max(np.abs(R - R_pred) / np.maximum(np.abs(R),
-                                                                                1e-300))),
-            "predicted_acceleration_error": acc - acc_p,  # raw - rigid, predicted from d
-            "predicted_multiplier_error": lam - lam_p,
-            "predicted_rel_force_bound": bound_f,
-            "raw_multiplier_error_bound": bound_lam,
-            "raw_acceleration_error_bound": bound_acc,
-            "rigid_accelerations": acc_r,
-            "rigid_multipliers": lam_r,
-            "rigid_engine_accelerations": qacc_r,
-            "rigid_engine_forces": f_r,
-            "kkt_rank": rank,
-            "efc_pos_max": float(np.max(np.abs(d.efc_pos[:nefc]))),
-            "efc_vel_max": float(np.max(np.abs(J @ ve))),
-            # soft model: J qacc - aref = -R f (MuJoCo's own solve, checked on its output)
-            "soft_model_residual": float(np.max(np.abs(J @ qacc - aref + R * f))),
-            # the recovered rigid answer satisfies J qacc_rigid = aref ...
-            "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref))),
-            # ... and M qacc_rigid = qfrc_smooth + J^T f_rigid
-            "rigid_dynamics_residual": float(np.max(np.abs(
-                M @ qacc_r - d.qfrc_smooth - J.T @ f_r))),
-        })
+        raw.update(
+            {
+                "engine_forces": f,
+                "impedance": imp,
+                "soft_eps": float(np.max(eps)),
+                "efc_R": R,
+                "efc_diagA": diagA,
+                "R_model_rel_mismatch": float(
+                    np.max(np.abs(R - R_pred) / np.maximum(np.abs(R), 1e-300))
+                ),
+                "predicted_acceleration_error": acc - acc_p,  # raw - rigid, predicted from d
+                "predicted_multiplier_error": lam - lam_p,
+                "predicted_rel_force_bound": bound_f,
+                "raw_multiplier_error_bound": bound_lam,
+                "raw_acceleration_error_bound": bound_acc,
+                "rigid_accelerations": acc_r,
+                "rigid_multipliers": lam_r,
+                "rigid_engine_accelerations": qacc_r,
+                "rigid_engine_forces": f_r,
+                "kkt_rank": rank,
+                "efc_pos_max": float(np.max(np.abs(d.efc_pos[:nefc]))),
+                "efc_vel_max": float(np.max(np.abs(J @ ve))),
+                # soft model: J qacc - aref = -R f (MuJoCo's own solve, checked on its output)
+                "soft_model_residual": float(np.max(np.abs(J @ qacc - aref + R * f))),
+                # the recovered rigid answer satisfies J qacc_rigid = aref ...
+                "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref))),
+                # ... and M qacc_rigid = qfrc_smooth + J^T f_rigid
+                "rigid_dynamics_residual": float(
+                    np.max(np.abs(M @ qacc_r - d.qfrc_smooth - J.T @ f_r))
+                ),
+            }
+        )
         if jdv is not None:
             # at a consistent state MuJoCo's aref must be -J-dot v (connect rows)
             raw["aref_plus_jdot_v"] = float(np.max(np.abs(aref + jdv)))
@@ -456,11 +517,15 @@ class MjEngineModel(EngineModel):
     def _answer(acc, lam, raw) -> EngineForward:
         """The typed answer; raw keeps the same arrays for diagnostics and the engine tests."""
         return EngineForward(
-            acc, lam, raw, multipliers_note=raw.get("multipliers_note"),
+            acc,
+            lam,
+            raw,
+            multipliers_note=raw.get("multipliers_note"),
             rigid_accelerations=raw["rigid_accelerations"],
             rigid_multipliers=raw["rigid_multipliers"],
             predicted_acceleration_error=raw.get("predicted_acceleration_error"),
-            predicted_multiplier_error=raw.get("predicted_multiplier_error"))
+            predicted_multiplier_error=raw.get("predicted_multiplier_error"),
+        )
 
     def timed_forward(self, q, u):
         """Timing hook for `crosscheck bench`: maps the reference state once (and sets
@@ -512,7 +577,7 @@ class MjEngineModel(EngineModel):
         Kl, Vl = self._light_energy(m, d)
         return K - Kl, V - Vl
 
-    def mass_matrix(self, q) -> Optional[np.ndarray]:
+    def mass_matrix(self, q) -> np.ndarray | None:
         """Engine M in reference coordinates (P^T M_e P) where the engine speeds are a constant
         linear map of the reference's (else None)."""
         if self._P is None:
@@ -522,7 +587,7 @@ class MjEngineModel(EngineModel):
         mujoco.mj_forward(self.m, self.d)
         return self._P.T @ full_M(self.m, self.d) @ self._P
 
-    def forcing(self, q, u, t: float = 0.0) -> Optional[np.ndarray]:
+    def forcing(self, q, u, t: float = 0.0) -> np.ndarray | None:
         """The reference's f (M u' - f = A^T lambda) from MuJoCo: P^T qfrc_smooth, qfrc_smooth =
         qfrc_applied + qfrc_passive - qfrc_bias, or None where the coordinates do not map."""
         if self._P is None:
@@ -534,10 +599,18 @@ class MjEngineModel(EngineModel):
 
     def violation(self) -> float:
         """max |efc_pos| of the equality rows at the current data (after mj_forward)."""
-        return float(np.max(np.abs(self.d.efc_pos[:self.d.nefc]))) if self.d.nefc else 0.0
+        return float(np.max(np.abs(self.d.efc_pos[: self.d.nefc]))) if self.d.nefc else 0.0
 
-    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
-                 timestep: Optional[float] = None) -> EngineTrajectory:
+    def simulate(
+        self,
+        q0,
+        u0,
+        t_eval,
+        *,
+        integrator: str,
+        rtol: float | None = None,
+        timestep: float | None = None,
+    ) -> EngineTrajectory:
         """Run mj_step from the mapped initial state for round(t_eval[-1] / timestep) steps,
         recording the state at the steps nearest to t_eval (which must lie on the step grid).
 
@@ -552,8 +625,10 @@ class MjEngineModel(EngineModel):
             raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
         t_eval = np.asarray(t_eval, dtype=float)
         if timestep is None or not (timestep > 0 and t_eval.size and t_eval[-1] >= 0):
-            raise ValueError(f"{integrator} takes a fixed step: give timestep > 0 and t_eval "
-                             f"ending at t >= 0 (got timestep {timestep!r})")
+            raise ValueError(
+                f"{integrator} takes a fixed step: give timestep > 0 and t_eval "
+                f"ending at t >= 0 (got timestep {timestep!r})"
+            )
         marks = np.rint(t_eval / timestep).astype(int)
         if np.max(np.abs(marks * timestep - t_eval)) > 1e-9 * max(1.0, float(t_eval[-1])):
             raise ValueError(f"t_eval is not on the {timestep:g} s step grid")
@@ -573,8 +648,8 @@ class MjEngineModel(EngineModel):
             Q.append(q)
             U.append(u)
             E.append(sum(self._energy_after_forward(m, d)))
-            Vi.append(float(np.max(np.abs(d.efc_pos[:d.nefc]))) if d.nefc else 0.0)
-            Vv.append(float(np.max(np.abs(d.efc_vel[:d.nefc]))) if d.nefc else 0.0)
+            Vi.append(float(np.max(np.abs(d.efc_pos[: d.nefc]))) if d.nefc else 0.0)
+            Vv.append(float(np.max(np.abs(d.efc_vel[: d.nefc]))) if d.nefc else 0.0)
 
         t0 = time.perf_counter()
         if 0 in record_at:
@@ -585,9 +660,16 @@ class MjEngineModel(EngineModel):
                 record()
         wall = time.perf_counter() - t0
         return EngineTrajectory(
-            t=np.array(T), q=np.array(Q), u=np.array(U), violation=np.array(Vi),
-            velocity_violation=np.array(Vv), energy=np.array(E), integrator=integrator,
-            setting={"timestep": float(timestep)}, wall_s=wall, steps=n_steps,
-            warnings=_warnings(d), raw={"solref": self.solref, "solimp": self.solimp})
-
-
+            t=np.array(T),
+            q=np.array(Q),
+            u=np.array(U),
+            violation=np.array(Vi),
+            velocity_violation=np.array(Vv),
+            energy=np.array(E),
+            integrator=integrator,
+            setting={"timestep": float(timestep)},
+            wall_s=wall,
+            steps=n_steps,
+            warnings=_warnings(d),
+            raw={"solref": self.solref, "solimp": self.solimp},
+        )

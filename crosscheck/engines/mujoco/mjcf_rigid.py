@@ -19,9 +19,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
+import mujoco
 from reference import redundant
 from reference.mjcf_checks import disabled
 

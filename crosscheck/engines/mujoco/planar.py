@@ -1,11 +1,13 @@
 """MuJoCo models (and their MJCF) of the planar examples: the pendulum (Example 1), the
 slider-cranks (Example 2, Note 2 / Exercise 6.3), the frame and bar (Example 3)."""
+
 from __future__ import annotations
 
 import math
 
-import mujoco
 import numpy as np
+
+import mujoco
 
 from ..kinematics import IdentityMaps, frame_bar_from_engine, frame_bar_to_engine
 from .machinery import LIGHT, MjEngineModel, document, lamina, num, vec
@@ -24,9 +26,14 @@ def _xml_pendulum_angle(p, **kw) -> str:
         </body>
       </body>
 """
-    return document("pendulum_angle", (0, g, 0), bodies,
-                     note="Example 1(a): Y DOWN (gravity +Y); theta from +Y, hinge about -Z "
-                          "so the bob is at L (sin theta, cos theta); light rod (1e-12)", **kw)
+    return document(
+        "pendulum_angle",
+        (0, g, 0),
+        bodies,
+        note="Example 1(a): Y DOWN (gravity +Y); theta from +Y, hinge about -Z "
+        "so the bob is at L (sin theta, cos theta); light rod (1e-12)",
+        **kw,
+    )
 
 
 def _xml_pendulum_xy(p, **kw) -> str:
@@ -47,9 +54,15 @@ def _xml_pendulum_xy(p, **kw) -> str:
       </body>
 """
     eq = '    <connect name="rod" site1="bob_center" site2="rod_tip"/>\n'
-    return document("pendulum_xy", (0, g, 0), bodies, eq,
-                     note="Example 1(b): Y DOWN; bob on slides x, y; the distance constraint "
-                          "is a light rod (hinge at the origin) connected to the bob", **kw)
+    return document(
+        "pendulum_xy",
+        (0, g, 0),
+        bodies,
+        eq,
+        note="Example 1(b): Y DOWN; bob on slides x, y; the distance constraint "
+        "is a light rod (hinge at the origin) connected to the bob",
+        **kw,
+    )
 
 
 def _slider_crank_bodies(p, variant: str) -> tuple[str, str]:
@@ -58,42 +71,52 @@ def _slider_crank_bodies(p, variant: str) -> tuple[str, str]:
     I3 = LIGHT * m3 * l2 * l2  # slider on a slide: never rotates
     crank = f"""      <body name="crank">
         <joint name="theta1" type="hinge" axis="0 0 1"/>
-        <inertial pos="{vec(r1, 0, 0)}" mass="{num(m1)}" diaginertia="{lamina(p['I_G1'])}"/>
+        <inertial pos="{vec(r1, 0, 0)}" mass="{num(m1)}" diaginertia="{lamina(p["I_G1"])}"/>
         <geom type="capsule" fromto="0 0 0 {num(l1)} 0 0" size="0.01"/>
         <site name="B_crank" pos="{vec(l1, 0, 0)}"/>
 """
     if variant == "split":  # Note 2 / 6.3: rod hinged to the slider at C, theta2 from C to B
-        bodies = crank + f"""      </body>
+        bodies = (
+            crank
+            + f"""      </body>
       <body name="slider">
         <joint name="x" type="slide" axis="1 0 0"/>
         <inertial pos="0 0 0" mass="{num(m3)}" diaginertia="{vec(I3, I3, I3)}"/>
         <geom type="box" size="0.04 0.02 0.02"/>
         <body name="rod">
           <joint name="theta2" type="hinge" axis="0 0 1"/>
-          <inertial pos="{vec(r2, 0, 0)}" mass="{num(m2)}" diaginertia="{lamina(p['I_G2'])}"/>
+          <inertial pos="{vec(r2, 0, 0)}" mass="{num(m2)}" diaginertia="{lamina(p["I_G2"])}"/>
           <geom type="capsule" fromto="0 0 0 {num(l2)} 0 0" size="0.01"/>
           <site name="B_rod" pos="{vec(l2, 0, 0)}"/>
         </body>
       </body>
 """
+        )
         eq = '    <connect name="B" site1="B_crank" site2="B_rod"/>\n'
         return bodies, eq
     rod_open = f"""        <body name="rod" pos="{vec(l1, 0, 0)}">
           <joint name="phi2" type="hinge" axis="0 0 1"/>
-          <inertial pos="{vec(r2, 0, 0)}" mass="{num(m2)}" diaginertia="{lamina(p['I_G2'])}"/>
+          <inertial pos="{vec(r2, 0, 0)}" mass="{num(m2)}" diaginertia="{lamina(p["I_G2"])}"/>
           <geom type="capsule" fromto="0 0 0 {num(l2)} 0 0" size="0.01"/>
           <site name="C_rod" pos="{vec(l2, 0, 0)}"/>
 """
     if variant == "free":  # Example 2(a): the end mass rides on the rod at C
-        bodies = crank + rod_open + f"""          <body name="slider" pos="{vec(l2, 0, 0)}">
+        bodies = (
+            crank
+            + rod_open
+            + f"""          <body name="slider" pos="{vec(l2, 0, 0)}">
             <inertial pos="0 0 0" mass="{num(m3)}" diaginertia="0 0 0"/>
             <geom type="box" size="0.04 0.02 0.02"/>
           </body>
         </body>
       </body>
 """
+        )
         return bodies, ""
-    bodies = crank + rod_open + f"""        </body>
+    bodies = (
+        crank
+        + rod_open
+        + f"""        </body>
       </body>
       <body name="slider">
         <joint name="x" type="slide" axis="1 0 0"/>
@@ -102,17 +125,25 @@ def _slider_crank_bodies(p, variant: str) -> tuple[str, str]:
         <site name="C_slider" pos="0 0 0"/>
       </body>
 """
+    )
     eq = '    <connect name="C" site1="C_rod" site2="C_slider"/>\n'
     return bodies, eq
 
 
 def _xml_slider_crank(p, variant="closed", **kw) -> str:
     bodies, eq = _slider_crank_bodies(p, variant)
-    name = {"closed": "slider_crank", "split": "slider_crank_split",
-            "free": "slider_crank_free"}[variant]
-    return document(name, (0, -p["g"], 0), bodies, eq,
-                     note="Examples 2 / Note 2: X right, Y UP, hinges about +Z; the torque T "
-                          "is applied by the adapter as qfrc_applied on theta1", **kw)
+    name = {"closed": "slider_crank", "split": "slider_crank_split", "free": "slider_crank_free"}[
+        variant
+    ]
+    return document(
+        name,
+        (0, -p["g"], 0),
+        bodies,
+        eq,
+        note="Examples 2 / Note 2: X right, Y UP, hinges about +Z; the torque T "
+        "is applied by the adapter as qfrc_applied on theta1",
+        **kw,
+    )
 
 
 def _xml_frame_bar(p, **kw) -> str:
@@ -124,14 +155,19 @@ def _xml_frame_bar(p, **kw) -> str:
         <geom type="capsule" fromto="0 0 0 0 {num(d)} 0" size="0.005"/>
         <body name="bar" pos="{vec(0, d, 0)}">
           <joint name="theta" type="hinge" axis="0 1 0"/>
-          <inertial pos="0 0 0" mass="{num(m)}" diaginertia="{vec(p['I1'], p['I2'], p['I3'])}"/>
+          <inertial pos="0 0 0" mass="{num(m)}" diaginertia="{vec(p["I1"], p["I2"], p["I3"])}"/>
           <geom type="box" size="0.25 0.02 0.01"/>
         </body>
       </body>
 """
-    return document("frame_bar", (0, 0, 0), bodies,
-                     note="Example 3: k = +Z; light frame F (1e-12) turning by phi about k, "
-                          "bar turning by theta about the arm n2 = F's +Y; no gravity", **kw)
+    return document(
+        "frame_bar",
+        (0, 0, 0),
+        bodies,
+        note="Example 3: k = +Z; light frame F (1e-12) turning by phi about k, "
+        "bar turning by theta about the arm n2 = F's +Y; no gravity",
+        **kw,
+    )
 
 
 # ======================================================================================
@@ -206,8 +242,7 @@ class PendulumXY(MjEngineModel):
         x, y = (float(v) for v in q)
         xd, yd = (float(v) for v in u)
         r2 = x * x + y * y
-        return (np.array([x, y, math.atan2(x, y)]),
-                np.array([xd, yd, (y * xd - x * yd) / r2]))
+        return (np.array([x, y, math.atan2(x, y)]), np.array([xd, yd, (y * xd - x * yd) / r2]))
 
     def from_engine_state(self, qe, ve):
         return np.array(qe[:2], float), np.array(ve[:2], float)
@@ -277,10 +312,12 @@ class SliderCrank(_SliderCrankBase):
     vertically; the two kinetic energies agree on the constraint manifold only."""
 
     nq_ref = n_ref = 2
-    mass_matrix_note = ("the engine's coordinates (theta1, phi2, x) do not map one to one onto "
-                        "the reference's (theta1, theta2): x follows from the loop closure, and "
-                        "the reference's M carries the vertical motion of m3 that the engine's "
-                        "guide removes")
+    mass_matrix_note = (
+        "the engine's coordinates (theta1, phi2, x) do not map one to one onto "
+        "the reference's (theta1, theta2): x follows from the loop closure, and "
+        "the reference's M carries the vertical motion of m3 that the engine's "
+        "guide removes"
+    )
 
     def _xml(self, **kw):
         return _xml_slider_crank(self.params, "closed", **kw)
@@ -352,9 +389,11 @@ class FrameBar(MjEngineModel):
 
     nq_ref, n_ref = 2, 3
     light_bodies = ("F",)
-    mass_matrix_note = ("the reference's three body-fixed angular velocity components are "
-                        "dependent speeds (tied by omega1 C + omega3 S = 0) and do not map one "
-                        "to one onto the engine's two joint rates (phi', theta')")
+    mass_matrix_note = (
+        "the reference's three body-fixed angular velocity components are "
+        "dependent speeds (tied by omega1 C + omega3 S = 0) and do not map one "
+        "to one onto the engine's two joint rates (phi', theta')"
+    )
 
     def _xml(self, **kw):
         return _xml_frame_bar(self.params, **kw)
@@ -377,8 +416,9 @@ class FrameBar(MjEngineModel):
         n2 = np.array([-math.sin(phi), math.cos(phi), 0.0])
         alpha = ae[0] * k + ae[1] * n2 + ve[0] * ve[1] * np.cross(k, n2)
         c, s, cp, sp_ = math.cos(th), math.sin(th), math.cos(phi), math.sin(phi)
-        Q = np.array([[cp, -sp_, 0], [sp_, cp, 0], [0, 0, 1]]) @ \
-            np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+        Q = np.array([[cp, -sp_, 0], [sp_, cp, 0], [0, 0, 1]]) @ np.array(
+            [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+        )
         return Q.T @ alpha
 
     def _extra_raw(self, raw):
@@ -393,5 +433,3 @@ class FrameBar(MjEngineModel):
         phi = float(qe[0])
         n1 = np.array([math.cos(phi), math.sin(phi), 0.0])
         return np.array([float(self._tau_O @ n1)])
-
-

@@ -20,6 +20,7 @@ So raw − predicted measures MuJoCo's solve against the documented model of its
 and a physics error in the engine model (a wrong mass) shows as a miss of the size of that
 error over the soft effect (~1e-4), not hidden by the recovery that uses MuJoCo's own force.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -48,7 +49,7 @@ def impedance(solimp, r: float) -> float:
     if x <= 0.0:
         return dmin
     if x <= mid:
-        y = x ** power / mid ** (power - 1.0)
+        y = x**power / mid ** (power - 1.0)
     else:
         y = 1.0 - (1.0 - x) ** power / (1.0 - mid) ** (power - 1.0)
     return dmin + y * (dmax - dmin)
@@ -69,7 +70,8 @@ def documented_R(m, d) -> np.ndarray:
         if m.eq_type[e] != mujoco.mjtEq.mjEQ_CONNECT:
             raise EngineUnsupported(
                 "only connect rows have a documented diagonal approximation of A "
-                f"here; equality {e} is of type {int(m.eq_type[e])}")
+                f"here; equality {e} is of type {int(m.eq_type[e])}"
+            )
         b1, b2 = _row_bodies(m, e)
         diag = float(m.body_invweight0[b1, 0] + m.body_invweight0[b2, 0])
         dimp = impedance(m.eq_solimp[e], float(d.efc_pos[i]))
@@ -87,4 +89,4 @@ def predict(M, J, smooth, aref, R, G, c, reference_accelerations) -> SoftPredict
     f_r = np.linalg.lstsq(J.T, M @ a_r - smooth, rcond=None)[0]
     K = np.block([[M, -J.T], [J, np.diag(R)]])
     sol = np.linalg.solve(K, np.concatenate([np.zeros(nv), -R * f_r]))
-    return SoftPrediction(a_r + sol[:nv], f_r + sol[nv:nv + ne], np.asarray(R, float))
+    return SoftPrediction(a_r + sol[:nv], f_r + sol[nv : nv + ne], np.asarray(R, float))

@@ -1,9 +1,11 @@
 """MuJoCo models (and their MJCF) of the 3-D examples: the double pendulum (Example 4)
 and the symmetric top with Euler parameters (Exercises 6.5-6.7)."""
+
 from __future__ import annotations
 
-import mujoco
 import numpy as np
+
+import mujoco
 
 from ..kinematics import R313, E, angles313, eps_ddot
 from .machinery import MjEngineModel, R_to_quat, document, num, quat_to_R, vec
@@ -41,11 +43,19 @@ def _xml_double_pendulum(p, variant="free", **kw) -> str:
         <site name="A_link2" pos="{vec(0, l2 / 2, 0)}"/>
       </body>
 """
-        eq = ('    <connect name="O" site1="O_link1" site2="origin"/>\n'
-              '    <connect name="A" site1="A_link2" site2="A_link1"/>\n')
-    return document(f"double_pendulum_3d_{variant}", (0, -p["g"], 0), bodies, eq,
-                     note="Example 4: N2 = +Y up, links hang along -n_i2 (body -Y)",
-                     wrap=variant == "tree", **kw)
+        eq = (
+            '    <connect name="O" site1="O_link1" site2="origin"/>\n'
+            '    <connect name="A" site1="A_link2" site2="A_link1"/>\n'
+        )
+    return document(
+        f"double_pendulum_3d_{variant}",
+        (0, -p["g"], 0),
+        bodies,
+        eq,
+        note="Example 4: N2 = +Y up, links hang along -n_i2 (body -Y)",
+        wrap=variant == "tree",
+        **kw,
+    )
 
 
 def _xml_top(p, variant="euler", **kw) -> str:
@@ -69,9 +79,15 @@ def _xml_top(p, variant="euler", **kw) -> str:
         # body-based (world side inferred at qpos0, where the top stands upright with O at the
         # origin): the site-based form crashes Pinocchio 4.1's MJCF parser (segfault)
         eq = f'    <connect name="O" body1="top" anchor="{vec(0, 0, -L)}"/>\n'
-    return document(f"top_{variant}", (0, 0, -p["g"]), bodies, eq,
-                     note="Exercises 6.5-6.7: Z up; quaternion wxyz = (eps4, eps1, eps2, eps3)",
-                     wrap=variant == "euler", **kw)
+    return document(
+        f"top_{variant}",
+        (0, 0, -p["g"]),
+        bodies,
+        eq,
+        note="Exercises 6.5-6.7: Z up; quaternion wxyz = (eps4, eps1, eps2, eps3)",
+        wrap=variant == "euler",
+        **kw,
+    )
 
 
 # ======================================================================================
@@ -132,7 +148,7 @@ class DoublePendulumFree(_DoublePendulumBase):
     def from_engine_state(self, qe, ve):
         q = []
         for k in (3, 10):
-            q += list(angles313(quat_to_R(qe[k:k + 4]).T))
+            q += list(angles313(quat_to_R(qe[k : k + 4]).T))
         return np.array(q), self._P.T @ np.asarray(ve, float)
 
     def _acc_to_reference(self, qe, ve, ae):
@@ -156,9 +172,11 @@ class DoublePendulumTree(_DoublePendulumBase):
     F_A = cfrc_int[link2], lambda = [F_O - F_A, F_A]."""
 
     variant = "tree"
-    mass_matrix_note = ("the reference's twelve speeds (w1, w2, v_G1, v_G2) are dependent (six "
-                        "point-constraint rows) and do not map one to one onto the ball-joint "
-                        "tree's six relative angular velocities")
+    mass_matrix_note = (
+        "the reference's twelve speeds (w1, w2, v_G1, v_G2) are dependent (six "
+        "point-constraint rows) and do not map one to one onto the ball-joint "
+        "tree's six relative angular velocities"
+    )
 
     def _xml(self, **kw):
         return _xml_double_pendulum(self.params, "tree", **kw)
@@ -251,9 +269,11 @@ class TopEuler(_TopBase):
     None; raw["socket_force"] is the force of the socket on the top (cfrc_int, world)."""
 
     nq_ref = n_ref = 4
-    mass_matrix_note = ("the reference's M is over the four Euler-parameter rates, tied by the "
-                        "normalization, which do not map one to one onto the ball joint's three "
-                        "angular velocity components")
+    mass_matrix_note = (
+        "the reference's M is over the four Euler-parameter rates, tied by the "
+        "normalization, which do not map one to one onto the ball joint's three "
+        "angular velocity components"
+    )
 
     def _xml(self, **kw):
         return _xml_top(self.params, "euler", **kw)
@@ -278,8 +298,10 @@ class TopEuler(_TopBase):
     def _extra_raw(self, raw):
         mujoco.mj_rnePostConstraint(self.m, self.d)
         raw["socket_force"] = self.d.cfrc_int[self.top, 3:6].copy()
-        raw["multipliers_note"] = ("no normalization row in MuJoCo; the reference's lambda is "
-                                   "formulation-dependent (0 for d'Alembert/Kane)")
+        raw["multipliers_note"] = (
+            "no normalization row in MuJoCo; the reference's lambda is "
+            "formulation-dependent (0 for d'Alembert/Kane)"
+        )
 
 
 class TopCartesian(_TopBase):
@@ -295,28 +317,35 @@ class TopCartesian(_TopBase):
     that identity (not an independent engine output; raw["lambda4_from_identity"] = True)."""
 
     nq_ref = n_ref = 7
-    mass_matrix_note = ("the reference's seven speeds (x', eps') include the four Euler-parameter "
-                        "rates tied by the normalization and do not map one to one onto the free "
-                        "joint's six (x', omega)")
+    mass_matrix_note = (
+        "the reference's seven speeds (x', eps') include the four Euler-parameter "
+        "rates tied by the normalization and do not map one to one onto the free "
+        "joint's six (x', omega)"
+    )
 
     def _xml(self, **kw):
         return _xml_top(self.params, "cartesian", **kw)
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
-        return (np.concatenate([q[0:3], self._quat(q[3:7])]),
-                np.concatenate([u[0:3], 2.0 * E(q[3:7]) @ u[3:7]]))
+        return (
+            np.concatenate([q[0:3], self._quat(q[3:7])]),
+            np.concatenate([u[0:3], 2.0 * E(q[3:7]) @ u[3:7]]),
+        )
 
     def from_engine_state(self, qe, ve):
         eps = self._eps(qe[3:7])
-        return (np.concatenate([qe[0:3], eps]),
-                np.concatenate([ve[0:3], 0.5 * E(eps).T @ np.asarray(ve[3:6], float)]))
+        return (
+            np.concatenate([qe[0:3], eps]),
+            np.concatenate([ve[0:3], 0.5 * E(eps).T @ np.asarray(ve[3:6], float)]),
+        )
 
     def _acc_to_reference(self, qe, ve, ae):
         q, u = self.from_engine_state(qe, ve)
         ae = np.asarray(ae, float)
-        return np.concatenate([ae[0:3], self._eps_ddot(q[3:7], u[3:7], np.asarray(ve[3:6]),
-                                                       ae[3:6])])
+        return np.concatenate(
+            [ae[0:3], self._eps_ddot(q[3:7], u[3:7], np.asarray(ve[3:6]), ae[3:6])]
+        )
 
     def _multipliers(self, qe, ve, ae, f):
         lam_O = np.asarray(f[0:3], float)
@@ -325,5 +354,3 @@ class TopCartesian(_TopBase):
 
     def _extra_raw(self, raw):
         raw["lambda4_from_identity"] = True
-
-

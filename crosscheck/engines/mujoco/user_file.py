@@ -19,12 +19,12 @@ reference.redundant), so comparing them compares J^T f. A file with ball or free
 quaternion norm rows whose multipliers depend on the formulation and have no MuJoCo
 counterpart: its multipliers are not compared (accelerations are).
 """
+
 from __future__ import annotations
 
-from typing import Optional
+import numpy as np
 
 import mujoco
-import numpy as np
 
 from ..base import EngineUnsupported
 from .machinery import SOLIMP, SOLREF, MjEngineModel, dense_efc_J
@@ -34,8 +34,10 @@ JNT = mujoco.mjtJoint
 # so the soft solve the rigid recovery starts from is converged to round-off
 SOLVER_TOLERANCE = 1e-15
 SOLVER_ITERATIONS = 1000
-QUATERNION_NOTE = ("the file has ball or free joints: their quaternion norm rows' multipliers "
-                   "depend on the formulation and have no MuJoCo counterpart")
+QUATERNION_NOTE = (
+    "the file has ball or free joints: their quaternion norm rows' multipliers "
+    "depend on the formulation and have no MuJoCo counterpart"
+)
 
 
 def user_import(model_name: str):
@@ -48,7 +50,8 @@ def user_import(model_name: str):
     if src is None or not hasattr(src, "mj"):
         raise EngineUnsupported(
             f"{model_name} comes from {models.origin(model_name)}, a Python model: MuJoCo and "
-            "Pinocchio are given MJCF files; write the mechanism as MJCF to check it in them")
+            "Pinocchio are given MJCF files; write the mechanism as MJCF to check it in them"
+        )
     return src
 
 
@@ -69,20 +72,19 @@ def rate_derivatives(joints, qpos, qvel, qacc) -> np.ndarray:
             out[a] = qacc[d]
             continue
         if ji.type == int(JNT.mjJNT_FREE):
-            out[a:a + 3] = qacc[d:d + 3]
+            out[a : a + 3] = qacc[d : d + 3]
             a, d = a + 3, d + 3
-        q = np.asarray(qpos[a:a + 4], float)
-        w, wd = np.array([0.0, *qvel[d:d + 3]]), np.array([0.0, *qacc[d:d + 3]])
+        q = np.asarray(qpos[a : a + 4], float)
+        w, wd = np.array([0.0, *qvel[d : d + 3]]), np.array([0.0, *qacc[d : d + 3]])
         qd = 0.5 * _quat_mul(q, w)
-        out[a:a + 4] = 0.5 * (_quat_mul(qd, w) + _quat_mul(q, wd))
+        out[a : a + 4] = 0.5 * (_quat_mul(qd, w) + _quat_mul(q, wd))
     return out
 
 
 class UserFileModel(MjEngineModel):
     """MuJoCo's compiled model of a user's MJCF file, identity state maps (see the module)."""
 
-    def __init__(self, model_name: str, params: Optional[dict] = None,
-                 solref=SOLREF, solimp=SOLIMP):
+    def __init__(self, model_name: str, params: dict | None = None, solref=SOLREF, solimp=SOLIMP):
         self.model_name = model_name
         self.params = dict(params or {})
         self.imp = user_import(model_name)
@@ -96,14 +98,18 @@ class UserFileModel(MjEngineModel):
         self._light_ids = []
         ref = self.imp.model
         self.nq_ref, self.n_ref = len(ref.coordinates), len(ref.speeds)
-        self._quaternions = any(ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE))
-                                for ji in self.imp.joints)
-        self._norm_rows = sum(ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE))
-                              for ji in self.imp.joints)
+        self._quaternions = any(
+            ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
+        )
+        self._norm_rows = sum(
+            ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
+        )
         self._P = None if self._quaternions else np.eye(self.m.nv)
         if self._quaternions:
-            self.mass_matrix_note = ("quaternion coordinates: MuJoCo's speeds (local angular "
-                                     "velocities) are not a constant linear map of the rates")
+            self.mass_matrix_note = (
+                "quaternion coordinates: MuJoCo's speeds (local angular "
+                "velocities) are not a constant linear map of the rates"
+            )
         self.solver = "MuJoCo (the file's solref/solimp, Newton to 1e-15)"
         self.constrained_solve = self.m.neq > 0
 
@@ -116,11 +122,13 @@ class UserFileModel(MjEngineModel):
 
     def to_engine_state(self, q, u):
         from reference.mjcf import qvel_from_rates
+
         q = np.asarray(q, float)
         return q.copy(), qvel_from_rates(self.imp.joints, q, np.asarray(u, float), self.m.nv)
 
     def from_engine_state(self, qe, ve):
         from reference.mjcf import rates_from_qvel
+
         qe = np.asarray(qe, float)
         return qe.copy(), rates_from_qvel(self.imp.joints, qe, np.asarray(ve, float))
 
@@ -148,4 +156,5 @@ class UserFileModel(MjEngineModel):
     def fingerprint(self) -> str:
         import hashlib
         from pathlib import Path
+
         return hashlib.sha256(Path(self.path).read_bytes()).hexdigest()

@@ -12,17 +12,24 @@ What OpenSim cannot express here (``unsupported()``): the knife edge, a nonholon
 Python API has no velocity-level constraint: OpenSim's Constraint classes are all holonomic or
 coordinate couplers), and the models not yet mapped, each with its reason.
 """
+
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
-from ..base import Capabilities, TableAdapter
 from ...compare import EXACT_KKT, Tolerance
+from ..base import Capabilities, TableAdapter
 from .common import FIXED_STEP, INTEGRATORS, OsimModel
 from .exercises import Exercise61, Exercise62, Exercise64
+from .planar import (
+    MovingSupport,
+    PendulumAngle,
+    PendulumXY,
+    SliderCrank,
+    SliderCrankFree,
+    SliderCrankSplit,
+)
 from .spatial import DoublePendulum3D, DoublePendulum3DFree, FrameBar, TopCartesian, TopEuler
-from .planar import (MovingSupport, PendulumAngle, PendulumXY, SliderCrank, SliderCrankFree,
-                     SliderCrankSplit)
 
 __all__ = ["OpenSimAdapter"]
 
@@ -46,8 +53,8 @@ _MODELS: dict[str, _Builder | dict[str, _Builder]] = {
 
 _UNSUPPORTED = {
     "knife_edge": "nonholonomic (velocity-level) constraint: OpenSim's Python API offers only "
-                  "holonomic constraints and coordinate couplers (Simbody's NoSlip/knife-edge "
-                  "constraints are not wrapped as OpenSim components)",
+    "holonomic constraints and coordinate couplers (Simbody's NoSlip/knife-edge "
+    "constraints are not wrapped as OpenSim components)",
     # expressible in OpenSim but not mapped yet (issue 12): say so instead of a silent gap
 }
 
@@ -63,11 +70,13 @@ _UNSUPPORTED = {
 # Measured by tests/test_engine_opensim.py::test_double_pendulum_floor and
 # scripts/opensim_agreement.py.
 OPENSIM_DOUBLE_PENDULUM = Tolerance(
-    1e-10, "OpenSim's answer on the 3-D double pendulum: in the ball-joint tree variant the "
-           "small axial inertias amplify Simbody's round-off in the links' axial angular "
-           "accelerations to 2.0e-11 relative (worst of 200 sampler states, seed 0; the free "
-           "variant 4.3e-13; tests/test_engine_opensim.py::test_double_pendulum_floor); 1e-10 "
-           "is 5x that")
+    1e-10,
+    "OpenSim's answer on the 3-D double pendulum: in the ball-joint tree variant the "
+    "small axial inertias amplify Simbody's round-off in the links' axial angular "
+    "accelerations to 2.0e-11 relative (worst of 200 sampler states, seed 0; the free "
+    "variant 4.3e-13; tests/test_engine_opensim.py::test_double_pendulum_floor); 1e-10 "
+    "is 5x that",
+)
 
 
 class OpenSimAdapter(TableAdapter):
@@ -75,10 +84,14 @@ class OpenSimAdapter(TableAdapter):
 
     name = "opensim"
     distribution = "opensim"
-    capabilities = Capabilities(multipliers=True, exact=True, nonholonomic=False,
-                                integrators=tuple(INTEGRATORS), variants=True,
-                                adaptive_integrators=tuple(i for i in INTEGRATORS
-                                                           if i not in FIXED_STEP))
+    capabilities = Capabilities(
+        multipliers=True,
+        exact=True,
+        nonholonomic=False,
+        integrators=tuple(INTEGRATORS),
+        variants=True,
+        adaptive_integrators=tuple(i for i in INTEGRATORS if i not in FIXED_STEP),
+    )
 
     model_table = _MODELS
     refused = _UNSUPPORTED

@@ -17,22 +17,24 @@ Engine coordinates: OpenSim's CoordinateSet order (the order the joints' coordin
 created); ``_q_index`` maps it onto Simbody's Q (and U) slots, so the maps never rely on
 Simbody's internal ordering.
 """
+
 from __future__ import annotations
 
 import hashlib
 import os
 import tempfile
 import time
+from collections.abc import Sequence
+from typing import Any
 from xml.etree import ElementTree
-from typing import Any, Optional, Sequence
 
 import numpy as np
+
 import opensim as osim
 
-from ..base import (EngineForward, EngineModel, EngineTrajectory, EngineUnsupported,
-                    check_state)
+from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
 
-__all__ = ["INTEGRATORS", "FIXED_STEP", "OsimModel", "custom_joint", "point_body", "vec3"]
+__all__ = ["FIXED_STEP", "INTEGRATORS", "OsimModel", "custom_joint", "point_body", "vec3"]
 
 osim.Logger.setLevelString("Off")  # initSystem's assembly messages are not results
 
@@ -51,8 +53,13 @@ FIXED_STEP = ("ExplicitEuler",)
 
 # XML elements of a model that do not enter its dynamics (left out of the fingerprint): the
 # assembled starting configuration (coordinates' default values) and the display geometry
-_NOT_DYNAMICS = {"default_value", "default_speed_value", "FrameGeometry", "attached_geometry",
-                 "Appearance"}
+_NOT_DYNAMICS = {
+    "default_value",
+    "default_speed_value",
+    "FrameGeometry",
+    "attached_geometry",
+    "Appearance",
+}
 
 
 def vec3(x=0.0, y=0.0, z=0.0) -> osim.Vec3:
@@ -68,8 +75,12 @@ def lamina(name: str, mass: float, com, I_zz: float) -> osim.Body:
     """A planar bar whose reference inertia is only I_zz: full central inertia
     diag(I_zz/2, I_zz/2, I_zz) (perpendicular-axis theorem; hinges about Z and slides in X, Y
     never excite the in-plane components)."""
-    return osim.Body(name, float(mass), vec3(*com),
-                     osim.Inertia(0.5 * I_zz, 0.5 * I_zz, float(I_zz), 0.0, 0.0, 0.0))
+    return osim.Body(
+        name,
+        float(mass),
+        vec3(*com),
+        osim.Inertia(0.5 * I_zz, 0.5 * I_zz, float(I_zz), 0.0, 0.0, 0.0),
+    )
 
 
 def custom_joint(name, parent, child, translations=(), rotations=(), parent_offset=(0, 0, 0)):
@@ -107,8 +118,10 @@ class OsimModel(EngineModel):
     n_ref: int
     up = (0.0, 1.0, 0.0)  # engine "up"; gravity is -g up
     multipliers_note: str | None = None  # why forward() returns multipliers None, if it does
-    mass_matrix_note = ("not mapped: OpenSim's mass matrix is Simbody's (calcM) in its own "
-                        "coordinates; the comparison uses accelerations and multipliers")
+    mass_matrix_note = (
+        "not mapped: OpenSim's mass matrix is Simbody's (calcM) in its own "
+        "coordinates; the comparison uses accelerations and multipliers"
+    )
 
     def __init__(self, model_name: str, params: dict[str, float]):
         self.model_name = model_name
@@ -130,8 +143,9 @@ class OsimModel(EngineModel):
         self.coords = [cs.get(i) for i in range(cs.getSize())]
         self.nq_e, self.nu_e = self.state.getNQ(), self.state.getNU()
         if self.nu_e != len(self.coords) or self.nq_e < self.nu_e:
-            raise EngineUnsupported(f"{model_name}: opensim model has coupled coordinates "
-                                    "this adapter does not map")
+            raise EngineUnsupported(
+                f"{model_name}: opensim model has coupled coordinates this adapter does not map"
+            )
         # Simbody's Q and U slots of each OpenSim coordinate. A BallJoint's three coordinates
         # are body-fixed X-Y-Z Euler angles (OpenSim runs Simbody's balls in Euler-angle mode:
         # R_FM = Rx Ry Rz, measured) in a 4-slot Q block whose last slot is unused; its three
@@ -149,7 +163,7 @@ class OsimModel(EngineModel):
     def _acc_to_reference(self, qe, ve, ae) -> np.ndarray:
         raise NotImplementedError
 
-    def _multipliers(self, lam_s: np.ndarray) -> Optional[np.ndarray]:
+    def _multipliers(self, lam_s: np.ndarray) -> np.ndarray | None:
         """Reference multipliers from Simbody's (after realizeAcceleration)."""
         return np.zeros(0)
 
@@ -189,23 +203,27 @@ class OsimModel(EngineModel):
         self.model.realizeAcceleration(self.state)
         ae = self._read(self.state.getUDot())
         lam_s = np.asarray(self.state.getMultipliers().to_numpy(), float).copy()
-        raw = {"engine_q": np.asarray(qe, float), "engine_v": np.asarray(ve, float),
-               "engine_accelerations": ae, "engine_multipliers": lam_s,
-               "solver": "simbody realizeAcceleration (direct KKT factorization)"}
+        raw = {
+            "engine_q": np.asarray(qe, float),
+            "engine_v": np.asarray(ve, float),
+            "engine_accelerations": ae,
+            "engine_multipliers": lam_s,
+            "solver": "simbody realizeAcceleration (direct KKT factorization)",
+        }
         if self.n_multipliers:
             # Simbody's own residuals at this state: the position-, velocity- and
             # acceleration-level constraint errors it evaluated (max norms)
             raw["qerr"] = float(np.max(np.abs(self.state.getQErr().to_numpy()), initial=0.0))
             raw["uerr"] = float(np.max(np.abs(self.state.getUErr().to_numpy()), initial=0.0))
-            raw["udoterr"] = float(np.max(np.abs(self.state.getUDotErr().to_numpy()),
-                                          initial=0.0))
+            raw["udoterr"] = float(np.max(np.abs(self.state.getUDotErr().to_numpy()), initial=0.0))
         self._extra_raw(raw)
         lam = self._multipliers(lam_s)
         note = None
         if lam is None:  # e.g. the top's normalization: the model's class says why
             note = raw["multipliers_note"] = self.multipliers_note
-        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw, multipliers_note=note,
-                             iterations=1)
+        return EngineForward(
+            self._acc_to_reference(qe, ve, ae), lam, raw, multipliers_note=note, iterations=1
+        )
 
     def _extra_raw(self, raw: dict) -> None:
         pass
@@ -225,9 +243,15 @@ class OsimModel(EngineModel):
             bf = osim.VectorOfSpatialVec()
             mf = osim.Vector()
             c.calcConstraintForces(self.state, bf, mf)
-            out.append([(-np.array([bf.get(b).get(0).get(k) for k in range(3)]),
-                         -np.array([bf.get(b).get(1).get(k) for k in range(3)]))
-                        for b in range(n_bodies)])
+            out.append(
+                [
+                    (
+                        -np.array([bf.get(b).get(0).get(k) for k in range(3)]),
+                        -np.array([bf.get(b).get(1).get(k) for k in range(3)]),
+                    )
+                    for b in range(n_bodies)
+                ]
+            )
         return out
 
     def energy(self, q, u) -> tuple[float, float]:
@@ -259,6 +283,7 @@ class OsimModel(EngineModel):
             s.setU(U)  # invalidates the velocity stage and above, as a new state would
             m.realizeAcceleration(s)
             return s.getUDot()
+
         return call
 
     def fingerprint(self) -> str:
@@ -280,9 +305,16 @@ class OsimModel(EngineModel):
         return hashlib.sha256(blob).hexdigest()[:16]
 
     # ---- trajectories ------------------------------------------------------------------------
-    def simulate(self, q0, u0, t_eval: Sequence[float], *, integrator: str = "RungeKuttaMerson",
-                 rtol: Optional[float] = None, timestep: Optional[float] = None
-                 ) -> EngineTrajectory:
+    def simulate(
+        self,
+        q0,
+        u0,
+        t_eval: Sequence[float],
+        *,
+        integrator: str = "RungeKuttaMerson",
+        rtol: float | None = None,
+        timestep: float | None = None,
+    ) -> EngineTrajectory:
         """Integrate with opensim.Manager and one of its integrators (INTEGRATORS).
 
         Adaptive integrators take ``rtol`` (Manager.setIntegratorAccuracy; default 1e-8);
@@ -293,8 +325,9 @@ class OsimModel(EngineModel):
         are steps of the integrator, not interpolants.
         """
         if integrator not in INTEGRATORS:
-            raise ValueError(f"unknown opensim integrator {integrator!r}; valid: "
-                             f"{', '.join(INTEGRATORS)}")
+            raise ValueError(
+                f"unknown opensim integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}"
+            )
         times = np.asarray(t_eval, dtype=float)
         if times.ndim != 1 or times.size == 0 or times[0] < 0 or np.any(np.diff(times) <= 0):
             raise ValueError("t_eval must be increasing times >= 0")
@@ -340,7 +373,16 @@ class OsimModel(EngineModel):
         # the Manager records one row per integrator step (plus the initial state and the end
         # of each integrate call); its SimTK::Integrator is not wrapped for Python
         steps = int(manager.getStatesTable().getNumRows()) - 1
-        return EngineTrajectory(t=np.array(T), q=np.array(Q), u=np.array(U),
-                                violation=np.array(viol), velocity_violation=np.array(vviol),
-                                energy=np.array(E), integrator=integrator, setting=setting,
-                                wall_s=wall, steps=steps, raw={"projection": "simbody"})
+        return EngineTrajectory(
+            t=np.array(T),
+            q=np.array(Q),
+            u=np.array(U),
+            violation=np.array(viol),
+            velocity_violation=np.array(vviol),
+            energy=np.array(E),
+            integrator=integrator,
+            setting=setting,
+            wall_s=wall,
+            steps=steps,
+            raw={"projection": "simbody"},
+        )

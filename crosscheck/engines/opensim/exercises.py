@@ -6,11 +6,13 @@ multipliers are forces of the mechanism: joint reactions (``Joint.
 calcReactionOnChildExpressedInGround``, Simbody's mobilizer reaction, which includes the
 constraint forces) and the closure's multipliers. Each class's docstring writes the map.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
 import opensim as osim
 
 from ..kinematics import IdentityMaps
@@ -96,8 +98,7 @@ class Exercise61(IdentityMaps, OsimModel):
         self.model.addConstraint(osim.PointConstraint(bar, vec3(0, p["l"]), block, vec3()))
         _spring_damper(self, "x", p["k"], p["c"])
         _prescribed(self.model, "F", block, force=(0.0, -p["F"], 0.0))
-        self.defaults = {"x": p["l"] * math.sin(0.4), "y": p["l"] * math.cos(0.4),
-                         "theta": 0.4}
+        self.defaults = {"x": p["l"] * math.sin(0.4), "y": p["l"] * math.cos(0.4), "theta": 0.4}
 
     def end_forces(self):
         """(F_A, F_B) on the bar, ground axes (after realizeAcceleration)."""
@@ -133,8 +134,9 @@ class Exercise62(OsimModel):
         p = self.params
         block = point_body("block", p["m1"])
         self.model.addBody(block)
-        self.model.addJoint(custom_joint("x", self.model.getGround(), block,
-                                         translations=(("x", (1, 0, 0), 1, 0),)))
+        self.model.addJoint(
+            custom_joint("x", self.model.getGround(), block, translations=(("x", (1, 0, 0), 1, 0),))
+        )
         bar = lamina("bar", p["m2"], (0, -p["l"] / 2, 0), p["m2"] * p["l"] ** 2 / 12)
         self.model.addBody(bar)
         bar_joint = osim.PinJoint("theta", block, vec3(), vec3(), bar, vec3(), vec3())
@@ -150,10 +152,14 @@ class Exercise62(OsimModel):
 
     def _relative(self, kind: str) -> np.ndarray:
         """G - A (position, velocity or acceleration in ground) from the engine's frames."""
-        f = {"p": "findStationLocationInGround", "v": "findStationVelocityInGround",
-             "a": "findStationAccelerationInGround"}[kind]
-        return (_np(getattr(self.bar, f)(self.state, self.G))
-                - _np(getattr(self.block, f)(self.state, vec3())))
+        f = {
+            "p": "findStationLocationInGround",
+            "v": "findStationVelocityInGround",
+            "a": "findStationAccelerationInGround",
+        }[kind]
+        return _np(getattr(self.bar, f)(self.state, self.G)) - _np(
+            getattr(self.block, f)(self.state, vec3())
+        )
 
     def from_engine_state(self, qe, ve):
         self._set_state(qe, ve)
@@ -190,19 +196,25 @@ class Exercise64(OsimModel):
         Id = p["m_d"] * p["R"] ** 2
         disk = osim.Body("disk", p["m_d"], vec3(), osim.Inertia(Id / 4, Id / 4, Id / 2, 0, 0, 0))
         self.model.addBody(disk)
-        self.model.addJoint(custom_joint("phi", self.model.getGround(), disk,
-                                         rotations=(("phi", (0, 0, 1), 1, 0),)))
+        self.model.addJoint(
+            custom_joint("phi", self.model.getGround(), disk, rotations=(("phi", (0, 0, 1), 1, 0),))
+        )
         Ib = p["m"] * p["l"] ** 2 / 12
         bar = osim.Body("bar", p["m"], vec3(0, 0, -p["l"] / 2), osim.Inertia(Ib, Ib, 0, 0, 0, 0))
         self.model.addBody(bar)
-        self.model.addJoint(custom_joint("theta", disk, bar,
-                                         rotations=(("theta", (1, 0, 0), 1, 0),),
-                                         parent_offset=(0, p["R"], 0)))
+        self.model.addJoint(
+            custom_joint(
+                "theta",
+                disk,
+                bar,
+                rotations=(("theta", (1, 0, 0), 1, 0),),
+                parent_offset=(0, p["R"], 0),
+            )
+        )
         _spring_damper(self, "theta", p["k"], p["c"])
         _prescribed(self.model, "M_phi", disk, torque=(0, 0, p["M_phi"]))
         _prescribed(self.model, "M_theta_bar", bar, torque=(p["M_theta"], 0, 0), in_ground=False)
-        _prescribed(self.model, "M_theta_disk", disk, torque=(-p["M_theta"], 0, 0),
-                    in_ground=False)
+        _prescribed(self.model, "M_theta_disk", disk, torque=(-p["M_theta"], 0, 0), in_ground=False)
         self.disk = disk
         self.P = np.array([0.0, p["R"], 0.0])
         self.c = np.array([0.0, 0.0, -p["l"] / 2])
@@ -227,6 +239,7 @@ class Exercise64(OsimModel):
 
     def _multipliers(self, lam_s):
         F = _reaction_force(self.joint("theta"), self.state)
-        Fd = _np(self.model.getGround().expressVectorInAnotherFrame(
-            self.state, vec3(*F), self.disk))
+        Fd = _np(
+            self.model.getGround().expressVectorInAnotherFrame(self.state, vec3(*F), self.disk)
+        )
         return np.array([Fd[1], Fd[2]])

@@ -5,18 +5,26 @@ Engine frame: X right, Y UP, gravity (0, -g, 0), hinges about +Z (OpenSim's PinJ
 joint frame's Z). Example 1 is written with Y DOWN in the reference: its maps flip y. Bars get
 the planar-lamina inertia (common.lamina); point masses have no rotational inertia.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
 import opensim as osim
 
 from ..kinematics import IdentityMaps, LinearMaps
 from .common import OsimModel, custom_joint, lamina, point_body, vec3
 
-__all__ = ["MovingSupport", "PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree",
-           "SliderCrankSplit"]
+__all__ = [
+    "MovingSupport",
+    "PendulumAngle",
+    "PendulumXY",
+    "SliderCrank",
+    "SliderCrankFree",
+    "SliderCrankSplit",
+]
 
 
 def _pin(name, parent, at, child, child_at=(0, 0, 0)) -> osim.PinJoint:
@@ -67,11 +75,19 @@ class PendulumXY(LinearMaps, OsimModel):
         p = self.params
         bob = point_body("bob", p["m"])
         self.model.addBody(bob)
-        self.model.addJoint(custom_joint("xy", self.model.getGround(), bob,
-                                         translations=(("x", (1, 0, 0), 1.0, 0.0),
-                                                       ("y", (0, 1, 0), 1.0, 0.0))))
-        self.model.addConstraint(osim.ConstantDistanceConstraint(
-            self.model.getGround(), vec3(), bob, vec3(), float(p["L"])))
+        self.model.addJoint(
+            custom_joint(
+                "xy",
+                self.model.getGround(),
+                bob,
+                translations=(("x", (1, 0, 0), 1.0, 0.0), ("y", (0, 1, 0), 1.0, 0.0)),
+            )
+        )
+        self.model.addConstraint(
+            osim.ConstantDistanceConstraint(
+                self.model.getGround(), vec3(), bob, vec3(), float(p["L"])
+            )
+        )
         self.defaults = {"y": -p["L"]}  # an assembled configuration for initSystem
 
     def _multipliers(self, lam_s):
@@ -111,8 +127,7 @@ class _TwoLink(LinearMaps, _SliderCrankBase):
         self.model.addJoint(_pin("phi2", crank, (p["l1"], 0, 0), rod))
         slider = point_body("slider", p["m3"])
         self.model.addBody(slider)
-        self.model.addJoint(osim.WeldJoint("C", rod, vec3(p["l2"]), vec3(), slider, vec3(),
-                                           vec3()))
+        self.model.addJoint(osim.WeldJoint("C", rod, vec3(p["l2"]), vec3(), slider, vec3(), vec3()))
         self.rod, self.slider = rod, slider
 
 
@@ -137,8 +152,11 @@ class SliderCrank(_TwoLink):
 
     def _build(self):
         super()._build()
-        self.model.addConstraint(osim.PointOnLineConstraint(
-            self.model.getGround(), vec3(1, 0, 0), vec3(), self.slider, vec3()))
+        self.model.addConstraint(
+            osim.PointOnLineConstraint(
+                self.model.getGround(), vec3(1, 0, 0), vec3(), self.slider, vec3()
+            )
+        )
         th2 = math.asin(-self.params["l1"] * math.sin(0.5) / self.params["l2"])
         self.defaults = {"theta1": 0.5, "phi2": th2 - 0.5}
 
@@ -169,15 +187,21 @@ class SliderCrankSplit(IdentityMaps, _SliderCrankBase):
         crank = self._crank()
         slider = point_body("slider", p["m3"])
         self.model.addBody(slider)
-        self.model.addJoint(custom_joint("x", self.model.getGround(), slider,
-                                         translations=(("x", (1, 0, 0), 1.0, 0.0),)))
+        self.model.addJoint(
+            custom_joint(
+                "x", self.model.getGround(), slider, translations=(("x", (1, 0, 0), 1.0, 0.0),)
+            )
+        )
         rod = lamina("rod", p["m2"], (p["r2"], 0, 0), p["I_G2"])
         self.model.addBody(rod)
         self.model.addJoint(_pin("theta2", slider, (0, 0, 0), rod))
         self.model.addConstraint(osim.PointConstraint(crank, vec3(p["l1"]), rod, vec3(p["l2"])))
         th2 = math.asin(-p["l1"] * math.sin(0.5) / p["l2"])
-        self.defaults = {"theta1": 0.5, "x": p["l1"] * math.cos(0.5) + p["l2"] * math.cos(th2),
-                         "theta2": th2 + math.pi}
+        self.defaults = {
+            "theta1": 0.5,
+            "x": p["l1"] * math.cos(0.5) + p["l2"] * math.cos(th2),
+            "theta2": th2 + math.pi,
+        }
 
     def _multipliers(self, lam_s):
         return np.array([lam_s[0], lam_s[1]])
@@ -215,11 +239,15 @@ class MovingSupport(PendulumXY):
         self.model.getConstraintSet().clearAndDestroy()
         support = point_body("support", self.SUPPORT_MASS)
         self.model.addBody(support)
-        self.model.addJoint(custom_joint("xs", self.model.getGround(), support,
-                                         translations=(("x_s", (1, 0, 0), 1.0, 0.0),)))
+        self.model.addJoint(
+            custom_joint(
+                "xs", self.model.getGround(), support, translations=(("x_s", (1, 0, 0), 1.0, 0.0),)
+            )
+        )
         bob = self.model.getBodySet().get("bob")
-        self.model.addConstraint(osim.ConstantDistanceConstraint(
-            support, vec3(), bob, vec3(), float(p["L"])))
+        self.model.addConstraint(
+            osim.ConstantDistanceConstraint(support, vec3(), bob, vec3(), float(p["L"]))
+        )
         self.model.finalizeFromProperties()
         xs = self.model.getCoordinateSet().get("x_s")
         xs.setPrescribedFunction(osim.Sine(float(p["a"]), float(p["Omega"]), 0.0, 0.0))

@@ -7,11 +7,13 @@ as they are. OpenSim's BallJoint coordinates are body-fixed X-Y-Z Euler angles o
 the parent (R_FM = Rx Ry Rz, measured in tests) and its speeds the child's angular velocity
 relative to the parent in PARENT axes; the maps below go through rotation matrices.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
 import opensim as osim
 
 from ..kinematics import R313, angles313, frame_bar_from_engine, frame_bar_to_engine
@@ -40,8 +42,14 @@ def _xyz(R) -> np.ndarray:
 
 
 def _Rxyz(x, y, z) -> np.ndarray:
-    cx, sx, cy, sy, cz, sz = (math.cos(x), math.sin(x), math.cos(y), math.sin(y),
-                              math.cos(z), math.sin(z))
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(x),
+        math.sin(x),
+        math.cos(y),
+        math.sin(y),
+        math.cos(z),
+        math.sin(z),
+    )
     Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
     Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
     Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
@@ -75,8 +83,12 @@ class DoublePendulum3D(OsimModel):
         self.links = []
         parent, at = g, vec3()
         for i in (1, 2):
-            link = osim.Body(f"link{i}", p[f"m{i}"], vec3(0, -p[f"l{i}"] / 2, 0),
-                             osim.Inertia(p[f"I{i}_11"], p[f"I{i}_22"], p[f"I{i}_33"], 0, 0, 0))
+            link = osim.Body(
+                f"link{i}",
+                p[f"m{i}"],
+                vec3(0, -p[f"l{i}"] / 2, 0),
+                osim.Inertia(p[f"I{i}_11"], p[f"I{i}_22"], p[f"I{i}_33"], 0, 0, 0),
+            )
             self.model.addBody(link)
             name = "O" if i == 1 else "A"
             joint = osim.BallJoint(name, parent, at, vec3(), link, vec3(), vec3())
@@ -116,7 +128,7 @@ class DoublePendulum3D(OsimModel):
             R = _rotation(link, s)
             acc = link.getAccelerationInGround(s)  # held while read (see exercises.reaction)
             out.append(R.T @ _np(acc.get(0)))
-        for link, rho in zip(self.links, self.rho):
+        for link, rho in zip(self.links, self.rho, strict=False):
             out.append(_np(link.findStationAccelerationInGround(s, vec3(*rho))))
         return np.concatenate(out)
 
@@ -144,8 +156,12 @@ class DoublePendulum3DFree(DoublePendulum3D):
         g = self.model.getGround()
         self.links = []
         for i in (1, 2):
-            link = osim.Body(f"link{i}", p[f"m{i}"], vec3(0, -p[f"l{i}"] / 2, 0),
-                             osim.Inertia(p[f"I{i}_11"], p[f"I{i}_22"], p[f"I{i}_33"], 0, 0, 0))
+            link = osim.Body(
+                f"link{i}",
+                p[f"m{i}"],
+                vec3(0, -p[f"l{i}"] / 2, 0),
+                osim.Inertia(p[f"I{i}_11"], p[f"I{i}_22"], p[f"I{i}_33"], 0, 0, 0),
+            )
             self.model.addBody(link)
             joint = osim.FreeJoint(f"free{i}", g, vec3(), vec3(), link, vec3(), vec3())
             for k, ax in enumerate(("rx", "ry", "rz", "tx", "ty", "tz")):
@@ -153,8 +169,9 @@ class DoublePendulum3DFree(DoublePendulum3D):
             self.model.addJoint(joint)
             self.links.append(link)
         self.model.addConstraint(osim.PointConstraint(g, vec3(), self.links[0], vec3()))
-        self.model.addConstraint(osim.PointConstraint(self.links[0], vec3(0, -p["l1"], 0),
-                                                      self.links[1], vec3()))
+        self.model.addConstraint(
+            osim.PointConstraint(self.links[0], vec3(0, -p["l1"], 0), self.links[1], vec3())
+        )
         self.rho = [np.array([0.0, -p["l1"] / 2, 0.0]), np.array([0.0, -p["l2"] / 2, 0.0])]
         self.rhoA = np.array([0.0, -p["l1"], 0.0])
         self.defaults = {"link2_ty": -p["l1"]}  # hanging straight: an assembled configuration
@@ -166,8 +183,10 @@ class DoublePendulum3DFree(DoublePendulum3D):
         A = B1 @ self.rhoA
         v1 = u[6:9] - np.cross(w1g, B1 @ self.rho[0])
         v2 = u[9:12] - np.cross(w2g, B2 @ self.rho[1])
-        return (np.concatenate([_xyz(B1), np.zeros(3), _xyz(B2), A]),
-                np.concatenate([w1g, v1, w2g, v2]))
+        return (
+            np.concatenate([_xyz(B1), np.zeros(3), _xyz(B2), A]),
+            np.concatenate([w1g, v1, w2g, v2]),
+        )
 
     def _rotations(self, qe):
         return _Rxyz(*qe[0:3]), _Rxyz(*qe[6:9])
@@ -198,9 +217,12 @@ def _R_eps(e) -> np.ndarray:
     """Body -> N rotation of unit Euler parameters (the reference's ``rotation``)."""
     e1, e2, e3, e4 = e
     return np.array(
-        [[e4**2 + e1**2 - e2**2 - e3**2, 2 * (e1 * e2 - e3 * e4), 2 * (e1 * e3 + e2 * e4)],
-         [2 * (e1 * e2 + e3 * e4), e4**2 - e1**2 + e2**2 - e3**2, 2 * (e2 * e3 - e1 * e4)],
-         [2 * (e1 * e3 - e2 * e4), 2 * (e2 * e3 + e1 * e4), e4**2 - e1**2 - e2**2 + e3**2]])
+        [
+            [e4**2 + e1**2 - e2**2 - e3**2, 2 * (e1 * e2 - e3 * e4), 2 * (e1 * e3 + e2 * e4)],
+            [2 * (e1 * e2 + e3 * e4), e4**2 - e1**2 + e2**2 - e3**2, 2 * (e2 * e3 - e1 * e4)],
+            [2 * (e1 * e3 - e2 * e4), 2 * (e2 * e3 + e1 * e4), e4**2 - e1**2 - e2**2 + e3**2],
+        ]
+    )
 
 
 def _eps_of(R) -> np.ndarray:
@@ -230,8 +252,9 @@ class _Top(OsimModel):
 
     def _build(self):
         p = self.params
-        top = osim.Body("top", p["m"], vec3(0, 0, p["L"]),
-                        osim.Inertia(p["I"], p["I"], p["I3"], 0, 0, 0))
+        top = osim.Body(
+            "top", p["m"], vec3(0, 0, p["L"]), osim.Inertia(p["I"], p["I"], p["I3"], 0, 0, 0)
+        )
         self.model.addBody(top)
         joint = osim.BallJoint("O", self.model.getGround(), vec3(), vec3(), top, vec3(), vec3())
         for k, ax in enumerate("xyz"):
@@ -281,8 +304,10 @@ class TopEuler(_Top):
     socket force."""
 
     nq_ref = n_ref = 4
-    multipliers_note = ("the normalization's multiplier is not a force (formulation-dependent: "
-                        "0 for d'Alembert and Kane, 2V - 4K for Lagrange); raw carries both")
+    multipliers_note = (
+        "the normalization's multiplier is not a force (formulation-dependent: "
+        "0 for d'Alembert and Kane, 2V - 4K for Lagrange); raw carries both"
+    )
 
     def to_engine_state(self, q, u):
         return self._engine(np.asarray(q, float), np.asarray(u, float))
@@ -325,8 +350,9 @@ class TopCartesian(_Top):
         return np.concatenate([x, eps]), np.concatenate([np.cross(ve, x), eps_dot])
 
     def _acc_to_reference(self, qe, ve, ae):
-        a_G = _np(self.top.findStationAccelerationInGround(self.state,
-                                                           vec3(0, 0, self.map_params["L"])))
+        a_G = _np(
+            self.top.findStationAccelerationInGround(self.state, vec3(0, 0, self.map_params["L"]))
+        )
         return np.concatenate([a_G, self._eps_acc(qe, ve)])
 
     def _multipliers(self, lam_s):
@@ -361,17 +387,25 @@ class FrameBar(OsimModel):
         p = self.params
         frame = osim.Body("F", 0.0, vec3(), osim.Inertia(0.0))
         self.model.addBody(frame)
-        self.model.addJoint(custom_joint("phi", self.model.getGround(), frame,
-                                         rotations=(("phi", (0, 0, 1), 1, 0),)))
+        self.model.addJoint(
+            custom_joint(
+                "phi", self.model.getGround(), frame, rotations=(("phi", (0, 0, 1), 1, 0),)
+            )
+        )
         bar = osim.Body("bar", p["m"], vec3(), osim.Inertia(p["I1"], p["I2"], p["I3"], 0, 0, 0))
         self.model.addBody(bar)
-        self.model.addJoint(custom_joint("theta", frame, bar,
-                                         rotations=(("theta", (0, 1, 0), 1, 0),),
-                                         parent_offset=(0, p["d"], 0)))
+        self.model.addJoint(
+            custom_joint(
+                "theta",
+                frame,
+                bar,
+                rotations=(("theta", (0, 1, 0), 1, 0),),
+                parent_offset=(0, p["d"], 0),
+            )
+        )
         _prescribed(self.model, "M_phi", frame, torque=(0, 0, p["M_phi"]))
         _prescribed(self.model, "M_theta_bar", bar, torque=(0, p["M_theta"], 0), in_ground=False)
-        _prescribed(self.model, "M_theta_F", frame, torque=(0, -p["M_theta"], 0),
-                    in_ground=False)
+        _prescribed(self.model, "M_theta_F", frame, torque=(0, -p["M_theta"], 0), in_ground=False)
         self.bar = bar
 
     def to_engine_state(self, q, u):

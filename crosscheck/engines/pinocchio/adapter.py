@@ -70,20 +70,38 @@ Pinocchio's forward dynamics in the ENGINE's coordinates) and ``timed_forward(q,
 ``crosscheck bench`` times (the state mapped once; the callable makes only forward()'s native
 Pinocchio call, shared with forward through ``_engine_call``).
 """
+
 from __future__ import annotations
 
-from typing import Optional
-
-from ..base import (Capabilities, TableAdapter, is_user_model, lookup_builder, resolve_params,
-                    single_variant)
+from ..base import (
+    Capabilities,
+    TableAdapter,
+    is_user_model,
+    lookup_builder,
+    resolve_params,
+    single_variant,
+)
 from .exercises import Exercise61, Exercise62, Exercise64
 from .machinery import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
-from .planar import (FrameBar, KnifeEdge, MovingSupport, PendulumAngle, PendulumXY, SliderCrank,
-                     SliderCrankFree, SliderCrankSplit)
-from .spatial import (DoublePendulumFree, DoublePendulumTree, TopCartesianFree, TopCartesianTree,
-                      TopEuler)
+from .planar import (
+    FrameBar,
+    KnifeEdge,
+    MovingSupport,
+    PendulumAngle,
+    PendulumXY,
+    SliderCrank,
+    SliderCrankFree,
+    SliderCrankSplit,
+)
+from .spatial import (
+    DoublePendulumFree,
+    DoublePendulumTree,
+    TopCartesianFree,
+    TopCartesianTree,
+    TopEuler,
+)
 
-__all__ = ["PinocchioAdapter", "PROX_REDUNDANT", "PROX_EXACT", "INTEGRATORS"]
+__all__ = ["INTEGRATORS", "PROX_EXACT", "PROX_REDUNDANT", "PinocchioAdapter"]
 
 
 # ======================================================================================
@@ -120,9 +138,15 @@ class PinocchioAdapter(TableAdapter):
     distribution = "pin"
     label = "Pinocchio"
     rank = 10
-    capabilities = Capabilities(multipliers=True, exact=True, mass_matrix=True,
-                                nonholonomic=True, integrators=INTEGRATORS, variants=True,
-                                adaptive_integrators=INTEGRATORS)
+    capabilities = Capabilities(
+        multipliers=True,
+        exact=True,
+        mass_matrix=True,
+        nonholonomic=True,
+        integrators=INTEGRATORS,
+        variants=True,
+        adaptive_integrators=INTEGRATORS,
+    )
 
     model_table = _MODELS
     refused = _UNSUPPORTED
@@ -143,13 +167,27 @@ class PinocchioAdapter(TableAdapter):
         for r in records:
             r["engine_model"] = BUILT_FROM
         found = findings_isolated(src.path)
-        return [*records, record(model_name, records[0]["formulation"], self.name, "parser",
-                                 "mjcf_parse", None, None, summary(found), findings=found)]
+        return [
+            *records,
+            record(
+                model_name,
+                records[0]["formulation"],
+                self.name,
+                "parser",
+                "mjcf_parse",
+                None,
+                None,
+                summary(found),
+                findings=found,
+            ),
+        ]
 
-    def build(self, model_name: str, params: Optional[dict[str, float]] = None,
-              variant: Optional[str] = None):
+    def build(
+        self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
+    ):
         if is_user_model(_MODELS, model_name):
             from .user_file import UserFilePinModel
+
             single_variant(self.name, model_name, variant, "a user's file")
             return UserFilePinModel(model_name, params)
         builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)

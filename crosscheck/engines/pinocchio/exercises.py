@@ -1,5 +1,6 @@
 """Pinocchio models of Exercises 6.1, 6.2 and 6.4 (geometry as assumed in the reference's
 docstrings)."""
+
 from __future__ import annotations
 
 import math
@@ -48,24 +49,39 @@ class Exercise61(PinEngineModel):
     nq_ref = n_ref = 3
     solver = "constraint"
     prox_settings = PROX_REDUNDANT
-    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates "
-                        "(x, y, theta independent, the bar's mass center at (x/2, y/2)), which "
-                        "no engine model of the mechanism has: the engine's (x, bar angle, y) "
-                        "are tied by the closure at B")
+    mass_matrix_note = (
+        "the reference's M belongs to its relaxed dependent coordinates "
+        "(x, y, theta independent, the bar's mass center at (x/2, y/2)), which "
+        "no engine model of the mechanism has: the engine's (x, bar angle, y) "
+        "are tied by the closure at B"
+    )
 
     def _build(self):
         p = self.params
         jA = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
         jb = self.model.addJoint(jA, pin.JointModelRZ(), pin.SE3.Identity(), "bar")
         self.model.appendBodyToJoint(
-            jb, pin.Inertia(p["m"], np.array([p["l"] / 2, 0.0, 0.0]),
-                            lamina(p["m"] * p["l"] ** 2 / 12)), pin.SE3.Identity())
+            jb,
+            pin.Inertia(
+                p["m"], np.array([p["l"] / 2, 0.0, 0.0]), lamina(p["m"] * p["l"] ** 2 / 12)
+            ),
+            pin.SE3.Identity(),
+        )
         jP = self.model.addJoint(0, pin.JointModelPY(), pin.SE3.Identity(), "y")
         self.model.appendBodyToJoint(
-            jP, pin.Inertia(p["m_p"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
-        self.cms.append(pin.RigidConstraintModel(
-            pin.ContactType.CONTACT_3D, self.model, jb, at(p["l"], 0, 0), jP,
-            pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+            jP, pin.Inertia(p["m_p"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity()
+        )
+        self.cms.append(
+            pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D,
+                self.model,
+                jb,
+                at(p["l"], 0, 0),
+                jP,
+                pin.SE3.Identity(),
+                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+            )
+        )
         self.j_bar = jb
         self.G = at(p["l"] / 2, 0, 0)
 
@@ -82,8 +98,7 @@ class Exercise61(PinEngineModel):
         return np.array([x, th + math.pi / 2, y]), np.array([xd, thd, yd])
 
     def from_engine_state(self, qe, ve):
-        return (np.array([qe[0], qe[2], qe[1] - math.pi / 2]),
-                np.array([ve[0], ve[2], ve[1]]))
+        return (np.array([qe[0], qe[2], qe[1] - math.pi / 2]), np.array([ve[0], ve[2], ve[1]]))
 
     def _acc_to_reference(self, qe, ve, ae):
         return np.array([ae[0], ae[2], ae[1]])
@@ -123,19 +138,26 @@ class Exercise62(PinEngineModel):
 
     nq_ref = n_ref = 4
     solver = "aba"
-    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates "
-                        "(x, theta, x_G, y_G with the bar's mass center free of the bar angle), "
-                        "which no engine model of the mechanism has: the engine has (x, theta)")
+    mass_matrix_note = (
+        "the reference's M belongs to its relaxed dependent coordinates "
+        "(x, theta, x_G, y_G with the bar's mass center free of the bar angle), "
+        "which no engine model of the mechanism has: the engine has (x, theta)"
+    )
 
     def _build(self):
         p = self.params
         jb = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
         self.model.appendBodyToJoint(
-            jb, pin.Inertia(p["m1"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+            jb, pin.Inertia(p["m1"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity()
+        )
         jr = self.model.addJoint(jb, pin.JointModelRZ(), pin.SE3.Identity(), "theta")
         self.model.appendBodyToJoint(
-            jr, pin.Inertia(p["m2"], np.array([0.0, -p["l"] / 2, 0.0]),
-                            lamina(p["m2"] * p["l"] ** 2 / 12)), pin.SE3.Identity())
+            jr,
+            pin.Inertia(
+                p["m2"], np.array([0.0, -p["l"] / 2, 0.0]), lamina(p["m2"] * p["l"] ** 2 / 12)
+            ),
+            pin.SE3.Identity(),
+        )
         self.G = at(0, -p["l"] / 2, 0)
 
     def _applied(self, qe, ve, t):
@@ -153,13 +175,13 @@ class Exercise62(PinEngineModel):
         pin.forwardKinematics(self.model, self.data, qe, ve)
         dp = self._anchor_position(2, self.G) - self._anchor_position(1, pin.SE3.Identity())
         dv = self._anchor_velocity(2, self.G) - self._anchor_velocity(1, pin.SE3.Identity())
-        return (np.array([qe[0], qe[1], dp[0], -dp[1]]),
-                np.array([ve[0], ve[1], dv[0], -dv[1]]))
+        return (np.array([qe[0], qe[1], dp[0], -dp[1]]), np.array([ve[0], ve[1], dv[0], -dv[1]]))
 
     def _acc_to_reference(self, qe, ve, ae):
         pin.forwardKinematics(self.model, self.data, qe, ve, ae)
-        da = (self._anchor_classical_acc(2, self.G)
-              - self._anchor_classical_acc(1, pin.SE3.Identity()))
+        da = self._anchor_classical_acc(2, self.G) - self._anchor_classical_acc(
+            1, pin.SE3.Identity()
+        )
         return np.array([ae[0], ae[1], da[0], -da[1]])
 
     def _multipliers(self, qe, ve, ae, lam_e):
@@ -184,23 +206,29 @@ class Exercise64(PinEngineModel):
     nq_ref = n_ref = 4
     solver = "aba"
     up = np.array([0.0, 0.0, 1.0])
-    mass_matrix_note = ("the reference's M belongs to its relaxed dependent coordinates "
-                        "(phi, theta, y_G, z_G with the bar's mass center free of the bar "
-                        "angle), which no engine model of the mechanism has: the engine has "
-                        "(phi, theta)")
+    mass_matrix_note = (
+        "the reference's M belongs to its relaxed dependent coordinates "
+        "(phi, theta, y_G, z_G with the bar's mass center free of the bar "
+        "angle), which no engine model of the mechanism has: the engine has "
+        "(phi, theta)"
+    )
 
     def _build(self):
         p = self.params
         jd = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "phi")
         Id = p["m_d"] * p["R"] ** 2
         self.model.appendBodyToJoint(
-            jd, pin.Inertia(p["m_d"], np.zeros(3), np.diag([Id / 4, Id / 4, Id / 2])),
-            pin.SE3.Identity())
+            jd,
+            pin.Inertia(p["m_d"], np.zeros(3), np.diag([Id / 4, Id / 4, Id / 2])),
+            pin.SE3.Identity(),
+        )
         jb = self.model.addJoint(jd, pin.JointModelRX(), at(0, p["R"], 0), "theta")
         Ib = p["m"] * p["l"] ** 2 / 12
         self.model.appendBodyToJoint(
-            jb, pin.Inertia(p["m"], np.array([0.0, 0.0, -p["l"] / 2]), np.diag([Ib, Ib, 0.0])),
-            pin.SE3.Identity())
+            jb,
+            pin.Inertia(p["m"], np.array([0.0, 0.0, -p["l"] / 2]), np.diag([Ib, Ib, 0.0])),
+            pin.SE3.Identity(),
+        )
 
     def _applied(self, qe, ve, t):
         p = self.params
@@ -233,5 +261,3 @@ class Exercise64(PinEngineModel):
         pin.rnea(self.model, d, qe, ve, ae)
         F = d.liMi[2].rotation @ d.f[2].linear  # disk axes
         return np.array([F[1], F[2]])
-
-

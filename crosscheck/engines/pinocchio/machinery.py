@@ -1,11 +1,11 @@
 """Pinocchio machinery shared by every engine model: the solvers (aba, the KKT solve with
 textbook rows, constraintDynamics), the state maps' hooks, residual checks, energy, mass
 matrix, trajectories. The conventions are in the package's adapter docstring."""
+
 from __future__ import annotations
 
 import hashlib
 import time
-from typing import Optional
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -49,8 +49,7 @@ def R_to_quat(R) -> np.ndarray:
 def quat_rate(qxyzw, omega_local) -> np.ndarray:
     """d/dt of a unit quaternion (x, y, z, w) for the local angular velocity: q (x) (w, 0) / 2."""
     v, w = np.asarray(qxyzw[:3]), qxyzw[3]
-    return 0.5 * np.concatenate([w * omega_local + np.cross(v, omega_local),
-                                 [-(v @ omega_local)]])
+    return 0.5 * np.concatenate([w * omega_local + np.cross(v, omega_local), [-(v @ omega_local)]])
 
 
 def at(x, y, z) -> pin.SE3:
@@ -62,7 +61,7 @@ def _prox(settings) -> pin.ProximalSettings:
     return pin.ProximalSettings(float(acc), float(mu), int(it))
 
 
-def check_integrator(integrator: str, rtol: Optional[float]) -> None:
+def check_integrator(integrator: str, rtol: float | None) -> None:
     """One of INTEGRATORS (scipy's solve_ivp methods, all error-controlled) and its rtol > 0."""
     if integrator not in INTEGRATORS:
         raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
@@ -70,16 +69,24 @@ def check_integrator(integrator: str, rtol: Optional[float]) -> None:
         raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
 
 
-def ivp_trajectory(sol, rows, integrator: str, rtol, t_start: float,
-                   raw: dict) -> EngineTrajectory:
+def ivp_trajectory(sol, rows, integrator: str, rtol, t_start: float, raw: dict) -> EngineTrajectory:
     """The EngineTrajectory of a solve_ivp solution (rtol = atol) from its rows, one per output
     time: (q, u, violation, velocity violation, energy) in reference terms."""
     Q, U, viol, vviol, E = ([r[k] for r in rows] for k in range(5))
     return EngineTrajectory(
-        t=sol.t, q=np.array(Q), u=np.array(U), violation=np.array(viol),
-        velocity_violation=np.array(vviol), energy=np.array(E), integrator=integrator,
-        setting={"rtol": rtol, "atol": rtol}, wall_s=time.perf_counter() - t_start,
-        steps=int(sol.nfev), failure=None if sol.success else str(sol.message), raw=raw)
+        t=sol.t,
+        q=np.array(Q),
+        u=np.array(U),
+        violation=np.array(viol),
+        velocity_violation=np.array(vviol),
+        energy=np.array(E),
+        integrator=integrator,
+        setting={"rtol": rtol, "atol": rtol},
+        wall_s=time.perf_counter() - t_start,
+        steps=int(sol.nfev),
+        failure=None if sol.success else str(sol.message),
+        raw=raw,
+    )
 
 
 class PinEngineModel(EngineModel):
@@ -91,10 +98,10 @@ class PinEngineModel(EngineModel):
     n_ref: int
     solver = "aba"  # "aba" | "kkt" (forwardDynamics with J, gamma) | "constraint"
     prox_settings = PROX_REDUNDANT
-    variant: Optional[str] = None
+    variant: str | None = None
     up = np.array([0.0, 1.0, 0.0])  # engine world "up"; gravity is -g up (g = 0 if no "g")
     # why mass_matrix returns None (one sentence, shown in results), set on every such class
-    mass_matrix_note: Optional[str] = None
+    mass_matrix_note: str | None = None
 
     def __init__(self, model_name: str, params: dict[str, float]):
         self.model_name = model_name
@@ -146,12 +153,12 @@ class PinEngineModel(EngineModel):
         for jm in self.model.joints[1:]:
             iq, iv, kind = jm.idx_q, jm.idx_v, jm.shortname()
             if kind == "JointModelSpherical":
-                out[iq:iq + 4] = quat_rate(qe[iq:iq + 4], ve[iv:iv + 3])
+                out[iq : iq + 4] = quat_rate(qe[iq : iq + 4], ve[iv : iv + 3])
             elif kind == "JointModelFreeFlyer":
-                out[iq:iq + 3] = quat_to_R(qe[iq + 3:iq + 7]) @ ve[iv:iv + 3]
-                out[iq + 3:iq + 7] = quat_rate(qe[iq + 3:iq + 7], ve[iv + 3:iv + 6])
+                out[iq : iq + 3] = quat_to_R(qe[iq + 3 : iq + 7]) @ ve[iv : iv + 3]
+                out[iq + 3 : iq + 7] = quat_rate(qe[iq + 3 : iq + 7], ve[iv + 3 : iv + 6])
             else:
-                out[iq:iq + jm.nq] = ve[iv:iv + jm.nv]
+                out[iq : iq + jm.nq] = ve[iv : iv + jm.nv]
         return out
 
     def fingerprint(self) -> str:
@@ -163,8 +170,9 @@ class PinEngineModel(EngineModel):
 
         def add(x) -> None:
             h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
+
         m = self.model
-        for jm, placement in zip(m.joints, m.jointPlacements):
+        for jm, placement in zip(m.joints, m.jointPlacements, strict=False):
             h.update(jm.shortname().encode())
             add(placement.homogeneous)
         for inertia in m.inertias:
@@ -195,9 +203,9 @@ class PinEngineModel(EngineModel):
         for jm in self.model.joints[1:]:
             iq, kind = jm.idx_q, jm.shortname()
             if kind == "JointModelSpherical":
-                qe[iq:iq + 4] /= np.linalg.norm(qe[iq:iq + 4])
+                qe[iq : iq + 4] /= np.linalg.norm(qe[iq : iq + 4])
             elif kind == "JointModelFreeFlyer":
-                qe[iq + 3:iq + 7] /= np.linalg.norm(qe[iq + 3:iq + 7])
+                qe[iq + 3 : iq + 7] /= np.linalg.norm(qe[iq + 3 : iq + 7])
         return qe
 
     def constraint_violation(self, qe, t: float = 0.0) -> float:
@@ -214,7 +222,7 @@ class PinEngineModel(EngineModel):
         return worst
 
     # M and f in reference coordinates when q_engine = P q_ref (+ const) with P invertible
-    _P: Optional[np.ndarray] = None
+    _P: np.ndarray | None = None
 
     # ---- engine-level dynamics -------------------------------------------------------------
     def _engine_call(self, qe, ve, t=0.0):
@@ -312,9 +320,11 @@ class PinEngineModel(EngineModel):
         for _ in range(m.njoints):
             fext.append(pin.Force.Zero())
         for k, cm in enumerate(self.cms):
-            f = np.asarray(lam[3 * k:3 * k + 3], float)
-            for joint, placement, sign in ((cm.joint1_id, cm.joint1_placement, 1.0),
-                                           (cm.joint2_id, cm.joint2_placement, -1.0)):
+            f = np.asarray(lam[3 * k : 3 * k + 3], float)
+            for joint, placement, sign in (
+                (cm.joint1_id, cm.joint1_placement, 1.0),
+                (cm.joint2_id, cm.joint2_placement, -1.0),
+            ):
                 if joint == 0:
                     continue
                 p = self._anchor_position(joint, placement)
@@ -335,9 +345,17 @@ class PinEngineModel(EngineModel):
         if not len(self.cms):
             return 0.0
         pin.forwardKinematics(self.model, self.data, qe, ve)
-        return max(float(np.max(np.abs(
-            self._anchor_velocity(cm.joint1_id, cm.joint1_placement)
-            - self._anchor_velocity(cm.joint2_id, cm.joint2_placement)))) for cm in self.cms)
+        return max(
+            float(
+                np.max(
+                    np.abs(
+                        self._anchor_velocity(cm.joint1_id, cm.joint1_placement)
+                        - self._anchor_velocity(cm.joint2_id, cm.joint2_placement)
+                    )
+                )
+            )
+            for cm in self.cms
+        )
 
     def _velocity_rows(self, qe, ve, t):
         """J v + a0 for the 'kkt' solver (J from _kkt_rows; scleronomic: a0 = 0)."""
@@ -368,8 +386,13 @@ class PinEngineModel(EngineModel):
         q, u = self._check(q, u, t)
         qe, ve = self.to_engine_state(q, u)
         ae, lam_e = self._solve(qe, ve, t)
-        raw = {"engine_q": qe, "engine_v": ve, "engine_accelerations": ae,
-               "engine_forces": lam_e, "solver": self.solver}
+        raw = {
+            "engine_q": qe,
+            "engine_v": ve,
+            "engine_accelerations": ae,
+            "engine_forces": lam_e,
+            "solver": self.solver,
+        }
         if self.solver == "constraint":
             raw["iterations"] = int(self.prox.iter)
             raw["prox_absolute_residual"] = float(self.prox.absolute_residual)
@@ -381,12 +404,17 @@ class PinEngineModel(EngineModel):
         self._extra_raw(qe, ve, ae, lam_e, raw)
         if self.solver != "aba":
             raw["primal_residual"], raw["dual_residual"] = self._constraint_residuals(
-                qe, ve, ae, lam_e, t)
+                qe, ve, ae, lam_e, t
+            )
         if self.variant is not None:
             raw["variant"] = self.variant
-        return EngineForward(self._acc_to_reference(qe, ve, ae), lam, raw,
-                             multipliers_note=raw.get("multipliers_note"),
-                             iterations=int(raw["iterations"]))
+        return EngineForward(
+            self._acc_to_reference(qe, ve, ae),
+            lam,
+            raw,
+            multipliers_note=raw.get("multipliers_note"),
+            iterations=int(raw["iterations"]),
+        )
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw) -> None:
         pass
@@ -400,7 +428,7 @@ class PinEngineModel(EngineModel):
         qe, ve = self.to_engine_state(q, u)
         return self._energy_engine(qe, ve)
 
-    def mass_matrix(self, q) -> Optional[np.ndarray]:
+    def mass_matrix(self, q) -> np.ndarray | None:
         """Engine mass matrix in reference coordinates (P^T M_e P), or None when the engine's
         coordinates are not a linear bijection of the reference's."""
         if self._P is None:
@@ -411,7 +439,7 @@ class PinEngineModel(EngineModel):
         Me = np.triu(Me) + np.triu(Me, 1).T  # crba fills the upper triangle
         return self._P.T @ Me @ self._P
 
-    def forcing(self, q, u, t: float = 0.0) -> Optional[np.ndarray]:
+    def forcing(self, q, u, t: float = 0.0) -> np.ndarray | None:
         """The reference's f (applied generalized forces minus velocity products) from the
         engine: P^T (tau - nle), or None where the coordinates do not map linearly."""
         if self._P is None:
@@ -421,8 +449,16 @@ class PinEngineModel(EngineModel):
         nle = pin.nonLinearEffects(self.model, self.data, qe, ve)
         return self._P.T @ (self._applied(qe, ve, t) - nle)
 
-    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
-                 timestep: Optional[float] = None) -> EngineTrajectory:
+    def simulate(
+        self,
+        q0,
+        u0,
+        t_eval,
+        *,
+        integrator: str,
+        rtol: float | None = None,
+        timestep: float | None = None,
+    ) -> EngineTrajectory:
         """Integrate Pinocchio's forward dynamics with scipy's solve_ivp (method `integrator`,
         rtol = atol = `rtol`) in engine coordinates from t = 0 to t_eval[-1].
 
@@ -452,13 +488,32 @@ class PinEngineModel(EngineModel):
             a, _ = self._solve(qe, ve, t)
             return np.concatenate([self._qdot(qe, ve), a])
 
-        sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), y0, method=integrator, rtol=rtol,
-                        atol=rtol, t_eval=t_eval)
+        sol = solve_ivp(
+            rhs,
+            (0.0, float(t_eval[-1])),
+            y0,
+            method=integrator,
+            rtol=rtol,
+            atol=rtol,
+            t_eval=t_eval,
+        )
         rows = []
-        for t, y in zip(sol.t, sol.y.T):
+        for t, y in zip(sol.t, sol.y.T, strict=False):
             qe = self._normalize(y[:nq])
             ve = y[nq:]
-            rows.append((*self.from_engine_state(qe, ve), self.constraint_violation(qe, t),
-                         self.velocity_violation(qe, ve, t), sum(self._energy_engine(qe, ve))))
-        return ivp_trajectory(sol, rows, integrator, rtol, t_start,
-                              {"engine_states": sol.y.T.copy(), "stabilization": "none"})
+            rows.append(
+                (
+                    *self.from_engine_state(qe, ve),
+                    self.constraint_violation(qe, t),
+                    self.velocity_violation(qe, ve, t),
+                    sum(self._energy_engine(qe, ve)),
+                )
+            )
+        return ivp_trajectory(
+            sol,
+            rows,
+            integrator,
+            rtol,
+            t_start,
+            {"engine_states": sol.y.T.copy(), "stabilization": "none"},
+        )

@@ -1,6 +1,7 @@
 """Pinocchio models of the planar examples: the pendulum (Example 1), the slider-cranks
 (Example 2, Note 2 / Exercise 6.3), the frame and bar (Example 3), the knife edge and the
 moving support (supplements)."""
+
 from __future__ import annotations
 
 import math
@@ -28,8 +29,10 @@ class PendulumAngle(IdentityMaps, PinEngineModel):
         p = self.params
         j = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "theta")
         self.model.appendBodyToJoint(
-            j, pin.Inertia(p["m"], np.array([0.0, -p["L"], 0.0]), np.zeros((3, 3))),
-            pin.SE3.Identity())
+            j,
+            pin.Inertia(p["m"], np.array([0.0, -p["L"], 0.0]), np.zeros((3, 3))),
+            pin.SE3.Identity(),
+        )
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw):
         pin.rnea(self.model, self.data, qe, ve, ae)
@@ -50,7 +53,8 @@ class PendulumXY(LinearMaps, PinEngineModel):
         jx = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
         jy = self.model.addJoint(jx, pin.JointModelPY(), pin.SE3.Identity(), "y")
         self.model.appendBodyToJoint(
-            jy, pin.Inertia(self.params["m"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+            jy, pin.Inertia(self.params["m"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity()
+        )
 
     def _kkt_rows(self, qe, ve, t):
         return qe.reshape(1, 2).copy(), np.array([ve @ ve])
@@ -83,19 +87,27 @@ class _SliderCrankBase(PinEngineModel):
         p = self.params
         j1 = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "theta1")
         self.model.appendBodyToJoint(
-            j1, pin.Inertia(p["m1"], np.array([p["r1"], 0.0, 0.0]), lamina(p["I_G1"])),
-            pin.SE3.Identity())
+            j1,
+            pin.Inertia(p["m1"], np.array([p["r1"], 0.0, 0.0]), lamina(p["I_G1"])),
+            pin.SE3.Identity(),
+        )
         return j1
 
     def _crank_and_rod(self):
         """The crank (_crank) and the rod on a hinge at B = (l1, 0, 0) of the crank (its
         coordinate phi2 = theta2 - theta1); returns the rod's joint."""
         p = self.params
-        j2 = self.model.addJoint(self._crank(), pin.JointModelRZ(),
-                                 pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])), "phi2")
+        j2 = self.model.addJoint(
+            self._crank(),
+            pin.JointModelRZ(),
+            pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])),
+            "phi2",
+        )
         self.model.appendBodyToJoint(
-            j2, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
-            pin.SE3.Identity())
+            j2,
+            pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
+            pin.SE3.Identity(),
+        )
         return j2
 
 
@@ -114,8 +126,10 @@ class SliderCrankFree(LinearMaps, _SliderCrankBase):
         p = self.params
         j2 = self._crank_and_rod()
         self.model.appendBodyToJoint(
-            j2, pin.Inertia(p["m3"], np.array([p["l2"], 0.0, 0.0]), np.zeros((3, 3))),
-            pin.SE3.Identity())
+            j2,
+            pin.Inertia(p["m3"], np.array([p["l2"], 0.0, 0.0]), np.zeros((3, 3))),
+            pin.SE3.Identity(),
+        )
 
 
 class SliderCrank(_SliderCrankBase):
@@ -144,22 +158,32 @@ class SliderCrank(_SliderCrankBase):
     nq_ref = n_ref = 2
     solver = "constraint"
     prox_settings = PROX_REDUNDANT
-    mass_matrix_note = ("the engine's coordinates (theta1, phi2, x_slider) do not map one to one "
-                        "onto the reference's (theta1, theta2): x_slider follows from the loop "
-                        "closure, and the reference's M carries the vertical motion of m3 that "
-                        "the engine's guide removes")
+    mass_matrix_note = (
+        "the engine's coordinates (theta1, phi2, x_slider) do not map one to one "
+        "onto the reference's (theta1, theta2): x_slider follows from the loop "
+        "closure, and the reference's M carries the vertical motion of m3 that "
+        "the engine's guide removes"
+    )
 
     def _build(self):
         p = self.params
         j2 = self._crank_and_rod()
         j3 = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x_slider")
         self.model.appendBodyToJoint(
-            j3, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+            j3, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity()
+        )
         self.j_rod, self.j_slider = j2, j3
-        self.cms.append(pin.RigidConstraintModel(
-            pin.ContactType.CONTACT_3D, self.model,
-            j2, pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
-            j3, pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+        self.cms.append(
+            pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D,
+                self.model,
+                j2,
+                pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
+                j3,
+                pin.SE3.Identity(),
+                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+            )
+        )
 
     def to_engine_state(self, q, u):
         p = self.map_params
@@ -207,16 +231,25 @@ class SliderCrankSplit(IdentityMaps, _SliderCrankBase):
         j1 = self._crank()
         j2 = self.model.addJoint(0, pin.JointModelPX(), pin.SE3.Identity(), "x")
         self.model.appendBodyToJoint(
-            j2, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity())
+            j2, pin.Inertia(p["m3"], np.zeros(3), np.zeros((3, 3))), pin.SE3.Identity()
+        )
         j3 = self.model.addJoint(j2, pin.JointModelRZ(), pin.SE3.Identity(), "theta2")
         self.model.appendBodyToJoint(
-            j3, pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
-            pin.SE3.Identity())
-        self.cms.append(pin.RigidConstraintModel(
-            pin.ContactType.CONTACT_3D, self.model,
-            j1, pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])),
-            j3, pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
-            pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+            j3,
+            pin.Inertia(p["m2"], np.array([p["r2"], 0.0, 0.0]), lamina(p["I_G2"])),
+            pin.SE3.Identity(),
+        )
+        self.cms.append(
+            pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D,
+                self.model,
+                j1,
+                pin.SE3(np.eye(3), np.array([p["l1"], 0.0, 0.0])),
+                j3,
+                pin.SE3(np.eye(3), np.array([p["l2"], 0.0, 0.0])),
+                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+            )
+        )
 
     def _multipliers(self, qe, ve, ae, lam_e):
         return lam_e[0:2].copy()
@@ -248,18 +281,23 @@ class FrameBar(PinEngineModel):
 
     nq_ref, n_ref = 2, 3
     solver = "aba"
-    mass_matrix_note = ("the reference's three body-fixed angular velocity components are "
-                        "dependent speeds (tied by omega1 C + omega3 S = 0) and do not map one "
-                        "to one onto the engine's two joint rates (phi', theta')")
+    mass_matrix_note = (
+        "the reference's three body-fixed angular velocity components are "
+        "dependent speeds (tied by omega1 C + omega3 S = 0) and do not map one "
+        "to one onto the engine's two joint rates (phi', theta')"
+    )
 
     def _build(self):
         p = self.params
         j1 = self.model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "phi")
-        j2 = self.model.addJoint(j1, pin.JointModelRY(),
-                                 pin.SE3(np.eye(3), np.array([0.0, p["d"], 0.0])), "theta")
+        j2 = self.model.addJoint(
+            j1, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.0, p["d"], 0.0])), "theta"
+        )
         self.model.appendBodyToJoint(
-            j2, pin.Inertia(p["m"], np.zeros(3), np.diag([p["I1"], p["I2"], p["I3"]])),
-            pin.SE3.Identity())
+            j2,
+            pin.Inertia(p["m"], np.zeros(3), np.diag([p["I1"], p["I2"], p["I3"]])),
+            pin.SE3.Identity(),
+        )
         self.j_bar = j2
 
     def _tau(self):
@@ -307,13 +345,16 @@ class KnifeEdge(IdentityMaps, PinEngineModel):
         jy = self.model.addJoint(jx, pin.JointModelPY(), pin.SE3.Identity(), "y")
         jt = self.model.addJoint(jy, pin.JointModelRZ(), pin.SE3.Identity(), "theta")
         self.model.appendBodyToJoint(
-            jt, pin.Inertia(p["m"], np.array([p["a"], 0.0, 0.0]), lamina(p["I_G"])),
-            pin.SE3.Identity())
+            jt,
+            pin.Inertia(p["m"], np.array([p["a"], 0.0, 0.0]), lamina(p["I_G"])),
+            pin.SE3.Identity(),
+        )
 
     def _applied(self, qe, ve, t):
         th = qe[2]
-        return np.array([self.params["P"] * math.cos(th), self.params["P"] * math.sin(th),
-                         self.params["T"]])
+        return np.array(
+            [self.params["P"] * math.cos(th), self.params["P"] * math.sin(th), self.params["T"]]
+        )
 
     def _kkt_rows(self, qe, ve, t):
         S, C = math.sin(qe[2]), math.cos(qe[2])
@@ -352,5 +393,3 @@ class MovingSupport(PendulumXY):
     def constraint_violation(self, qe, t: float = 0.0):
         xs, _, _ = self._support(t)
         return abs(float(np.hypot(qe[0] - xs, qe[1])) - self.params["L"])
-
-

@@ -1,5 +1,6 @@
 """Pinocchio models of the 3-D examples: the double pendulum (Example 4) and the symmetric
 top with Euler parameters (Exercises 6.5-6.7)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,8 +31,10 @@ class _DoublePendulumBase(PinEngineModel):
 
     def _links(self):
         p = self.params
-        return (pin.Inertia(p["m1"], np.zeros(3), np.diag([p["I1_11"], p["I1_22"], p["I1_33"]])),
-                pin.Inertia(p["m2"], np.zeros(3), np.diag([p["I2_11"], p["I2_22"], p["I2_33"]])))
+        return (
+            pin.Inertia(p["m1"], np.zeros(3), np.diag([p["I1_11"], p["I1_22"], p["I1_33"]])),
+            pin.Inertia(p["m2"], np.zeros(3), np.diag([p["I2_11"], p["I2_22"], p["I2_33"]])),
+        )
 
     def _rotations(self, q):
         q = np.asarray(q, float)
@@ -61,10 +64,16 @@ class DoublePendulumFree(_DoublePendulumBase):
         j2 = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "link2")
         self.model.appendBodyToJoint(j2, I2, pin.SE3.Identity())
         LWA, C3 = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ContactType.CONTACT_3D
-        self.cms.append(pin.RigidConstraintModel(
-            C3, self.model, j1, at(0, p["l1"] / 2, 0), 0, pin.SE3.Identity(), LWA))
-        self.cms.append(pin.RigidConstraintModel(
-            C3, self.model, j2, at(0, p["l2"] / 2, 0), j1, at(0, -p["l1"] / 2, 0), LWA))
+        self.cms.append(
+            pin.RigidConstraintModel(
+                C3, self.model, j1, at(0, p["l1"] / 2, 0), 0, pin.SE3.Identity(), LWA
+            )
+        )
+        self.cms.append(
+            pin.RigidConstraintModel(
+                C3, self.model, j2, at(0, p["l2"] / 2, 0), j1, at(0, -p["l1"] / 2, 0), LWA
+            )
+        )
 
     def _P_of(self, B1, B2) -> np.ndarray:
         P = np.zeros((12, 12))
@@ -92,10 +101,10 @@ class DoublePendulumFree(_DoublePendulumBase):
     def _acc_to_reference(self, qe, ve, ae):
         out = np.empty(12)
         for k, (iq, iv) in enumerate(((0, 0), (7, 6))):
-            B = quat_to_R(qe[iq + 3:iq + 7])
-            vl, w = ve[iv:iv + 3], ve[iv + 3:iv + 6]
-            out[3 * k:3 * k + 3] = ae[iv + 3:iv + 6]
-            out[6 + 3 * k:9 + 3 * k] = B @ (ae[iv:iv + 3] + np.cross(w, vl))
+            B = quat_to_R(qe[iq + 3 : iq + 7])
+            vl, w = ve[iv : iv + 3], ve[iv + 3 : iv + 6]
+            out[3 * k : 3 * k + 3] = ae[iv + 3 : iv + 6]
+            out[6 + 3 * k : 9 + 3 * k] = B @ (ae[iv : iv + 3] + np.cross(w, vl))
         return out
 
     def _multipliers(self, qe, ve, ae, lam_e):
@@ -126,21 +135,27 @@ class DoublePendulumTree(_DoublePendulumBase):
 
     variant = "tree"
     solver = "aba"
-    mass_matrix_note = ("the reference's twelve speeds (w1, w2, v_G1, v_G2) are dependent (six "
-                        "point-constraint rows) and do not map one to one onto the ball-joint "
-                        "tree's six relative angular velocities")
+    mass_matrix_note = (
+        "the reference's twelve speeds (w1, w2, v_G1, v_G2) are dependent (six "
+        "point-constraint rows) and do not map one to one onto the ball-joint "
+        "tree's six relative angular velocities"
+    )
 
     def _build(self):
         p = self.params
         I1, I2 = self._links()
         j1 = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
         self.model.appendBodyToJoint(
-            j1, pin.Inertia(I1.mass, np.array([0.0, -p["l1"] / 2, 0.0]), I1.inertia),
-            pin.SE3.Identity())
+            j1,
+            pin.Inertia(I1.mass, np.array([0.0, -p["l1"] / 2, 0.0]), I1.inertia),
+            pin.SE3.Identity(),
+        )
         j2 = self.model.addJoint(j1, pin.JointModelSpherical(), at(0, -p["l1"], 0), "A")
         self.model.appendBodyToJoint(
-            j2, pin.Inertia(I2.mass, np.array([0.0, -p["l2"] / 2, 0.0]), I2.inertia),
-            pin.SE3.Identity())
+            j2,
+            pin.Inertia(I2.mass, np.array([0.0, -p["l2"] / 2, 0.0]), I2.inertia),
+            pin.SE3.Identity(),
+        )
 
     @property
     def G(self):
@@ -170,9 +185,14 @@ class DoublePendulumTree(_DoublePendulumBase):
     def _acc_to_reference(self, qe, ve, ae):
         d = self.data
         pin.forwardKinematics(self.model, d, qe, ve, ae)
-        return np.concatenate([d.a[1].angular, d.a[2].angular,
-                               self._anchor_classical_acc(1, self.G[0]),
-                               self._anchor_classical_acc(2, self.G[1])])
+        return np.concatenate(
+            [
+                d.a[1].angular,
+                d.a[2].angular,
+                self._anchor_classical_acc(1, self.G[0]),
+                self._anchor_classical_acc(2, self.G[1]),
+            ]
+        )
 
     def _multipliers(self, qe, ve, ae, lam_e):
         d = self.data
@@ -222,14 +242,17 @@ class TopEuler(_TopBase):
 
     nq_ref = n_ref = 4
     solver = "aba"
-    mass_matrix_note = ("the reference's M is over the four Euler-parameter rates, tied by the "
-                        "normalization, which do not map one to one onto the ball joint's three "
-                        "angular velocity components")
+    mass_matrix_note = (
+        "the reference's M is over the four Euler-parameter rates, tied by the "
+        "normalization, which do not map one to one onto the ball joint's three "
+        "angular velocity components"
+    )
 
     def _build(self):
         j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
-        self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, self.params["L"]]),
-                                     pin.SE3.Identity())
+        self.model.appendBodyToJoint(
+            j, self._top_inertia([0.0, 0.0, self.params["L"]]), pin.SE3.Identity()
+        )
 
     def to_engine_state(self, q, u):
         eps = np.asarray(q, float).reshape(4)
@@ -249,9 +272,11 @@ class TopEuler(_TopBase):
         K, V = self._energy_engine(qe, ve)
         raw["normalization_lambda_dalembert_kane"] = 0.0
         raw["normalization_lambda_lagrange"] = 2.0 * V - 4.0 * K
-        raw["multipliers_note"] = ("no normalization row in Pinocchio (its quaternion is unit "
-                                   "by construction); the reference's lambda is "
-                                   "formulation-dependent (0 for d'Alembert/Kane)")
+        raw["multipliers_note"] = (
+            "no normalization row in Pinocchio (its quaternion is unit "
+            "by construction); the reference's lambda is "
+            "formulation-dependent (0 for d'Alembert/Kane)"
+        )
         pin.forwardKinematics(self.model, self.data, qe)
         pin.rnea(self.model, self.data, qe, ve, ae)
         raw["socket_force"] = self.data.oMi[1].rotation @ self.data.f[1].linear
@@ -269,8 +294,7 @@ class _TopCartesianBase(_TopBase):
     nq_ref = n_ref = 7
 
     def _lambda(self, F_O, eps):
-        return np.concatenate([F_O, [2.0 * self.map_params["L"] *
-                                     F_O @ (quat_to_R(eps)[:, 2])]])
+        return np.concatenate([F_O, [2.0 * self.map_params["L"] * F_O @ (quat_to_R(eps)[:, 2])]])
 
 
 class TopCartesianFree(_TopCartesianBase):
@@ -282,16 +306,26 @@ class TopCartesianFree(_TopCartesianBase):
     variant = "free"
     solver = "constraint"
     prox_settings = PROX_EXACT
-    mass_matrix_note = ("the reference's seven speeds (x', eps') include the four Euler-parameter "
-                        "rates tied by the normalization and do not map one to one onto the free "
-                        "body's six (R^T x', omega)")
+    mass_matrix_note = (
+        "the reference's seven speeds (x', eps') include the four Euler-parameter "
+        "rates tied by the normalization and do not map one to one onto the free "
+        "body's six (R^T x', omega)"
+    )
 
     def _build(self):
         j = self.model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "top")
         self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, 0.0]), pin.SE3.Identity())
-        self.cms.append(pin.RigidConstraintModel(
-            pin.ContactType.CONTACT_3D, self.model, j, at(0, 0, -self.params["L"]),
-            0, pin.SE3.Identity(), pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+        self.cms.append(
+            pin.RigidConstraintModel(
+                pin.ContactType.CONTACT_3D,
+                self.model,
+                j,
+                at(0, 0, -self.params["L"]),
+                0,
+                pin.SE3.Identity(),
+                pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+            )
+        )
 
     def to_engine_state(self, q, u):
         q, u = np.asarray(q, float), np.asarray(u, float)
@@ -318,14 +352,17 @@ class TopCartesianTree(_TopCartesianBase):
 
     variant = "tree"
     solver = "aba"
-    mass_matrix_note = ("the reference's seven speeds (x', eps') are dependent (point and "
-                        "normalization rows) and do not map one to one onto the ball joint's "
-                        "three angular velocity components")
+    mass_matrix_note = (
+        "the reference's seven speeds (x', eps') are dependent (point and "
+        "normalization rows) and do not map one to one onto the ball joint's "
+        "three angular velocity components"
+    )
 
     def _build(self):
         j = self.model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "O")
-        self.model.appendBodyToJoint(j, self._top_inertia([0.0, 0.0, self.params["L"]]),
-                                     pin.SE3.Identity())
+        self.model.appendBodyToJoint(
+            j, self._top_inertia([0.0, 0.0, self.params["L"]]), pin.SE3.Identity()
+        )
 
     @property
     def G(self):
@@ -353,5 +390,3 @@ class TopCartesianTree(_TopCartesianBase):
         pin.rnea(self.model, self.data, qe, ve, ae)
         F_O = self.data.oMi[1].rotation @ self.data.f[1].linear
         return self._lambda(F_O, qe)
-
-

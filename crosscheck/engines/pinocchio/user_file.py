@@ -26,15 +26,16 @@ State: Pinocchio's q is MuJoCo's qpos with hinge/slide offsets removed (q - qpos
 joints are at zero in the compiled pose) and quaternions as (x, y, z, w); v is qvel (a free
 joint's linear part in the body frame, MuJoCo's in the world frame).
 """
+
 from __future__ import annotations
 
 import time
-from typing import Optional
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 import scipy.linalg
+
+import pinocchio as pin
 
 from ..base import EngineForward, EngineModel, EngineTrajectory
 from ..mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
@@ -58,8 +59,9 @@ def _body_inertia(m, b) -> pin.Inertia:
     R = np.zeros(9)
     mujoco.mju_quat2Mat(R, np.asarray(m.body_iquat[b], float))
     R = R.reshape(3, 3)
-    return pin.Inertia(float(m.body_mass[b]), np.array(m.body_ipos[b], float),
-                       R @ np.diag(m.body_inertia[b]) @ R.T)
+    return pin.Inertia(
+        float(m.body_mass[b]), np.array(m.body_ipos[b], float), R @ np.diag(m.body_inertia[b]) @ R.T
+    )
 
 
 def build_pin_model(m):
@@ -87,8 +89,9 @@ def build_pin_model(m):
             name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"
             joint = model.addJoint(joint, jm, placement, name)
             jmap[j] = joint
-            model.armature[model.idx_vs[joint]:model.idx_vs[joint] + model.nvs[joint]] = \
-                m.dof_armature[m.jnt_dofadr[j]:m.jnt_dofadr[j] + model.nvs[joint]]
+            model.armature[model.idx_vs[joint] : model.idx_vs[joint] + model.nvs[joint]] = (
+                m.dof_armature[m.jnt_dofadr[j] : m.jnt_dofadr[j] + model.nvs[joint]]
+            )
             frame, prev = pin.SE3.Identity(), pos
         body_in_joint = frame * pin.SE3(np.eye(3), -prev)
         model.appendBodyToJoint(joint, body_in_joint.act(_body_inertia(m, b)), pin.SE3.Identity())
@@ -96,8 +99,10 @@ def build_pin_model(m):
         model.addFrame(pin.Frame(name, joint, body_in_joint, pin.FrameType.BODY))
         place[b] = (joint, body_in_joint)
     from reference.mjcf_checks import disabled
-    model.gravity.linear = np.zeros(3) if disabled(m, "mjDSBL_GRAVITY") else np.array(
-        m.opt.gravity, float)
+
+    model.gravity.linear = (
+        np.zeros(3) if disabled(m, "mjDSBL_GRAVITY") else np.array(m.opt.gravity, float)
+    )
     return model, place, jmap
 
 
@@ -107,20 +112,24 @@ class UserFilePinModel(EngineModel):
     engine = "pinocchio"
     solver = "pin.forwardDynamics (KKT on the independent rows)"
 
-    def __init__(self, model_name: str, params: Optional[dict] = None):
+    def __init__(self, model_name: str, params: dict | None = None):
         self.model_name = model_name
         self.imp = user_import(model_name)
         m = self.mj = self.imp.mj
         self.model, place, self.jmap = build_pin_model(m)
         self.data = self.model.createData()
         self.mass_matrix_note = None
-        self._quat = any(ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE))
-                         for ji in self.imp.joints)
-        self._norm_rows = sum(ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE))
-                              for ji in self.imp.joints)
+        self._quat = any(
+            ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
+        )
+        self._norm_rows = sum(
+            ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
+        )
         if self._quat:
-            self.mass_matrix_note = ("quaternion coordinates: Pinocchio's speeds (angular "
-                                     "velocities) are not a constant linear map of the rates")
+            self.mass_matrix_note = (
+                "quaternion coordinates: Pinocchio's speeds (angular "
+                "velocities) are not a constant linear map of the rates"
+            )
         self._eq = self._equalities(place)
         self.constrained_solve = bool(self._eq)
 
@@ -134,12 +143,12 @@ class UserFilePinModel(EngineModel):
                 q[iq] = qpos[a] - m.qpos0[a]
                 continue
             if t == int(JNT.mjJNT_FREE):
-                q[iq:iq + 3] = qpos[a:a + 3]
-                R = _se3(qpos[a + 3:a + 7], np.zeros(3)).rotation
-                v[iv:iv + 3] = R.T @ np.asarray(qvel[m.jnt_dofadr[j]:m.jnt_dofadr[j] + 3])
+                q[iq : iq + 3] = qpos[a : a + 3]
+                R = _se3(qpos[a + 3 : a + 7], np.zeros(3)).rotation
+                v[iv : iv + 3] = R.T @ np.asarray(qvel[m.jnt_dofadr[j] : m.jnt_dofadr[j] + 3])
                 a, iq = a + 3, iq + 3
-            w, x, y, z = qpos[a:a + 4]
-            q[iq:iq + 4] = (x, y, z, w)
+            w, x, y, z = qpos[a : a + 4]
+            q[iq : iq + 4] = (x, y, z, w)
         return q, v
 
     def _mj_state(self, q, v):
@@ -151,23 +160,26 @@ class UserFilePinModel(EngineModel):
                 qpos[a] = q[iq] + m.qpos0[a]
                 continue
             if t == int(JNT.mjJNT_FREE):
-                qpos[a:a + 3] = q[iq:iq + 3]
-                x, y, z, w = q[iq + 3:iq + 7]
+                qpos[a : a + 3] = q[iq : iq + 3]
+                x, y, z, w = q[iq + 3 : iq + 7]
                 R = _se3((w, x, y, z), np.zeros(3)).rotation
-                qvel[iv:iv + 3] = R @ np.asarray(v[iv:iv + 3])
+                qvel[iv : iv + 3] = R @ np.asarray(v[iv : iv + 3])
                 a, iq = a + 3, iq + 3
-            x, y, z, w = q[iq:iq + 4]
-            qpos[a:a + 4] = (w, x, y, z)
+            x, y, z, w = q[iq : iq + 4]
+            qpos[a : a + 4] = (w, x, y, z)
         return qpos, qvel
 
     def to_engine_state(self, q, u):
         from reference.mjcf import qvel_from_rates
+
         q = np.asarray(q, float)
-        return self._pin_state(q, qvel_from_rates(self.imp.joints, q, np.asarray(u, float),
-                                                  self.mj.nv))
+        return self._pin_state(
+            q, qvel_from_rates(self.imp.joints, q, np.asarray(u, float), self.mj.nv)
+        )
 
     def from_engine_state(self, qe, ve):
         from reference.mjcf import rates_from_qvel
+
         qpos, qvel = self._mj_state(qe, ve)
         return qpos, rates_from_qvel(self.imp.joints, qpos, qvel)
 
@@ -179,10 +191,10 @@ class UserFilePinModel(EngineModel):
             if int(self.mj.jnt_type[j]) != int(JNT.mjJNT_FREE):
                 continue
             iq, iv = self.model.idx_qs[jid], self.model.idx_vs[jid]
-            x, y, z, w = qe[iq + 3:iq + 7]
+            x, y, z, w = qe[iq + 3 : iq + 7]
             R = _se3((w, x, y, z), np.zeros(3)).rotation
-            vl, om = np.asarray(ve[iv:iv + 3]), np.asarray(ve[iv + 3:iv + 6])
-            qacc[iv:iv + 3] = R @ (np.asarray(ae[iv:iv + 3]) + np.cross(om, vl))
+            vl, om = np.asarray(ve[iv : iv + 3]), np.asarray(ve[iv + 3 : iv + 6])
+            qacc[iv : iv + 3] = R @ (np.asarray(ae[iv : iv + 3]) + np.cross(om, vl))
         return qacc
 
     # ---- forces and rows ---------------------------------------------------------------------
@@ -216,10 +228,18 @@ class UserFilePinModel(EngineModel):
                         local = _se3(m.site_quat[obj], m.site_pos[obj])
                     else:
                         body, k = int(obj), (1 - side) if weld else side
-                        local = pin.SE3(np.eye(3), np.array(m.eq_data[e, 3 * k:3 * k + 3]))
+                        local = pin.SE3(np.eye(3), np.array(m.eq_data[e, 3 * k : 3 * k + 3]))
                     joint, body_in_joint = place[body]
-                    frames.append(self.model.addFrame(pin.Frame(
-                        f"eq{e}_{side}", joint, body_in_joint * local, pin.FrameType.OP_FRAME)))
+                    frames.append(
+                        self.model.addFrame(
+                            pin.Frame(
+                                f"eq{e}_{side}",
+                                joint,
+                                body_in_joint * local,
+                                pin.FrameType.OP_FRAME,
+                            )
+                        )
+                    )
                 ts = float(m.eq_data[e, 10]) if weld else 0.0
                 out.append(("weld" if weld else "connect", frames, ts))
             elif t == int(EQ.mjEQ_JOINT):
@@ -246,8 +266,9 @@ class UserFilePinModel(EngineModel):
                     c = extra
                     x = qe[model.idx_qs[self.jmap[j2]]]  # MuJoCo's qpos - qpos0
                     v2 = ve[model.idx_vs[self.jmap[j2]]]
-                    row[model.idx_vs[self.jmap[j2]]] = -(c[1] + 2 * c[2] * x + 3 * c[3] * x**2
-                                                         + 4 * c[4] * x**3)
+                    row[model.idx_vs[self.jmap[j2]]] = -(
+                        c[1] + 2 * c[2] * x + 3 * c[3] * x**2 + 4 * c[4] * x**3
+                    )
                     g = -(2 * c[2] + 6 * c[3] * x + 12 * c[4] * x**2) * v2**2
                 Js.append(row[None])
                 gs.append(np.array([g]))
@@ -285,24 +306,36 @@ class UserFilePinModel(EngineModel):
         a, lam, rank = self._solve(qe, ve)
         qpos, qvel = self._mj_state(qe, ve)
         acc = rate_derivatives(self.imp.joints, qpos, qvel, self._qacc(qe, ve, a))
-        raw = {"engine_accelerations": a, "rank": rank, "rows": len(lam),
-               "model_source": BUILT_FROM}
+        raw = {
+            "engine_accelerations": a,
+            "rank": rank,
+            "rows": len(lam),
+            "model_source": BUILT_FROM,
+        }
         if self._quat:
             return EngineForward(acc, None, raw, multipliers_note=QUATERNION_NOTE, iterations=1)
-        return EngineForward(acc, np.concatenate([lam, np.zeros(self._norm_rows)]), raw,
-                             iterations=1 if len(lam) else 0)
+        return EngineForward(
+            acc,
+            np.concatenate([lam, np.zeros(self._norm_rows)]),
+            raw,
+            iterations=1 if len(lam) else 0,
+        )
 
     def energy(self, q, u) -> tuple[float, float]:
         qe, ve = self.to_engine_state(q, u)
         model, data, m = self.model, self.data, self.mj
         K = pin.computeKineticEnergy(model, data, qe, ve)
-        K += 0.5 * float(np.asarray(model.armature) @ (ve * ve)) if not self._armature_in_K() \
+        K += (
+            0.5 * float(np.asarray(model.armature) @ (ve * ve))
+            if not self._armature_in_K()
             else 0.0
+        )
         # pin sums joints 1.., so bodies welded to the world (inertias[0]) are added here:
         # MuJoCo's d.energy and the reference count them (a constant)
         I0 = model.inertias[0]
         V = pin.computePotentialEnergy(model, data, qe) - I0.mass * float(
-            model.gravity.linear @ I0.lever)
+            model.gravity.linear @ I0.lever
+        )
         qpos, _ = self._mj_state(qe, ve)
         for j in self.jmap:
             if int(m.jnt_type[j]) in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
@@ -339,14 +372,23 @@ class UserFilePinModel(EngineModel):
                 pos.append(float(np.max(np.abs(dp))))
         return max(pos), float(np.max(np.abs(J @ ve), initial=0.0))
 
-    def simulate(self, q0, u0, t_eval, *, integrator: str, rtol: Optional[float] = None,
-                 timestep: Optional[float] = None) -> EngineTrajectory:
+    def simulate(
+        self,
+        q0,
+        u0,
+        t_eval,
+        *,
+        integrator: str,
+        rtol: float | None = None,
+        timestep: float | None = None,
+    ) -> EngineTrajectory:
         """solve_ivp (method `integrator`, rtol = atol) on Pinocchio's forward dynamics in the
         reference's coordinates (qpos and coordinate rates: q' = u, u' = forward()), no
         constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
         from scipy.integrate import solve_ivp
 
         from .machinery import check_integrator, ivp_trajectory
+
         check_integrator(integrator, rtol)
         t_start = time.perf_counter()
         t_eval = np.asarray(t_eval, dtype=float)
@@ -355,17 +397,31 @@ class UserFilePinModel(EngineModel):
         def rhs(t, y):
             return np.concatenate([y[n:], self.forward(y[:n], y[n:]).accelerations])
 
-        sol = solve_ivp(rhs, (0.0, float(t_eval[-1])), np.concatenate([q0, u0]),
-                        method=integrator, rtol=rtol, atol=rtol, t_eval=t_eval)
+        sol = solve_ivp(
+            rhs,
+            (0.0, float(t_eval[-1])),
+            np.concatenate([q0, u0]),
+            method=integrator,
+            rtol=rtol,
+            atol=rtol,
+            t_eval=t_eval,
+        )
         rows = []
         for y in sol.y.T:
             q, u = y[:n], y[n:]
-            rows.append((q, u, *self.violation(*self.to_engine_state(q, u)),
-                         sum(self.energy(q, u))))
-        return ivp_trajectory(sol, rows, integrator, rtol, t_start,
-                              {"stabilization": "none", "coordinates": "reference (qpos, rates)"})
+            rows.append(
+                (q, u, *self.violation(*self.to_engine_state(q, u)), sum(self.energy(q, u)))
+            )
+        return ivp_trajectory(
+            sol,
+            rows,
+            integrator,
+            rtol,
+            t_start,
+            {"stabilization": "none", "coordinates": "reference (qpos, rates)"},
+        )
 
-    def mass_matrix(self, q) -> Optional[np.ndarray]:
+    def mass_matrix(self, q) -> np.ndarray | None:
         if self._quat:
             return None
         qe, _ = self.to_engine_state(q, np.zeros(len(q)))
@@ -375,4 +431,5 @@ class UserFilePinModel(EngineModel):
     def fingerprint(self) -> str:
         import hashlib
         from pathlib import Path
+
         return hashlib.sha256(Path(self.imp.path).read_bytes()).hexdigest()
