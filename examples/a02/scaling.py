@@ -186,18 +186,18 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from reference import codegen
 
-    rows = []
+    out = {"benchmark": "IFToMM A02 N-four-bar, 10 s", "command": "PYTHONPATH=$PWD python "
+           "examples/a02/scaling.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+           "unroll_kkt_max": codegen.UNROLL_KKT_MAX, "rows": []}
     with tempfile.TemporaryDirectory(prefix="a02_") as tmp:
         for n in (int(x) for x in args.n.split(",")):
             b = build(n, Path(tmp))
             row = {**b["row"], **engines_at_states(b), "mujoco_10s": mujoco_run(b),
                    "reference_10s": reference_run(b, args.wall)}
-            rows.append(row)
+            out["rows"].append(row)
             print(json.dumps(row), flush=True)
-    out = {"benchmark": "IFToMM A02 N-four-bar, 10 s", "command": "PYTHONPATH=$PWD python "
-           "examples/a02/scaling.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-           "unroll_kkt_max": codegen.UNROLL_KKT_MAX, "rows": rows}
-    Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+            # written after every N: the large ones take minutes, the small ones are kept
+            Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
     return 0
 
 
