@@ -33,7 +33,8 @@ from .errors import InconsistentConstraintError, SingularSystemError
 RANK_RTOL = 1e-6
 
 # Dependent rows must be consistent: |U_perp^T b| over (|b| + |A| |u'|) above this is a
-# contradiction. Round-off of b and of the SVD leaves ~1e-15 (the four-bar: 3e-16; see solve for the scale); 1e-8 is
+# contradiction. Round-off of b and of the SVD leaves ~1e-15 (the four-bar: 3e-16; the
+# scale is in solve); 1e-8 is
 # far above that and far below any real inconsistency of O(1).
 CONSISTENCY_RTOL = 1e-8
 

@@ -16,7 +16,7 @@ from reference.mjcf import import_mjcf
 from reference.numeric import NumericModel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples" / "a02"))
-from nfourbar import mjcf  # noqa: E402
+from nfourbar import mjcf
 
 TOL_MJCF = 1e-9
 
