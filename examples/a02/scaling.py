@@ -6,8 +6,9 @@ release state and at seeded random consistent states (a state the reference refu
 singular, a random projection that landed near a flat cell, is listed and skipped), every
 engine that loads the file gives u': the reference (Kane; the unrolled or the numeric KKT
 solve, codegen.UNROLL_KKT_MAX), Pinocchio (a model built from MuJoCo's compiled one, the
-suite's user-file adapter), MuJoCo's rigid answer (crosscheck.mjcf_rigid) and its soft answer. Per engine: the time of one forward
-call and the largest |u' - u'_ref| / max(1, |u'_ref|). Then 10 s from the release state:
+suite's user-file adapter), MuJoCo's rigid answer (crosscheck.mjcf_rigid) and its soft answer.
+Per engine: the time of one forward call and the largest |u' - u'_ref| / max(1, |u'_ref|).
+Then 10 s from the release state:
 MuJoCo's own simulation (its default semi-implicit Euler, 1 ms) and the reference's DOP853 with
 projection (within a wall budget; it stops at a singular position when the rank test refuses
 one), each with its mechanical-energy drift and its largest loop-closure residual, measured
