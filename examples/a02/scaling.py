@@ -2,8 +2,8 @@
 
 For each N: the generated MJCF (examples/a02/nfourbar.py) is imported, the reference derives
 it cold (a fresh derivation cache) and warm (read back from that cache), and then, at the
-release state and at seeded random consistent states (a state the reference refuses as
-singular, a random projection that landed near a flat cell, is listed and skipped), every
+release state and at seeded random states of the parallelogram motion (a state the
+reference refuses as singular would be listed and skipped), every
 engine that loads the file gives u': the reference (Kane; the unrolled or the numeric KKT
 solve, codegen.UNROLL_KKT_MAX), Pinocchio (a model built from MuJoCo's compiled one, the
 suite's user-file adapter), MuJoCo's rigid answer (crosscheck.mjcf_rigid) and its soft answer.
@@ -31,13 +31,19 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+# One BLAS thread: the matrices here are at most 201 rows, and with two threads on the shared
+# 2-core machine under load one SVD of A (120 x 81) took 308 ms against 8 ms with one
+# (numpy's scipy-openblas; measured with np.linalg.svd on random matrices). Set before numpy.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))  # nfourbar beside this file
 sys.path.insert(0, str(HERE.parent.parent))  # the checkout, for reference and crosscheck
 
-STATES = 3  # random consistent states beside the release state (crosscheck.mjcf_rigid)
+STATES = 3  # random states beside the release state (parallelogram_states)
 TIMING_S = 0.3  # wall time over which one forward call is averaged, per engine
 T_END = 10.0  # the benchmark's horizon
 REFERENCE_RTOL = 1e-8  # DOP853 + projection; the suite's trajectory default
@@ -93,10 +99,27 @@ def timings(nm, pin, m, qpos, qvel, u) -> dict:
             "mujoco_soft": per_call(lambda: mujoco.mj_forward(m, d))}
 
 
+def parallelogram_states(n: int, count: int, seed: int = 7):
+    """The release state, then `count` seeded random states of the parallelogram motion
+    (every crank at theta, every coupler at -theta relative to it, rates theta' and
+    -theta'), theta ~ U(-pi, pi) kept 0.2 rad away from the horizontal poses +-pi/2, where
+    the rows lose rank. Random joint angles projected onto the loops instead (mjcf_rigid
+    .sample_states) mostly land near a flat cell for N >= 10 (every one for N = 20)."""
+    rng = np.random.default_rng(seed)
+    yield np.zeros(2 * n + 1), np.array([-1.0, 1.0] * n + [-1.0])
+    k = 0
+    while k < count:
+        th, w = rng.uniform(-np.pi, np.pi), rng.standard_normal()
+        if abs(abs(th) - np.pi / 2) < 0.2:
+            continue
+        k += 1
+        yield np.array([th, -th] * n + [th]), np.array([w, -w] * n + [w])
+
+
 def engines_at_states(b: dict) -> dict:
     """Per engine: seconds per forward call and worst relative u' error against the reference."""
     from crosscheck.engines.pinocchio.user_file import UserFilePinModel
-    from crosscheck.mjcf_rigid import rigid_forward, sample_states
+    from crosscheck.mjcf_rigid import rigid_forward
     from reference.errors import SingularSystemError
     from reference.mjcf import rates_from_qvel
 
@@ -106,7 +129,7 @@ def engines_at_states(b: dict) -> dict:
     err = {"pinocchio": 0.0, "mujoco_rigid": 0.0, "mujoco_soft": 0.0}
     cost: dict = {}
     refused = []
-    for k, (qpos, qvel) in enumerate(sample_states(imp, STATES)):
+    for k, (qpos, qvel) in enumerate(parallelogram_states(b["row"]["N"], STATES)):
         u = rates_from_qvel(imp.joints, qpos, qvel)  # hinges: the identity
         try:
             ref = nm.forward(qpos, u).accelerations
