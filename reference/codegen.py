@@ -77,10 +77,10 @@ def cache_key(model, formulation: str) -> str:
 # The unrolled solve (Cholesky of M and of the Schur complement written out entry by entry)
 # grows with the cube of the KKT size, and trigsimp of its entries with the model. Measured
 # with the IFToMM A02 N-four-bar (examples/a02, n + m = 5N + 1 rows) on the shared 2-core
-# machine: N = 5 (26 rows) took 69 s to derive and generate unrolled, 11 s without the
+# machine: N = 5 (26 rows) took 93 s to derive and generate unrolled, 11 s without the
 # unrolled forward (docs/scaling.md has the commands and the figures). Past
 # this many rows forward() is solved numerically per state from the generated M, A, f, b
-# (reference.redundant's rank-revealing solve: 1.2 ms per state at N = 5). The largest
+# (reference.redundant's rank-revealing solve: 1.8 ms per state at N = 5). The largest
 # built-in model (double_pendulum_3d, 18 rows) and the ten-body gripper (17) stay below it.
 UNROLL_KKT_MAX = 24
 
