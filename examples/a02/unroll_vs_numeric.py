@@ -10,11 +10,11 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from nfourbar import mjcf  # noqa: E402
+from nfourbar import mjcf
 
-from reference import codegen  # noqa: E402
-from reference.mjcf import import_mjcf  # noqa: E402
-from reference.numeric import NumericModel  # noqa: E402
+from reference import codegen
+from reference.mjcf import import_mjcf
+from reference.numeric import NumericModel
 
 n = int(sys.argv[1]) if len(sys.argv) > 1 else 5
 with tempfile.TemporaryDirectory() as tmp:
