@@ -52,6 +52,7 @@ def test_renamed_model_reuses_the_derivation(tmp_path):
 
 def test_mjcf_reimport_under_another_name_has_the_same_key(tmp_path):
     import shutil
+
     from reference.mjcf import import_mjcf
     src = os.path.join(os.path.dirname(__file__), "data", "fourbar_connect.xml")
     copy = tmp_path / "my_copy_of_the_fourbar.xml"
@@ -100,6 +101,7 @@ def test_editing_a_formulation_misses_the_cache(tmp_path):
     the package with one formulation edited (a comment is enough: the key hashes the files, so
     any edit counts) gets another key, and building the model there derives a new entry."""
     import shutil
+
     import reference
     src = os.path.dirname(reference.__file__)
     original, edited = tmp_path / "original", tmp_path / "edited"
