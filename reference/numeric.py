@@ -96,6 +96,10 @@ class NumericModel:
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]
         self.redundant = bool(getattr(model, "redundant_constraints", False))
+        # a numeric KKT solve per state: dependent rows allowed, or a model too large for the
+        # unrolled solve (codegen.UNROLL_KKT_MAX); either way the rank-revealing solve
+        self.numeric_kkt = self._scalar["META"].get("kkt") == "numeric"
+        self._numeric = self.redundant or self.numeric_kkt
         self.rank = self.m  # rank of A at the initial state (below m only if redundant)
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
@@ -110,7 +114,9 @@ class NumericModel:
 
     def _kernels(self) -> Any:
         """The numba kernels of this model's code (None on the pure-Python backend)."""
-        if compiled.backend() != "numba":
+        if compiled.backend() != "numba" or self.numeric_kkt:
+            # a numeric-KKT model has no forward kernel, and numba's compile of its long
+            # straight-line M, A code costs more than the run (docs/scaling.md)
             return None
         path = self._scalar["__cache_path__"]
         try:
@@ -155,10 +161,11 @@ class NumericModel:
         if self._scalar["META"]["augmented"]:
             M = M + A.T @ A * (np.trace(M) / self.n) / max((A * A).sum() / self.m, 1e-300)
         names = self.model.constraint_names or tuple(f"c{j + 1}" for j in range(self.m))
-        if self.redundant:  # dependent rows allowed: remember the rank, solve numerically
+        if not self.redundant:
+            check_independent(A, names, where=f"the initial state of {self.model.name}")
+        if self._numeric:  # remember the rank, solve numerically (reference.redundant)
             self.rank, _s = redundant.numerical_rank(A)
             return (1.0,) * self.m
-        check_independent(A, names, where=f"the initial state of {self.model.name}")
         S = A @ np.linalg.solve(M, A.T)
         d = np.diag(S).copy()
         if not np.all(np.isfinite(d)) or np.any(d <= 0):
@@ -227,7 +234,7 @@ class NumericModel:
     # ---- single state ------------------------------------------------------------------
     def forward(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
-        kf = None if self.redundant else self._kf  # dependent rows: the rank-revealing solve
+        kf = None if self._numeric else self._kf  # dependent rows: the rank-revealing solve
         if kf is not None:
             out = np.empty(self._nf)
             if type(q) is not _ND or type(u) is not _ND:  # lists: convert first (a failed
@@ -242,7 +249,7 @@ class NumericModel:
             n, nm = self.n, self._nlam
             return Forward(out[:n], out[n:nm], float(out[nm]))
         q, u, t = self._state(q, u, t)
-        if self.redundant:
+        if self._numeric:
             ud, lam, piv = self.forward_raw(q, u, t)
             if not piv > PIVOT_RATIO_MIN:
                 raise SingularSystemError(self._singular_message(q, piv))
@@ -265,7 +272,7 @@ class NumericModel:
         read past an array's end would return garbage). `db` offsets the constraint rows'
         right side: A u' = b + db (Baumgarte). Lists or float64 vectors in; vectors out on
         the compiled backend, lists on the Python one."""
-        if self.redundant:
+        if self._numeric:
             return self._forward_redundant(q, u, t, db)
         if self._k is None:
             return self._scalar["forward"](q, u, t, self.p, self.sref,
@@ -465,7 +472,7 @@ class NumericModel:
         if not (np.isfinite(Q).all() and np.isfinite(U).all()):
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
-        if self.redundant:  # one rank-revealing numeric solve per state (reference.redundant)
+        if self._numeric:  # one rank-revealing numeric solve per state (reference.redundant)
             UD, LAM, piv = self._forward_batch_redundant(Q, U, t)
         elif self._k is not None:
             UD, LAM, piv = self._forward_batch_compiled(Q, U, t)

@@ -33,7 +33,8 @@ from .errors import InconsistentConstraintError, SingularSystemError
 RANK_RTOL = 1e-6
 
 # Dependent rows must be consistent: |U_perp^T b| over (|b| + |A| |u'|) above this is a
-# contradiction. Round-off of b and of the SVD leaves ~1e-15 (the four-bar: 3e-16); 1e-8 is
+# contradiction. Round-off of b and of the SVD leaves ~1e-15 (the four-bar: 3e-16; the
+# scale is in solve); 1e-8 is
 # far above that and far below any real inconsistency of O(1).
 CONSISTENCY_RTOL = 1e-8
 
@@ -98,7 +99,10 @@ def solve(M, f, A, b, *, rank_expected: int, augment: bool, where: str = ""):
     ud = y + Y @ mu
     lam = Ur @ mu
     off = float(np.linalg.norm(A @ ud - b))
-    scale = float(np.linalg.norm(b) + s[0] * np.linalg.norm(ud)) or 1.0
+    # the scale includes the unconstrained acceleration y = K^-1 f: at a state where u' and b
+    # vanish (the N-four-bar released upright: measured |u'| ~ 1e-16) round-off alone would
+    # otherwise look like a contradiction
+    scale = float(np.linalg.norm(b) + s[0] * max(np.linalg.norm(ud), np.linalg.norm(y))) or 1.0
     if off > CONSISTENCY_RTOL * scale:
         raise InconsistentConstraintError(
             f"{where}: the constraint rows are dependent (rank {r} < {m}) and contradict each "

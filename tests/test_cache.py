@@ -14,25 +14,52 @@ if sys.argv[1] == "forbid":
     def refuse(*a, **k):
         raise SystemExit("derivation attempted although the cache holds this model")
     numeric.derive = refuse
+import dataclasses
 from reference import models, NumericModel
-nm = NumericModel(models.get("slider_crank"), "kane")
+model = models.get("slider_crank")
+if len(sys.argv) > 2:  # a renamed copy: the same content under another name
+    model = dataclasses.replace(model, name=sys.argv[2])
+nm = NumericModel(model, "kane")
 print(repr(nm.forward(nm.model.initial_q, nm.model.initial_u).multipliers[0]))
 """
 
 
-def _run(mode, cache):
+def _run(mode, cache, *extra):
     env = dict(os.environ, CROSSCHECK_CACHE_DIR=str(cache))
-    return subprocess.run([sys.executable, "-c", SCRIPT, mode], env=env, capture_output=True,
-                          text=True, timeout=300)
+    return subprocess.run([sys.executable, "-c", SCRIPT, mode, *extra], env=env,
+                          capture_output=True, text=True, timeout=300)
 
 
 def test_second_process_reads_the_cache(tmp_path):
     first = _run("derive", tmp_path)
     assert first.returncode == 0, first.stderr
-    assert list(tmp_path.glob("slider_crank-kane-*.py")), "first process wrote no cache entry"
+    assert list(tmp_path.glob("kane-*.py")), "first process wrote no cache entry"
     second = _run("forbid", tmp_path)
     assert second.returncode == 0, second.stderr
     assert second.stdout == first.stdout
+
+
+def test_renamed_model_reuses_the_derivation(tmp_path):
+    """Issue 11 item 7: the name is not physics. A renamed copy of a model (or the same MJCF
+    file imported under another name) reads the entry its original wrote: the second process
+    refuses to derive and still gives the same multiplier."""
+    first = _run("derive", tmp_path)
+    assert first.returncode == 0, first.stderr
+    renamed = _run("forbid", tmp_path, "my_renamed_slider_crank")
+    assert renamed.returncode == 0, renamed.stderr
+    assert renamed.stdout == first.stdout
+
+
+def test_mjcf_reimport_under_another_name_has_the_same_key(tmp_path):
+    import shutil
+
+    from reference.mjcf import import_mjcf
+    src = os.path.join(os.path.dirname(__file__), "data", "fourbar_connect.xml")
+    copy = tmp_path / "my_copy_of_the_fourbar.xml"
+    shutil.copy(src, copy)
+    a, b = import_mjcf(src).model, import_mjcf(copy).model
+    assert a.name != b.name
+    assert codegen.cache_key(a, "kane") == codegen.cache_key(b, "kane")
 
 
 def test_cache_key_follows_model_content():
@@ -65,7 +92,7 @@ def _key_and_entries(pkg_root, cache):
     run = subprocess.run([sys.executable, "-c", SCRIPT, "derive"], env=env, capture_output=True,
                          text=True, timeout=300, cwd=pkg_root)
     assert run.returncode == 0, run.stderr
-    return key, sorted(p.name for p in cache.glob("slider_crank-kane-*.py")
+    return key, sorted(p.name for p in cache.glob("kane-*.py")
                        if not p.name.endswith("_numba.py"))  # the kernels' module beside it
 
 
@@ -74,6 +101,7 @@ def test_editing_a_formulation_misses_the_cache(tmp_path):
     the package with one formulation edited (a comment is enough: the key hashes the files, so
     any edit counts) gets another key, and building the model there derives a new entry."""
     import shutil
+
     import reference
     src = os.path.dirname(reference.__file__)
     original, edited = tmp_path / "original", tmp_path / "edited"

@@ -71,3 +71,21 @@ def test_python_file_without_hook(tmp_path, capsys):
 def test_unknown_model_name_lists_user_models(capsys):
     assert main(["run", "nope", "--model-file", FOURBAR, "--out", "/tmp/unused"]) == 2
     assert "fourbar_connect" in capsys.readouterr().err
+
+
+def test_gripper_past_dead_centre_is_a_failed_record_not_an_abort(tmp_path, capsys):
+    """Issue 11: the ten-body gripper reaches a dead centre at t = 0.73 s, where its constraint
+    rows lose rank. The run must go on and write the reference's failed trajectory record
+    with the reason, and the engines' trajectory records say why they were not compared."""
+    code = main(["run", "--model-file", str(DATA / "gripper.xml"), "--engines", "mujoco",
+                 "--states", "1", "--t-end", "1", "--no-report", "--out", str(tmp_path)])
+    assert code == 1, capsys.readouterr().err  # 1: a failed record, not a crash
+    records = json.loads((tmp_path / "results.json").read_text())["records"]
+    traj = {r["engine"]: r for r in records if r["check"] == "trajectory"
+            and r["quantity"] == "state_error"}
+    ref = traj["reference"]
+    assert ref["passed"] is False and ref["failure"] is True
+    assert "SingularSystemError: at t = 0.72" in ref["reason"], ref["reason"]
+    assert traj["mujoco"]["skipped"] and "its run failed" in traj["mujoco"]["reason"]
+    instantaneous = [r for r in records if r["check"] != "trajectory"]
+    assert instantaneous and all(r["passed"] is not False for r in instantaneous)
