@@ -17,13 +17,13 @@ M + rho A^T A and f by f + rho A^T b, which leaves the solution unchanged becaus
 Every pivot is divided by its original diagonal entry and the minimum is returned, so callers can
 refuse a (nearly) singular M or S, that is, a kinematic singularity or redundant constraints.
 """
+
 from __future__ import annotations
 
 import hashlib
 import math
 import os
 from pathlib import Path
-
 from typing import Any
 
 import numpy as np
@@ -38,8 +38,7 @@ from .formulations.lagrange import kinetic_energy, potential_energy
 # are the modules the derivation runs through; the model modules are covered by
 # Model.content_hash(), which hashes the declared expressions themselves.
 _PACKAGE = Path(__file__).resolve().parent
-DERIVATION_SOURCES = ("system.py", "constraints.py", "eom.py", "codegen.py",
-                      "formulations/*.py")
+DERIVATION_SOURCES = ("system.py", "constraints.py", "eom.py", "codegen.py", "formulations/*.py")
 
 
 def derivation_sources_hash() -> str:
@@ -60,7 +59,8 @@ _SOURCES_HASH: str | None = None
 
 def cache_dir() -> Path:
     root = os.environ.get("CROSSCHECK_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "multibody-crosscheck")
+        os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "multibody-crosscheck"
+    )
     return Path(root)
 
 
@@ -69,8 +69,10 @@ def cache_key(model, formulation: str) -> str:
     model's content, the formulation, the derivation's sources and sympy. The model's name is
     not in it (issue 11 item 7): a renamed or re-imported model reuses its derivation; the
     generated file's first line names the model it was first derived for."""
-    h = hashlib.sha256(f"{model.content_hash()}|{formulation}|{derivation_sources_hash()}|"
-                       f"{sp.__version__}".encode())
+    h = hashlib.sha256(
+        f"{model.content_hash()}|{formulation}|{derivation_sources_hash()}|"
+        f"{sp.__version__}".encode()
+    )
     return f"{formulation}-{h.hexdigest()[:16]}"
 
 
@@ -140,7 +142,8 @@ class _Writer:
         return name
 
     def cse_block(self, exprs: list) -> list[str]:
-        """Common subexpressions of all `exprs`; returns their code strings (name, '0' or literal)."""
+        """Common subexpressions of all `exprs`; returns their code strings (name, '0' or
+        literal)."""
         exprs = [sp.sympify(e) for e in exprs]
         repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"_s{self.n}_"))
         self.n += 1
@@ -159,8 +162,9 @@ def _dot_terms(pairs) -> list[str]:
     return [t for t in (_mul(a, b) for a, b in pairs) if t is not None]
 
 
-def _cholesky(w: _Writer, Mc: list[list[str]], pivots: list[str],
-              reference: list[str] | None = None) -> tuple[list[list[str]], list[str]]:
+def _cholesky(
+    w: _Writer, Mc: list[list[str]], pivots: list[str], reference: list[str] | None = None
+) -> tuple[list[list[str]], list[str]]:
     """Lower-triangular L with L L^T = Mc, skipping structural zeros, and the reciprocals of its
     diagonal; records pivot ratios (each pivot over `reference[j]`, by default the original
     diagonal entry). One reciprocal per pivot, then multiplications: a division costs 4-10
@@ -234,8 +238,11 @@ def needs_augmentation(eom: EquationsOfMotion, params: dict) -> bool:
     """True when M is singular on its own (checked numerically at a generic configuration)."""
     m = eom.model
     rng = np.random.default_rng(12345)
-    subs = {s: float(v) + 0.1 * rng.standard_normal() for s, v in zip(m.coordinates, m.initial_q)}
-    subs.update({s: float(v) for s, v in zip(m.speeds, m.initial_u)})
+    subs = {
+        s: float(v) + 0.1 * rng.standard_normal()
+        for s, v in zip(m.coordinates, m.initial_q, strict=False)
+    }
+    subs.update({s: float(v) for s, v in zip(m.speeds, m.initial_u, strict=False)})
     subs.update({p.symbol: params[p.name] for p in m.parameters})
     subs[m.t] = 0.3
     M = np.array(eom.M.xreplace(subs).evalf(), dtype=float)
@@ -282,7 +289,7 @@ def _forward_source(eom: EquationsOfMotion, augment: bool, X) -> list[str]:
     Ac = [[next(it) for _ in range(n)] for _ in range(mc)]
     bc = [next(it) for _ in range(mc)]
     # materialize entries as variables so they are evaluated once
-    mat = lambda c: c if c == "0" else w.assign(c)  # noqa: E731
+    mat = lambda c: c if c == "0" else w.assign(c)
     Mc = [[mat(Mc[i][j]) if j >= i else None for j in range(n)] for i in range(n)]
     for i in range(n):
         for j in range(i):
@@ -291,8 +298,9 @@ def _forward_source(eom: EquationsOfMotion, augment: bool, X) -> list[str]:
     Ac = [[mat(c) for c in row] for row in Ac]
     # A u' = b + _db: the caller's offset of the constraint rows' right side (zeros, or the
     # Baumgarte terms -2 alpha (A u + a0) - beta^2 f), so stabilization costs no extra solve
-    bc = [w.assign(f"{c} + _db[{k}]") if c != "0" else w.assign(f"_db[{k}]")
-          for k, c in enumerate(bc)]
+    bc = [
+        w.assign(f"{c} + _db[{k}]") if c != "0" else w.assign(f"_db[{k}]") for k, c in enumerate(bc)
+    ]
     if augment and mc:
         _augment(w, Mc, fc, Ac, bc, n, mc)
     pivots: list[str] = []
@@ -338,12 +346,15 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     (no forward for a model past UNROLL_KKT_MAX: META['kkt'] says which)."""
     m = eom.model
     rn = _safe_symbols(eom)
-    X = lambda e: sp.sympify(e).xreplace(rn)  # noqa: E731
+    X = lambda e: sp.sympify(e).xreplace(rn)
     n, mc = len(m.speeds), eom.A.shape[0]
     kkt = "numeric" if numeric_kkt(n, mc) else "unrolled"
     tag = derivation_sources_hash()[:12]
-    src = [f"# generated by reference.codegen ({tag}), first for {m.name} / {eom.formulation}",
-           f"META = {{'n': {n}, 'm': {mc}, 'augmented': {augment}, 'kkt': {kkt!r}}}", ""]
+    src = [
+        f"# generated by reference.codegen ({tag}), first for {m.name} / {eom.formulation}",
+        f"META = {{'n': {n}, 'm': {mc}, 'augmented': {augment}, 'kkt': {kkt!r}}}",
+        "",
+    ]
 
     # forward: u', lambda, min pivot ratio
     if kkt == "unrolled":
@@ -355,7 +366,7 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
         codes = w2.cse_block(flat2) if flat2 else []
         out, k = [], 0
         for g in exprs_groups:
-            out.append("[" + ", ".join(codes[k:k + len(g)]) + "]")
+            out.append("[" + ", ".join(codes[k : k + len(g)]) + "]")
             k += len(g)
         return _header(name, eom) + w2.lines + [f"    return {', '.join(out)},", ""]
 
@@ -365,9 +376,15 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     src += simple("residuals", [list(cs.f), list(cs.A * sp.Matrix(m.speeds) + cs.a0)])
     E = kinetic_energy(m) + potential_energy(m)
     src += simple("position_jacobian", [list(cs.A_q)])
-    src += simple("energy", [[kinetic_energy(m), potential_energy(m), m.load_power()],
-                             [sp.diff(E, s) for s in m.coordinates],
-                             [sp.diff(E, s) for s in m.speeds], [sp.diff(E, m.t)]])
+    src += simple(
+        "energy",
+        [
+            [kinetic_energy(m), potential_energy(m), m.load_power()],
+            [sp.diff(E, s) for s in m.coordinates],
+            [sp.diff(E, s) for s in m.speeds],
+            [sp.diff(E, m.t)],
+        ],
+    )
     return "\n".join(src) + "\n"
 
 
@@ -381,12 +398,33 @@ class _Zeros:
 def _namespace(batched: bool) -> dict:
     if batched:
         from functools import reduce
-        return {"sin": np.sin, "cos": np.cos, "tan": np.tan, "sqrt": np.sqrt, "exp": np.exp,
-                "log": np.log, "atan2": np.arctan2, "pi": np.pi, "abs": np.abs,
-                "_min": lambda *a: reduce(np.minimum, a), "_ZEROS": _Zeros()}
-    return {"sin": math.sin, "cos": math.cos, "tan": math.tan, "sqrt": math.sqrt,
-            "exp": math.exp, "log": math.log, "atan2": math.atan2, "pi": math.pi, "abs": abs,
-            "_min": min, "_ZEROS": _Zeros()}
+
+        return {
+            "sin": np.sin,
+            "cos": np.cos,
+            "tan": np.tan,
+            "sqrt": np.sqrt,
+            "exp": np.exp,
+            "log": np.log,
+            "atan2": np.arctan2,
+            "pi": np.pi,
+            "abs": np.abs,
+            "_min": lambda *a: reduce(np.minimum, a),
+            "_ZEROS": _Zeros(),
+        }
+    return {
+        "sin": math.sin,
+        "cos": math.cos,
+        "tan": math.tan,
+        "sqrt": math.sqrt,
+        "exp": math.exp,
+        "log": math.log,
+        "atan2": math.atan2,
+        "pi": math.pi,
+        "abs": abs,
+        "_min": min,
+        "_ZEROS": _Zeros(),
+    }
 
 
 def load_compiled(eom_factory, model, formulation: str, params: dict):

@@ -4,12 +4,14 @@
 checked once at construction, states on every public call (sizes, finiteness), and a KKT solve
 whose pivots collapse raises instead of returning a wrong number.
 """
+
 from __future__ import annotations
 
 import copy
 import math
-from typing import Any, Callable
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,7 +42,8 @@ def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str,
     unknown = sorted(set(overrides) - set(names))
     if unknown:
         raise ModelInputError(
-            f"unknown parameter(s) {unknown} for model {model.name!r}; valid: {', '.join(names)}")
+            f"unknown parameter(s) {unknown} for model {model.name!r}; valid: {', '.join(names)}"
+        )
     values, problems = {}, []
     for p in model.parameters:
         v = overrides.get(p.name, p.default)
@@ -90,8 +93,11 @@ class NumericModel:
         # the code (and its choice of an augmented solve) depends on the model only: it is
         # generated once with the declared defaults, and the parameters are arguments
         self._scalar, self._batched, self.source = codegen.load_compiled(
-            lambda: derive(model, self.formulation), model, self.formulation,
-            resolve_parameters(model))
+            lambda: derive(model, self.formulation),
+            model,
+            self.formulation,
+            resolve_parameters(model),
+        )
         self.n = len(model.speeds)
         self.nq = len(model.coordinates)
         self.m = self._scalar["META"]["m"]
@@ -120,8 +126,16 @@ class NumericModel:
             return None
         path = self._scalar["__cache_path__"]
         try:
-            return compiled.load_kernels(self.source, path.stem, path.parent, self.nq, self.n,
-                                         len(self.p), self.m, PIVOT_RATIO_MIN)
+            return compiled.load_kernels(
+                self.source,
+                path.stem,
+                path.parent,
+                self.nq,
+                self.n,
+                len(self.p),
+                self.m,
+                PIVOT_RATIO_MIN,
+            )
         except RecursionError:
             # expressions nested deeper than Python's ast printer goes (a large user model):
             # this model stays on the pure-Python path, the same numbers, only slower
@@ -171,7 +185,8 @@ class NumericModel:
         if not np.all(np.isfinite(d)) or np.any(d <= 0):
             raise SingularSystemError(
                 f"{self.model.name}: the KKT matrix is singular at the model's initial state "
-                f"(diag of A M^-1 A^T = {d}); check the parameters and the constraint rows")
+                f"(diag of A M^-1 A^T = {d}); check the parameters and the constraint rows"
+            )
         return tuple(float(x) for x in d)
 
     # ---- validation --------------------------------------------------------------------
@@ -180,17 +195,22 @@ class NumericModel:
         try:
             ql, ul, t = _floats(q), _floats(u), float(t)
         except (TypeError, ValueError) as exc:
-            raise ModelInputError(f"{self.model.name}: state values must be numbers ({exc})")
+            raise ModelInputError(
+                f"{self.model.name}: state values must be numbers ({exc})"
+            ) from None
         if len(ql) != self.nq:
             raise ModelInputError(
                 f"{self.model.name}: expected {self.nq} coordinates "
-                f"({', '.join(s.name for s in self.model.coordinates)}), got {len(ql)}")
+                f"({', '.join(s.name for s in self.model.coordinates)}), got {len(ql)}"
+            )
         if len(ul) != self.n:
             raise ModelInputError(
                 f"{self.model.name}: expected {self.n} speeds "
-                f"({', '.join(s.name for s in self.model.speeds)}), got {len(ul)}")
+                f"({', '.join(s.name for s in self.model.speeds)}), got {len(ul)}"
+            )
         if not math.isfinite(sum(ql) + sum(ul) + t) and not (
-                all(map(math.isfinite, ql)) and all(map(math.isfinite, ul)) and math.isfinite(t)):
+            all(map(math.isfinite, ql)) and all(map(math.isfinite, ul)) and math.isfinite(t)
+        ):
             raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
         return ql, ul, t
 
@@ -199,11 +219,15 @@ class NumericModel:
         (the slow path: the kernels accept only that signature, anything else is converted
         here). Sizes and finiteness are checked inside the kernel (compiled.STATUS)."""
         try:
-            return (np.array(q, dtype=float).reshape(-1), np.array(u, dtype=float).reshape(-1),
-                    float(t))
+            return (
+                np.array(q, dtype=float).reshape(-1),
+                np.array(u, dtype=float).reshape(-1),
+                float(t),
+            )
         except (TypeError, ValueError) as exc:
             raise ModelInputError(
-                f"{self.model.name}: state values must be numbers ({exc})") from None
+                f"{self.model.name}: state values must be numbers ({exc})"
+            ) from None
 
     def _fail(self, status: int, q: ArrayLike, u: ArrayLike, out: Any = None) -> None:
         """The error of a kernel's nonzero status, worded as on the pure-Python path."""
@@ -253,8 +277,9 @@ class NumericModel:
             ud, lam, piv = self.forward_raw(q, u, t)
             if not piv > PIVOT_RATIO_MIN:
                 raise SingularSystemError(self._singular_message(q, piv))
-            return Forward(np.asarray(ud, float), np.asarray(lam, float), float(piv),
-                           self._last_rank)
+            return Forward(
+                np.asarray(ud, float), np.asarray(lam, float), float(piv), self._last_rank
+            )
         try:
             ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
         except ValueError:  # sqrt of a negative pivot
@@ -275,8 +300,9 @@ class NumericModel:
         if self._numeric:
             return self._forward_redundant(q, u, t, db)
         if self._k is None:
-            return self._scalar["forward"](q, u, t, self.p, self.sref,
-                                           self._no_db if db is None else db)
+            return self._scalar["forward"](
+                q, u, t, self.p, self.sref, self._no_db if db is None else db
+            )
         out = np.empty(self._nf)
         db = self._db0 if db is None else np.asarray(db, float)
         if type(q) is not _ND or type(u) is not _ND:
@@ -307,8 +333,7 @@ class NumericModel:
         this model's own parameter tuple (the kernel reads the packed copy, self._pa)."""
         if self._k is None:
             return self._scalar[name]
-        f, total, offs, pa = self._k.get(name), self._k.total[name], self._k.offsets[name], \
-            self._pa
+        f, total, offs, pa = self._k.get(name), self._k.total[name], self._k.offsets[name], self._pa
         arrays = self._arrays
 
         def call(q: Any, u: Any, t: float, p: Any = None) -> tuple:
@@ -332,9 +357,14 @@ class NumericModel:
         n, m = self.n, self.m
         b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
         ud, lam, piv, self._last_rank = redundant.solve(
-            np.array(M, float).reshape(n, n), np.array(f, float),
-            np.array(A, float).reshape(m, n), b, rank_expected=self.rank,
-            augment=self._scalar["META"]["augmented"], where=self.model.name)
+            np.array(M, float).reshape(n, n),
+            np.array(f, float),
+            np.array(A, float).reshape(m, n),
+            b,
+            rank_expected=self.rank,
+            augment=self._scalar["META"]["augmented"],
+            where=self.model.name,
+        )
         return ud.tolist(), lam.tolist(), piv
 
     def _undefined(self, q: ArrayLike) -> SingularSystemError:
@@ -343,7 +373,8 @@ class NumericModel:
             f"{np.round(np.asarray(q, float), 6).tolist()} (a division by zero: a coordinate "
             f"singularity such as gimbal lock of Euler angles, where these coordinates cannot "
             f"express the motion). Move the state away from this pose, or describe the body "
-            f"with singularity-free coordinates (Euler parameters).")
+            f"with singularity-free coordinates (Euler parameters)."
+        )
 
     def _scalar_call(self, name: str, q: list, u: list, t: float, *extra: Any) -> Any:
         """A pure-Python generated function; its ZeroDivisionError is the coordinate
@@ -354,11 +385,14 @@ class NumericModel:
             raise self._undefined(q) from None
 
     def _singular_message(self, q: ArrayLike, piv: float) -> str:
-        return (f"{self.model.name}: the KKT matrix is singular at q = {np.round(np.asarray(q, float), 6).tolist()} "
-                f"(pivot ratio {piv:.1e} <= {PIVOT_RATIO_MIN:.0e}): the constraint rows are "
-                f"dependent there (a kinematic singularity or redundant constraints) or M is not "
-                f"definite on their null space. Move the state away from this pose or remove "
-                f"the redundant constraints.")
+        at = np.round(np.asarray(q, float), 6).tolist()
+        return (
+            f"{self.model.name}: the KKT matrix is singular at q = {at} "
+            f"(pivot ratio {piv:.1e} <= {PIVOT_RATIO_MIN:.0e}): the constraint rows are "
+            f"dependent there (a kinematic singularity or redundant constraints) or M is not "
+            f"definite on their null space. Move the state away from this pose or remove "
+            f"the redundant constraints."
+        )
 
     def matrices(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[np.ndarray, ...]:
         """M (n x n), f (n), A (m x n), b (m) at a state: the EquationsOfMotion contract."""
@@ -369,8 +403,12 @@ class NumericModel:
             return (out[:nn].reshape(n, n), out[nn:nf], out[nf:na].reshape(m, n), out[na:])
         q, u, t = self._state(q, u, t)
         M, f, A, b = self._scalar_call("matrices", q, u, t)
-        return (np.array(M, float).reshape(n, n), np.array(f, float),
-                np.array(A, float).reshape(m, n), np.array(b, float))
+        return (
+            np.array(M, float).reshape(n, n),
+            np.array(f, float),
+            np.array(A, float).reshape(m, n),
+            np.array(b, float),
+        )
 
     def kinematics(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> np.ndarray:
         if self._k is not None:
@@ -378,7 +416,9 @@ class NumericModel:
         q, u, t = self._state(q, u, t)
         return np.array(self._scalar_call("kinematics", q, u, t)[0], float)
 
-    def residuals(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def residuals(
+        self, q: ArrayLike, u: ArrayLike, t: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Position residuals f(q, t) and velocity residuals A u + a0."""
         if self._k is not None:
             out = self._call("residuals", q, u, t)
@@ -409,11 +449,16 @@ class NumericModel:
         dE = float(np.dot(dEdq, qdot) + np.dot(dEdu, fw.accelerations) + dEdt)
         _, _, A, _ = self.matrices(q, u, t)
         P_c = float(fw.multipliers @ (A @ u)) if self.m else 0.0
-        return {"dE_dt": dE, "load_power": float(P), "constraint_power": P_c,
-                "energy": float(K + V)}
+        return {
+            "dE_dt": dE,
+            "load_power": float(P),
+            "constraint_power": P_c,
+            "energy": float(K + V),
+        }
 
-    def check_consistent(self, q: ArrayLike, u: ArrayLike, t: float = 0.0,
-                         tol: float = MANIFOLD_TOL) -> None:
+    def check_consistent(
+        self, q: ArrayLike, u: ArrayLike, t: float = 0.0, tol: float = MANIFOLD_TOL
+    ) -> None:
         """Refuse a state off the constraint manifold, saying by how much."""
         pos, vel = self.residuals(q, u, t)
         worst_p = float(np.max(np.abs(pos))) if pos.size else 0.0
@@ -423,11 +468,13 @@ class NumericModel:
             raise OffManifoldError(
                 f"{self.model.name}: state is off the constraint manifold: max |f(q,t)| = "
                 f"{worst_p:.3e}, max |A u + a0| = {worst_v:.3e} (tolerance {tol:.0e}). "
-                f"Give a consistent state or pass --project to project it onto the manifold.")
+                f"Give a consistent state or pass --project to project it onto the manifold."
+            )
 
     # ---- projection onto the manifold ----------------------------------------------------
-    def project(self, q: ArrayLike, u: ArrayLike, t: float = 0.0, tol: float = 1e-13,
-                max_iter: int = 50) -> tuple[np.ndarray, np.ndarray]:
+    def project(
+        self, q: ArrayLike, u: ArrayLike, t: float = 0.0, tol: float = 1e-13, max_iter: int = 50
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Closest consistent state: Gauss-Newton on f(q, t) = 0 (minimum-norm steps in q),
         then the velocity projection u <- u - A^+ (A u + a0). Raises when it cannot converge."""
         q, u, t = self._state(q, u, t)
@@ -446,7 +493,8 @@ class NumericModel:
                 f"{self.model.name}: projection onto f(q,t)=0 did not converge in {max_iter} "
                 f"Gauss-Newton steps (residual {np.max(np.abs(pos)):.2e}); the constraints may "
                 f"have no solution near this q (for example a slider-crank with l2 < l1 beyond "
-                f"its reach)")
+                f"its reach)"
+            )
         _, _, A, _ = self.matrices(q, u, t)
         _, vel = self.residuals(q, u, t)
         if A.shape[0]:  # minimum-norm correction: u <- u - A^+ (A u + a0)
@@ -456,19 +504,23 @@ class NumericModel:
 
     def _position_jacobian(self, q: ArrayLike, t: float) -> np.ndarray:
         """df/dq (Eq. 4's a_jk of the configuration constraints), for the projection."""
-        (Aq,) = self._scalar["position_jacobian"](list(np.asarray(q, float)), [0.0] * self.n,
-                                                 t, self.p)
+        (Aq,) = self._scalar["position_jacobian"](
+            list(np.asarray(q, float)), [0.0] * self.n, t, self.p
+        )
         return np.array(Aq, float).reshape(-1, self.nq)
 
     # ---- batched -----------------------------------------------------------------------
-    def forward_batch(self, Q: ArrayLike, U: ArrayLike, t: Any = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def forward_batch(
+        self, Q: ArrayLike, U: ArrayLike, t: Any = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """u' and lambda for N states at once: Q (N x nq), U (N x n). Returns (UD, LAM, piv)."""
         Q = np.asarray(Q, dtype=float)
         U = np.asarray(U, dtype=float)
         if Q.ndim != 2 or Q.shape[1] != self.nq or U.shape != (Q.shape[0], self.n):
             raise ModelInputError(
                 f"{self.model.name}: batched states must be (N, {self.nq}) and (N, {self.n}), "
-                f"got {Q.shape} and {U.shape}")
+                f"got {Q.shape} and {U.shape}"
+            )
         if not (np.isfinite(Q).all() and np.isfinite(U).all()):
             raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
@@ -483,7 +535,8 @@ class NumericModel:
             i = int(np.argmax(bad))
             raise SingularSystemError(
                 f"{bad.sum()} of {N} states are singular; first: index {i}. "
-                + self._singular_message(Q[i], float(piv[i])))
+                + self._singular_message(Q[i], float(piv[i]))
+            )
         return UD, LAM, piv
 
     def _forward_batch_redundant(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
@@ -521,10 +574,11 @@ class NumericModel:
         name = "forward_batch" if compiled.threads() == 1 else "forward_batch_parallel"
         if name != "forward_batch":
             import numba
-            numba.set_num_threads(min(compiled.threads(),
-                                      numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]  # set at import, not in numba's stubs
-        self._k.get(name)(np.ascontiguousarray(Q), np.ascontiguousarray(U), T, P,
-                          self._db0[None], out, st)
+
+            numba.set_num_threads(min(compiled.threads(), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]  # set at import, not in numba's stubs
+        self._k.get(name)(
+            np.ascontiguousarray(Q), np.ascontiguousarray(U), T, P, self._db0[None], out, st
+        )
         bad = (st != compiled.OK) & (st != compiled.SINGULAR)
         if bad.any():
             i = int(np.argmax(bad))

@@ -18,6 +18,7 @@ acceleration satisfies them all, and that is an error, not a least-squares answe
 The rank is the numerical rank at the model's initial state; a state where it drops lower is a
 kinematic singularity and is refused as before (SingularSystemError).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -77,7 +78,8 @@ def solve(M, f, A, b, *, rank_expected: int, augment: bool, where: str = ""):
         raise SingularSystemError(
             f"{where}: the constraint rows lose rank here (rank {r} < {rank_expected} at the "
             f"initial state; singular values {np.array2string(s, precision=2)}): a kinematic "
-            f"singularity. Move the state away from this pose.")
+            f"singularity. Move the state away from this pose."
+        )
     Ur = U[:, :r]
     Ar = s[:r, None] * Vt[:r]
     br = Ur.T @ b
@@ -107,5 +109,6 @@ def solve(M, f, A, b, *, rank_expected: int, augment: bool, where: str = ""):
         raise InconsistentConstraintError(
             f"{where}: the constraint rows are dependent (rank {r} < {m}) and contradict each "
             f"other: |A u' - b| = {off:.2e} (relative {off / scale:.1e} > "
-            f"{CONSISTENCY_RTOL:.0e}). Remove the contradicting constraints or fix their anchors.")
+            f"{CONSISTENCY_RTOL:.0e}). Remove the contradicting constraints or fix their anchors."
+        )
     return ud, lam, min(piv_M, piv_S), r

@@ -1,4 +1,5 @@
 """Derive once: the compiled code is cached on disk by model content, across processes."""
+
 from __future__ import annotations
 
 import os
@@ -26,8 +27,13 @@ print(repr(nm.forward(nm.model.initial_q, nm.model.initial_u).multipliers[0]))
 
 def _run(mode, cache, *extra):
     env = dict(os.environ, CROSSCHECK_CACHE_DIR=str(cache))
-    return subprocess.run([sys.executable, "-c", SCRIPT, mode, *extra], env=env,
-                          capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", SCRIPT, mode, *extra],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_second_process_reads_the_cache(tmp_path):
@@ -54,6 +60,7 @@ def test_mjcf_reimport_under_another_name_has_the_same_key(tmp_path):
     import shutil
 
     from reference.mjcf import import_mjcf
+
     src = os.path.join(os.path.dirname(__file__), "data", "fourbar_connect.xml")
     copy = tmp_path / "my_copy_of_the_fourbar.xml"
     shutil.copy(src, copy)
@@ -64,13 +71,16 @@ def test_mjcf_reimport_under_another_name_has_the_same_key(tmp_path):
 
 def test_cache_key_follows_model_content():
     import dataclasses
+
     model = models.get("slider_crank")
-    changed = dataclasses.replace(model, configuration_constraints=(
-        2 * model.configuration_constraints[0],))
+    changed = dataclasses.replace(
+        model, configuration_constraints=(2 * model.configuration_constraints[0],)
+    )
     assert codegen.cache_key(model, "lagrange") != codegen.cache_key(changed, "lagrange")
     assert codegen.cache_key(model, "lagrange") != codegen.cache_key(model, "kane")
-    assert codegen.cache_key(model, "lagrange") == codegen.cache_key(models.get("slider_crank"),
-                                                                      "lagrange")
+    assert codegen.cache_key(model, "lagrange") == codegen.cache_key(
+        models.get("slider_crank"), "lagrange"
+    )
 
 
 KEY_SCRIPT = """
@@ -84,16 +94,29 @@ def _key_and_entries(pkg_root, cache):
     """The cache key seen by a process that imports `reference` from `pkg_root`, and the cache
     entries that process leaves after building the model once."""
     env = dict(os.environ, PYTHONPATH=str(pkg_root), CROSSCHECK_CACHE_DIR=str(cache))
-    key = subprocess.run([sys.executable, "-c", KEY_SCRIPT], env=env, capture_output=True,
-                         text=True, timeout=300, cwd=pkg_root)
+    key = subprocess.run(
+        [sys.executable, "-c", KEY_SCRIPT],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=pkg_root,
+    )
     assert key.returncode == 0, key.stderr
     where, key = key.stdout.split()
     assert where.startswith(str(pkg_root)), f"the copy was not imported: {where}"
-    run = subprocess.run([sys.executable, "-c", SCRIPT, "derive"], env=env, capture_output=True,
-                         text=True, timeout=300, cwd=pkg_root)
+    run = subprocess.run(
+        [sys.executable, "-c", SCRIPT, "derive"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=pkg_root,
+    )
     assert run.returncode == 0, run.stderr
-    return key, sorted(p.name for p in cache.glob("kane-*.py")
-                       if not p.name.endswith("_numba.py"))  # the kernels' module beside it
+    return key, sorted(
+        p.name for p in cache.glob("kane-*.py") if not p.name.endswith("_numba.py")
+    )  # the kernels' module beside it
 
 
 def test_editing_a_formulation_misses_the_cache(tmp_path):
@@ -103,14 +126,18 @@ def test_editing_a_formulation_misses_the_cache(tmp_path):
     import shutil
 
     import reference
+
     src = os.path.dirname(reference.__file__)
     original, edited = tmp_path / "original", tmp_path / "edited"
     for root in (original, edited):
         shutil.copytree(src, root / "reference", ignore=shutil.ignore_patterns("__pycache__"))
     proj = edited / "reference" / "formulations" / "projection.py"
-    proj.write_text(proj.read_text().replace(
-        "T_star = b.inertia * alpha + b.omega.cross(H)",
-        "T_star = b.inertia * alpha + b.omega.cross(H)  # edited"))
+    proj.write_text(
+        proj.read_text().replace(
+            "T_star = b.inertia * alpha + b.omega.cross(H)",
+            "T_star = b.inertia * alpha + b.omega.cross(H)  # edited",
+        )
+    )
     assert "# edited" in proj.read_text(), "the edit did not apply: the test proves nothing"
     cache = tmp_path / "cache"
     key0, entries0 = _key_and_entries(original, cache)

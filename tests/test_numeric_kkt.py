@@ -6,12 +6,14 @@ generated M, A, f, b per state with reference.redundant. Checked against MuJoCo'
 bar (measured: 6e-15 at these states for N = 5, printed by `python -m crosscheck.mjcf_rigid
 FILE`; 1.9e-14 at the parallelogram states of docs/scaling.md).
 """
+
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
 from crosscheck.mjcf_rigid import agreement
+
 from reference import codegen
 from reference.mjcf import import_mjcf
 from reference.numeric import NumericModel

@@ -1,8 +1,11 @@
 """`--model-file` on the commands (issue 11 item 1): user models beside the built-in ones."""
+
 from __future__ import annotations
 
 import json
 from pathlib import Path
+
+import pytest
 
 from crosscheck.cli import main
 
@@ -29,13 +32,27 @@ def test_models_json_has_origin(capsys):
 
 
 def test_run_with_model_file_runs_only_its_models(tmp_path, capsys):
-    code = main(["run", "--model-file", FOURBAR, "--engines", "mujoco", "--states", "2",
-                 "--instantaneous", "--no-report", "--out", str(tmp_path)])
+    code = main(
+        [
+            "run",
+            "--model-file",
+            FOURBAR,
+            "--engines",
+            "mujoco",
+            "--states",
+            "2",
+            "--instantaneous",
+            "--no-report",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     records = json.loads((tmp_path / "results.json").read_text())["records"]
     assert {r["model"] for r in records} == {"fourbar_connect"}
-    formulations = [r for r in records if r["check"] == "formulations"
-                    and r["quantity"] == "accelerations"]
+    formulations = [
+        r for r in records if r["check"] == "formulations" and r["quantity"] == "accelerations"
+    ]
     assert formulations and all(r["passed"] for r in formulations)
 
 
@@ -73,16 +90,34 @@ def test_unknown_model_name_lists_user_models(capsys):
     assert "fourbar_connect" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # three formulations of a 9-coordinate model derived cold: minutes
 def test_gripper_past_dead_centre_is_a_failed_record_not_an_abort(tmp_path, capsys):
     """Issue 11: the ten-body gripper reaches a dead centre at t = 0.73 s, where its constraint
     rows lose rank. The run must go on and write the reference's failed trajectory record
     with the reason, and the engines' trajectory records say why they were not compared."""
-    code = main(["run", "--model-file", str(DATA / "gripper.xml"), "--engines", "mujoco",
-                 "--states", "1", "--t-end", "1", "--no-report", "--out", str(tmp_path)])
+    code = main(
+        [
+            "run",
+            "--model-file",
+            str(DATA / "gripper.xml"),
+            "--engines",
+            "mujoco",
+            "--states",
+            "1",
+            "--t-end",
+            "1",
+            "--no-report",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert code == 1, capsys.readouterr().err  # 1: a failed record, not a crash
     records = json.loads((tmp_path / "results.json").read_text())["records"]
-    traj = {r["engine"]: r for r in records if r["check"] == "trajectory"
-            and r["quantity"] == "state_error"}
+    traj = {
+        r["engine"]: r
+        for r in records
+        if r["check"] == "trajectory" and r["quantity"] == "state_error"
+    }
     ref = traj["reference"]
     assert ref["passed"] is False and ref["failure"] is True
     assert "SingularSystemError: at t = 0.72" in ref["reason"], ref["reason"]

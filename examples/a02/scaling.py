@@ -21,6 +21,7 @@ against the exact parallelogram motion (a one-dof equation, exact_b0_x).
 Figures: docs/scaling.md. A state's accelerations all vanish at the release pose (the cranks
 upright), so the per-state errors are taken at random states as well.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -78,25 +79,39 @@ def build(n: int, work: Path) -> dict:
     t2 = time.perf_counter()
     NumericModel(um.model, "kane")  # warm: the generated code read back from the cache
     t3 = time.perf_counter()
-    return {"path": path, "um": um, "nm": nm,
-            "row": {"N": n, "links": 2 * n + 1, "n": nm.n, "m": nm.m, "rank": nm.rank,
-                    "kkt_rows": nm.n + nm.m, "kkt_solve": "numeric" if nm.numeric_kkt
-                    else "unrolled", "backend": nm.backend, "import_s": t1 - t0,
-                    "derive_cold_s": t2 - t1, "derive_warm_s": t3 - t2}}
+    return {
+        "path": path,
+        "um": um,
+        "nm": nm,
+        "row": {
+            "N": n,
+            "links": 2 * n + 1,
+            "n": nm.n,
+            "m": nm.m,
+            "rank": nm.rank,
+            "kkt_rows": nm.n + nm.m,
+            "kkt_solve": "numeric" if nm.numeric_kkt else "unrolled",
+            "backend": nm.backend,
+            "import_s": t1 - t0,
+            "derive_cold_s": t2 - t1,
+            "derive_warm_s": t3 - t2,
+        },
+    }
 
 
 def timings(nm, pin, m, qpos, qvel, u) -> dict:
     """Seconds per forward call of each engine at one state."""
     import mujoco
-
     from crosscheck.mjcf_rigid import rigid_forward
 
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = qpos, qvel
-    return {"reference": per_call(lambda: nm.forward(qpos, u)),
-            "pinocchio": per_call(lambda: pin.forward(qpos, u)),
-            "mujoco_rigid": per_call(lambda: rigid_forward(m, qpos, qvel)),
-            "mujoco_soft": per_call(lambda: mujoco.mj_forward(m, d))}
+    return {
+        "reference": per_call(lambda: nm.forward(qpos, u)),
+        "pinocchio": per_call(lambda: pin.forward(qpos, u)),
+        "mujoco_rigid": per_call(lambda: rigid_forward(m, qpos, qvel)),
+        "mujoco_soft": per_call(lambda: mujoco.mj_forward(m, d)),
+    }
 
 
 def parallelogram_states(n: int, count: int, seed: int = 7):
@@ -118,8 +133,9 @@ def parallelogram_states(n: int, count: int, seed: int = 7):
 
 def engines_at_states(b: dict) -> dict:
     """Per engine: seconds per forward call and worst relative u' error against the reference."""
-    from crosscheck.engines.pinocchio.user_file import UserFilePinModel
     from crosscheck.mjcf_rigid import rigid_forward
+
+    from crosscheck.engines.pinocchio.user_file import UserFilePinModel
     from reference.errors import SingularSystemError
     from reference.mjcf import rates_from_qvel
 
@@ -138,14 +154,21 @@ def engines_at_states(b: dict) -> dict:
             continue
         scale = max(1.0, float(np.max(np.abs(ref))))
         rigid = rigid_forward(m, qpos, qvel)
-        got = {"pinocchio": pin.forward(qpos, u).accelerations,
-               "mujoco_rigid": rigid.qacc, "mujoco_soft": rigid.qacc_soft}
+        got = {
+            "pinocchio": pin.forward(qpos, u).accelerations,
+            "mujoco_rigid": rigid.qacc,
+            "mujoco_soft": rigid.qacc_soft,
+        }
         for key, acc in got.items():
             err[key] = max(err[key], float(np.max(np.abs(acc - ref))) / scale)
         if k == 0:  # timings at the release state
             cost = timings(nm, pin, m, qpos, qvel, u)
-    return {"forward_s": cost, "max_rel_error_vs_reference": err,
-            "states_compared": STATES + 1 - len(refused), "states_refused": refused}
+    return {
+        "forward_s": cost,
+        "max_rel_error_vs_reference": err,
+        "states_compared": STATES + 1 - len(refused),
+        "states_refused": refused,
+    }
 
 
 def exact_b0_x(n: int, times) -> np.ndarray:
@@ -158,9 +181,15 @@ def exact_b0_x(n: int, times) -> np.ndarray:
     from scipy.integrate import solve_ivp
 
     inertia, torque = (n + 1) / 3.0 + n, 9.81 * ((n + 1) / 2.0 + n)
-    sol = solve_ivp(lambda t, y: [y[1], torque * np.sin(y[0]) / inertia], (0.0, T_END),
-                    [0.0, -1.0], method="DOP853", rtol=EXACT_RTOL, atol=EXACT_RTOL,
-                    t_eval=times)
+    sol = solve_ivp(
+        lambda t, y: [y[1], torque * np.sin(y[0]) / inertia],
+        (0.0, T_END),
+        [0.0, -1.0],
+        method="DOP853",
+        rtol=EXACT_RTOL,
+        atol=EXACT_RTOL,
+        t_eval=times,
+    )
     return -np.sin(sol.y[0])
 
 
@@ -172,8 +201,9 @@ def b0_error(n: int, times, Q) -> float:
 def drift(nm, Q, U) -> dict:
     """Mechanical-energy drift and loop-closure residual along states (reference functions)."""
     E = np.array([sum(nm.energy(q, u)) for q, u in zip(Q, U, strict=True)])
-    res = max(float(np.max(np.abs(nm.residuals(q, u)[0]), initial=0.0))
-              for q, u in zip(Q, U, strict=True))
+    res = max(
+        float(np.max(np.abs(nm.residuals(q, u)[0]), initial=0.0)) for q, u in zip(Q, U, strict=True)
+    )
     return {"energy_drift_J": float(np.max(np.abs(E - E[0]))), "max_loop_residual_m": res}
 
 
@@ -196,8 +226,13 @@ def mujoco_run(b: dict) -> dict:
             U.append(d.qvel.copy())
     wall = time.perf_counter() - t0
     times = np.arange(len(Q)) * every * m.opt.timestep
-    return {"wall_s": wall, "t_reached": float(d.time), "B0_x_end": float(-np.sin(d.qpos[0])),
-            "B0_x_max_error_m": b0_error(len(imp.joints) // 2, times, Q), **drift(nm, Q, U)}
+    return {
+        "wall_s": wall,
+        "t_reached": float(d.time),
+        "B0_x_end": float(-np.sin(d.qpos[0])),
+        "B0_x_max_error_m": b0_error(len(imp.joints) // 2, times, Q),
+        **drift(nm, Q, U),
+    }
 
 
 def reference_run(b: dict, wall: float) -> dict:
@@ -208,35 +243,62 @@ def reference_run(b: dict, wall: float) -> dict:
     q0, u0 = nm.model.initial_q, nm.model.initial_u
     t0 = time.perf_counter()
     try:
-        tr = simulate(nm, q0, u0, T_END, "projection", rtol=REFERENCE_RTOL,
-                      atol=REFERENCE_RTOL * 1e-2, t_eval=np.linspace(0, T_END, 401),
-                      max_wall_s=wall)
+        tr = simulate(
+            nm,
+            q0,
+            u0,
+            T_END,
+            "projection",
+            rtol=REFERENCE_RTOL,
+            atol=REFERENCE_RTOL * 1e-2,
+            t_eval=np.linspace(0, T_END, 401),
+            max_wall_s=wall,
+        )
     except Exception as exc:  # a singular position or the wall budget: reported, not raised
-        return {"wall_s": time.perf_counter() - t0, "stopped": f"{type(exc).__name__}: "
-                f"{(str(exc).splitlines() or [''])[0][:300]}"}
+        return {
+            "wall_s": time.perf_counter() - t0,
+            "stopped": f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:300]}",
+        }
     Q, U = np.asarray(tr.q), np.asarray(tr.u)
-    return {"wall_s": time.perf_counter() - t0, "t_reached": float(tr.t[-1]),
-            "B0_x_end": float(-np.sin(Q[-1][0])), "nfev": int(tr.nfev),
-            "B0_x_max_error_m": b0_error(nm.n // 2, tr.t, Q), **drift(nm, Q, U)}
+    return {
+        "wall_s": time.perf_counter() - t0,
+        "t_reached": float(tr.t[-1]),
+        "B0_x_end": float(-np.sin(Q[-1][0])),
+        "nfev": int(tr.nfev),
+        "B0_x_max_error_m": b0_error(nm.n // 2, tr.t, Q),
+        **drift(nm, Q, U),
+    }
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", default="1,2,5,10,20,40", help="cell counts, comma-separated")
     ap.add_argument("--out", default=str(HERE / "scaling.json"))
-    ap.add_argument("--wall", type=float, default=60.0,
-                    help="wall seconds for each reference 10 s run (default 60)")
+    ap.add_argument(
+        "--wall",
+        type=float,
+        default=60.0,
+        help="wall seconds for each reference 10 s run (default 60)",
+    )
     args = ap.parse_args(argv)
     from reference import codegen
 
-    out = {"benchmark": "IFToMM A02 N-four-bar, 10 s", "command": "PYTHONPATH=$PWD python "
-           "examples/a02/scaling.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-           "unroll_kkt_max": codegen.UNROLL_KKT_MAX, "rows": []}
+    out = {
+        "benchmark": "IFToMM A02 N-four-bar, 10 s",
+        "command": "PYTHONPATH=$PWD python "
+        "examples/a02/scaling.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "unroll_kkt_max": codegen.UNROLL_KKT_MAX,
+        "rows": [],
+    }
     with tempfile.TemporaryDirectory(prefix="a02_") as tmp:
         for n in (int(x) for x in args.n.split(",")):
             b = build(n, Path(tmp))
-            row = {**b["row"], **engines_at_states(b), "mujoco_10s": mujoco_run(b),
-                   "reference_10s": reference_run(b, args.wall)}
+            row = {
+                **b["row"],
+                **engines_at_states(b),
+                "mujoco_10s": mujoco_run(b),
+                "reference_10s": reference_run(b, args.wall),
+            }
             out["rows"].append(row)
             print(json.dumps(row), flush=True)
             # written after every N: the large ones take minutes, the small ones are kept

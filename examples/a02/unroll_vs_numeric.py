@@ -3,6 +3,7 @@ for codegen.UNROLL_KKT_MAX): each in a fresh derivation cache, the unrolled one 
 
     CROSSCHECK_BACKEND=python PYTHONPATH=$PWD python examples/a02/unroll_vs_numeric.py 5
 """
+
 import os
 import sys
 import tempfile
@@ -28,5 +29,8 @@ with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         nm = NumericModel(imp.model, "kane")
         took = time.perf_counter() - t0
-        print(f"N = {n}: {'numeric' if nm.numeric_kkt else 'unrolled'} forward, cold build "
-              f"{took:.1f} s, generated source {len(nm.source) // 1000} kB", flush=True)
+        print(
+            f"N = {n}: {'numeric' if nm.numeric_kkt else 'unrolled'} forward, cold build "
+            f"{took:.1f} s, generated source {len(nm.source) // 1000} kB",
+            flush=True,
+        )
