@@ -1,4 +1,5 @@
-"""Textbook multiplier formulations cross-checked against Pinocchio and MuJoCo.
+"""Textbook multiplier formulations cross-checked against the registered engines (Pinocchio,
+MuJoCo, Exudyn, OpenSim).
 
 ``crosscheck.check`` and ``crosscheck.assert_passes`` (crosscheck.api) check a model from a
 test suite; they load on first use, so importing the package (the CLI) stays light.

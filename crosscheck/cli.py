@@ -264,10 +264,23 @@ def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) ->
     return out
 
 
+# The suite's matrices are small (at most a few hundred rows): a second BLAS thread only adds
+# synchronization, and on a loaded 2-core machine it waits for a core. Measured: one SVD of the
+# 40-cell four-bar's 120 x 81 constraint Jacobian took 308 ms with numpy's default two threads
+# and 8 ms with one (docs/numerics.md). Set before numpy loads; a user's setting wins.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")  # not OMP: numba reads it
+
+
+def one_blas_thread() -> None:
+    for var in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(var, "1")
+
+
 def main(argv=None) -> int:
     entry = argv is None  # the `crosscheck` program itself, not a caller in this process
     if entry:
         interrupts.install()
+        one_blas_thread()
     code = _main(argv)
     if entry and code == EXIT_INTERRUPTED:
         # CPython kills itself with SIGINT at exit (status -2, not 130) when the interrupt
