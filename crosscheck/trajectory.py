@@ -12,18 +12,16 @@ Each run yields records (state error against the reference, constraint drift, ve
 |A u + a0|, energy drift) and a series for the report's plots; an engine model with soft
 constraint rows (Capabilities.soft_limit) is also run with its regularization's time constant
 halved, and the two runs extrapolated to the rigid limit are judged against the reference
-(``state_error_rigid_limit``, SOFT_LIMIT_*), which sizes its other tolerances too; a run that
-does not finish is a failed record with its reason, and the other runs go on.
-
-State error: max over the output times of max |x - x_ref| / max(max |x_ref|, 1), x = (q, u) in
-the reference's coordinates. Angles are unwrapped in time and a whole-turn offset at t = 0 is
-removed, so a coordinate reported modulo 2 pi does not count as an error.
+(``state_error_rigid_limit``, trajectory_soft.py), which sizes its other tolerances too; a run
+that does not finish is a failed record with its reason, and the other runs go on. What a run is
+judged by (the scaled state error, residuals, energy) is in trajectory_measures.py.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,9 +30,21 @@ from reference.integrate import PROJECTION_TOL, simulate
 
 from . import compare as C
 from . import interrupts
-from .comparison import build, constraint_residual, energy_drift, work_energy_balance
+from .comparison import build, energy_drift, work_energy_balance
 from .engines.base import EngineUnsupported
 from .engines.registry import engine_label
+from .trajectory_measures import energy_measure, energy_series, residual_series, state_error
+from .trajectory_soft import (
+    SOFT_DRIFT,
+    SOFT_ENERGY,
+    SOFT_STATE,
+    SOFT_VELOCITY_DRIFT,
+    soft_limit,
+)
+
+# re-exported: scripts/mujoco_soft.py reads the rigid-limit setting from here
+from .trajectory_soft import SOFT_LIMIT_FACTOR as SOFT_LIMIT_FACTOR
+from .trajectory_soft import SOFT_LIMIT_ORDER as SOFT_LIMIT_ORDER
 
 T_END = 5.0
 N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots
@@ -95,6 +105,13 @@ PROJECTION_SLACK = 2.0
 VELOCITY_ROUND_OFF = 16 * float(np.finfo(float).eps)
 
 
+REF_ENERGY = C.Tolerance(
+    1e-9,
+    "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
+    "(projection does not conserve energy exactly, docs/numerics.md)",
+)
+
+
 def projected_drift(q) -> C.Tolerance:
     """The projection's own guarantee on f(q, t) over a run with coordinates q."""
     qmax = float(np.max(np.abs(np.asarray(q)))) if np.size(q) else 0.0
@@ -137,70 +154,12 @@ INDEX1_DRIFT = C.Tolerance(
     "no stabilization: the position drift follows the integrator's error, ~10..100x its "
     "tolerance over 5..10 s (docs/numerics.md); 1e3x rtol",
 )
-SOFT_STATE = C.Tolerance(
-    5e-2,
-    "characterization, not a physics bound (an engine whose soft model has no stiffer "
-    "version, Capabilities.soft_limit): soft equality constraints make the trajectory "
-    "follow slightly different dynamics; MuJoCo measured 6e-6 (pendulum) .. 1.1e-2 (top "
-    "spinning at 60 rad/s) over 5 s, independent of the step",
-)
-# The rigid limit: MuJoCo's soft effect on a trajectory shrinks as its solref time constant tc
-# shrinks; halving tc divided it by r = 2.7 (pendulum_xy, exercise_6_1) .. 9.8 (the free double
-# pendulum) on every built-in model (p = log2 r >= 1.4). The runs at tc and tc/2 are
-# extrapolated to tc -> 0 as if p = 2: x_lim = x(tc/2) + (x(tc/2) - x(tc)) / 3. For any r >= 2
-# the extrapolation's error is at most 2x its correction |x(tc/2) - x(tc)| / 3 (its ratio to
-# the correction is 3 / (r - 1) - 1, in [-1, 2]; measured 0.14..0.75), and the soft effect at
-# tc at most 6x (3 r / (r - 1)). A physics error in the engine's model is not removed by the
-# extrapolation: a 1 % mass error on the slider-crank leaves 4.1e-4 against a bound of 1.7e-4
-# (docs/engines/mujoco.md has the table and the command).
-SOFT_LIMIT_FACTOR = 2.0  # tc -> tc / 2
-SOFT_LIMIT_ORDER = 2.0  # the order the extrapolation assumes (measured 1.4..3.3)
-SOFT_LIMIT_SLACK = 2.0  # |error| <= 2 x correction for any measured order >= 1
-SOFT_EFFECT_SLACK = 6.0  # |soft effect at tc| <= 6 x correction for any order >= 1
-SOFT_DRIFT = C.Tolerance(
-    1e-5,
-    "MuJoCo's soft constraints settle at a violation set by solref (time constant "
-    "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md",
-)
 INDEX1_VELOCITY_DRIFT = C.Tolerance(
     1e-7,
     "no stabilization: A u + a0 drifts with the integrator's error like the positions "
     "(INDEX1_DRIFT); measured 4e-13..4e-10 for the reference's own index-1 run at rtol "
     "1e-12 (scripts/drift_guarantee.py)",
 )
-SOFT_VELOCITY_DRIFT = C.Tolerance(
-    1e-3,
-    "MuJoCo's soft constraints: the velocity violation is damped with solref's time "
-    "constant (0.02 s), not removed; characterization (measured in crosscheck run, "
-    "docs/engines/mujoco.md)",
-)
-SOFT_ENERGY = C.Tolerance(
-    1e-2,
-    "the soft constraints' damper (solref damping ratio 1) dissipates energy: "
-    "characterization (docs/engines/mujoco.md: 6e-4 J of 7 J for the slider-crank, RK4)",
-)
-
-
-def state_error(q, u, ref_q, ref_u) -> np.ndarray:
-    """Scaled state error at every output time (angles unwrapped, whole-turn offset removed)."""
-    qa, qb = np.unwrap(np.asarray(q), axis=0), np.unwrap(np.asarray(ref_q), axis=0)
-    offset = 2 * np.pi * np.round((qa[0] - qb[0]) / (2 * np.pi))
-    diff = np.hstack([qa - qb - offset, np.asarray(u) - np.asarray(ref_u)])
-    scale = max(float(np.max(np.abs(np.hstack([ref_q, ref_u])))), 1.0)
-    return np.max(np.abs(diff), axis=1) / scale
-
-
-def _residual_series(nm: NumericModel, t, q, u) -> tuple[np.ndarray, np.ndarray]:
-    """max |f(q, t)| and max |A u + a0| at every output time (0 where there are no rows)."""
-    res = np.array(
-        [constraint_residual(nm, qi, ui, ti) for ti, qi, ui in zip(t, q, u, strict=False)]
-    )
-    res = res.reshape(len(t), 2)
-    return res[:, 0], res[:, 1]
-
-
-def _energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
-    return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u, strict=False)])
 
 
 def _series(model, engine, formulation, label, t, err, res, E, work=None, variant=None):
@@ -230,9 +189,19 @@ def _series(model, engine, formulation, label, t, err, res, E, work=None, varian
     return s
 
 
+class _Tolerances(NamedTuple):
+    """What an engine run's first-rung records are held to."""
+
+    state: C.Tolerance
+    drift: C.Tolerance  # constraint drift |f(q, t)|
+    energy: C.Tolerance  # energy drift, or work-energy balance
+    velocity: C.Tolerance  # velocity drift |A u + a0|
+
+
 def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
     """An error-controlled engine integrator at ENGINE_RTOL, held to 10x the reference's own
-    global error (and energy error) at that rtol, measured in this run."""
+    global error (and energy error) at that rtol, measured in this run. Returns the runs, their
+    _Tolerances and the extra records (none)."""
     tr = em.simulate(q0, u0, grid, integrator=integrator, rtol=ENGINE_RTOL)
     # the engine's own integrator need not share DOP853's error per rtol (Simbody's accuracy
     # is a different norm): its own error, estimated against a run at 10x the rtol, is added
@@ -254,19 +223,16 @@ def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
     )
     return (
         [(label, tr.t, tr.q, tr.u, {"nfev": tr.steps})],
-        state_tol,
-        INDEX1_DRIFT,
-        energy_tol,
-        INDEX1_VELOCITY_DRIFT,
+        _Tolerances(state_tol, INDEX1_DRIFT, energy_tol, INDEX1_VELOCITY_DRIFT),
         [],
     )
 
 
-def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
+def _fixed_step_runs(ctx, em, integrator, has_soft_limit: bool):
     """A fixed-step engine integrator on the step ladder FIXED_STEPS: the tolerances come from
-    halving the step, and for soft constraint rows from the rigid limit (_soft_limit) where
-    the engine has a stiffer model (else characterized, SOFT_*). Returns the runs, the state,
-    drift, energy and velocity tolerances and the extra records."""
+    halving the step, and for soft constraint rows from the rigid limit (trajectory_soft) where
+    the engine has a stiffer model (else characterized, SOFT_*). Returns the runs, their
+    _Tolerances and the extra records."""
     nm, q0, u0 = ctx.nm, ctx.q0, ctx.u0
     grid = output_grid(ctx.t_end)
     ladder = step_ladder(ctx.t_end)
@@ -280,11 +246,10 @@ def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
     h0, h1 = ladder
     halving = float(np.max(state_error(trs[h0].q, trs[h0].u, trs[h1].q, trs[h1].u)))
     if em.soft_constraints:
-        if not soft_limit:
-            return runs, SOFT_STATE, SOFT_DRIFT, SOFT_ENERGY, SOFT_VELOCITY_DRIFT, []
-        limit, state_tol, energy_tol = _soft_limit(ctx, em, integrator, runs, h0, halving)
-        return runs, state_tol, SOFT_DRIFT, energy_tol, SOFT_VELOCITY_DRIFT, [limit]
-    conserved, work = ctx.conserved, ctx.work
+        if not has_soft_limit:
+            return runs, _Tolerances(SOFT_STATE, SOFT_DRIFT, SOFT_ENERGY, SOFT_VELOCITY_DRIFT), []
+        limit, state_tol, energy_tol = soft_limit(ctx, em, integrator, runs, h0, halving)
+        return runs, _Tolerances(state_tol, SOFT_DRIFT, energy_tol, SOFT_VELOCITY_DRIFT), [limit]
     state_tol = C.Tolerance(
         10 * halving + 1e-10,
         f"no constraint rows in {engine_label(em.engine)}'s model: {integrator}'s global "
@@ -292,12 +257,7 @@ def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
         f"in this run by halving the step ({halving:.1e}), times 10, plus the "
         f"reference's own accuracy",
     )
-    E0, E1 = (_energy_series(nm, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
-    E0, E1 = (
-        (energy_drift(E0), energy_drift(E1))
-        if conserved
-        else (work_energy_balance(E0, work), work_energy_balance(E1, work))
-    )
+    E0, E1 = (energy_measure(ctx, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
     energy_tol = C.Tolerance(
         10 * abs(E0 - E1) + 1e-10,
         f"{integrator}'s energy error estimated by halving the step ({abs(E0 - E1):.1e}), times 10",
@@ -305,7 +265,7 @@ def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
     # a fixed-step (index-3) solver holds the position rows; its velocity residual is a
     # discretization error, estimated like the state error by halving the step
     V0, V1 = (
-        float(np.max(_residual_series(nm, trs[h].t, trs[h].q, trs[h].u)[1])) if nm.m else 0.0
+        float(np.max(residual_series(nm, trs[h].t, trs[h].q, trs[h].u)[1])) if nm.m else 0.0
         for h in (h0, h1)
     )
     velocity_tol = C.Tolerance(
@@ -313,66 +273,7 @@ def _fixed_step_runs(ctx, em, integrator, soft_limit: bool):
         f"{integrator}'s velocity-row residual estimated by halving the "
         f"step ({abs(V0 - V1):.1e}), times 10",
     )
-    return runs, state_tol, INDEX1_DRIFT, energy_tol, velocity_tol, []
-
-
-def _energy_measure(ctx, run) -> float:
-    """The energy figure a trajectory record judges: drift where energy is conserved, else
-    the work-energy balance against the reference's work."""
-    E = _energy_series(ctx.nm, run[1], run[2], run[3])
-    return energy_drift(E) if ctx.conserved else work_energy_balance(E, ctx.work)
-
-
-def _soft_energy_tolerance(ctx, runs, stiff) -> C.Tolerance:
-    """The soft run's energy error bounded like its state error: the damper's dissipation
-    shrinks with tc (as tc^2 on slider_crank_split, docs/engines/mujoco.md), so at tc it is at
-    most SOFT_EFFECT_SLACK x the extrapolation's correction |D(tc) - D(tc/2)| / 3."""
-    d_tc, d_half_step = _energy_measure(ctx, runs[0]), _energy_measure(ctx, runs[1])
-    d_stiff = _energy_measure(ctx, ("", stiff.t, stiff.q, stiff.u))
-    w = 1.0 / (SOFT_LIMIT_FACTOR**SOFT_LIMIT_ORDER - 1.0)
-    correction = w * abs(d_tc - d_stiff)
-    step = abs(d_tc - d_half_step)
-    return C.Tolerance(
-        SOFT_EFFECT_SLACK * correction + 10 * step + 1e-10,
-        f"the soft constraints' damper dissipates energy, less as tc shrinks: at tc it is <= "
-        f"{SOFT_EFFECT_SLACK:g} x the correction |D(tc) - D(tc/{SOFT_LIMIT_FACTOR:g})| / 3 "
-        f"({correction:.2e}) for any order >= 1, plus 10x the step-halving difference "
-        f"({step:.1e})",
-    )
-
-
-def _soft_limit(ctx, em, integrator, runs, h, step_err):
-    """The rigid-limit record of a soft engine model, and the state and energy tolerances of
-    its run at the suite's setting, from its runs at tc, steps h and h/2 (runs) and a run at
-    tc / 2 (see SOFT_LIMIT_*); step_err is the step-halving state difference at tc."""
-    stiff = em.stiffened(SOFT_LIMIT_FACTOR).simulate(
-        ctx.q0, ctx.u0, ctx.grid, integrator=integrator, timestep=h
-    )
-    w = 1.0 / (SOFT_LIMIT_FACTOR**SOFT_LIMIT_ORDER - 1.0)
-    qa, qb = np.unwrap(runs[0][2], axis=0), np.unwrap(stiff.q, axis=0)
-    q_lim, u_lim = qb + w * (qb - qa), stiff.u + w * (stiff.u - runs[0][3])
-    correction = w * float(np.max(state_error(runs[0][2], runs[0][3], stiff.q, stiff.u)))
-    step = 10 * step_err + 1e-10
-    limit_tol = C.Tolerance(
-        SOFT_LIMIT_SLACK * correction + step,
-        f"the runs at solref tc and tc/{SOFT_LIMIT_FACTOR:g} extrapolated to tc -> 0 (order "
-        f"{SOFT_LIMIT_ORDER:g}): error <= {SOFT_LIMIT_SLACK:g} x the correction ({correction:.2e}) "
-        f"for any measured order >= 1 (1.4..3.3 on the built-in models), plus 10x the step-"
-        f"halving difference ({step_err:.1e}); a physics error is not extrapolated away",
-    )
-    state_tol = C.Tolerance(
-        SOFT_EFFECT_SLACK * correction + limit_tol.value,
-        f"the soft effect at this solref, <= {SOFT_EFFECT_SLACK:g} x the rigid-limit "
-        f"correction ({correction:.2e}) for any order >= 1, plus the rigid-limit tolerance "
-        f"({limit_tol.value:.2e}); the rigid-limit record judges the physics",
-    )
-    err = float(np.max(state_error(q_lim, u_lim, ctx.ref.q, ctx.ref.u)))
-    label = f"{runs[0][0]}, solref tc and tc/{SOFT_LIMIT_FACTOR:g} extrapolated to tc -> 0"
-    return (
-        ("state_error_rigid_limit", err, limit_tol, label),
-        state_tol,
-        _soft_energy_tolerance(ctx, runs, stiff),
-    )
+    return runs, _Tolerances(state_tol, INDEX1_DRIFT, energy_tol, velocity_tol), []
 
 
 @dataclass(frozen=True)
@@ -435,6 +336,20 @@ class _RunFailed(RuntimeError):
         self.what, self.exc = what, exc
 
 
+def _is_conserved(nm: NumericModel, ref) -> bool:
+    """Energy is conserved at these parameters: declared so, or no load does work along the
+    reference run (a driving torque or damper whose parameter is 0) and no constraint moves."""
+    from reference.constraints import is_rheonomic
+
+    return nm.model.energy_conserved or (
+        not is_rheonomic(nm.model)
+        and all(
+            nm.power_balance(qi, ui, ti)["load_power"] == 0.0
+            for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10], strict=False)
+        )
+    )
+
+
 def _reference_run(name: str, nm: NumericModel, t_end: float):
     """The reference's run, its records and series, and the context the engines need; raises
     _RunFailed when one of its runs does not finish."""
@@ -442,35 +357,33 @@ def _reference_run(name: str, nm: NumericModel, t_end: float):
     grid = output_grid(t_end)
     q0, u0 = nm.project(model.initial_q, model.initial_u)
     ref, tight, loose = _reference_runs(nm, q0, u0, t_end, grid)
-    ref_acc = float(np.max(state_error(ref.q, ref.u, tight.q, tight.u)))
-    # conserved at these parameters: declared so, or no load does work along the reference
-    # run (a driving torque or damper whose parameter is 0) and no constraint moves
-    from reference.constraints import is_rheonomic
-
-    conserved = model.energy_conserved or (
-        not is_rheonomic(model)
-        and all(
-            nm.power_balance(qi, ui, ti)["load_power"] == 0.0
-            for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10], strict=False)
-        )
-    )
+    conserved = _is_conserved(nm, ref)
     # where energy is not conserved, the work-energy balance: E(t) - E(0) = W(t), the work of
     # the applied loads and moving constraints, integrated exactly alongside the reference run
     work = ref.work if ref.work is not None else np.zeros(len(ref.t))
-    E_ref = _energy_series(nm, ref.t, ref.q, ref.u)
-    res_ref, vel_ref = _residual_series(nm, ref.t, ref.q, ref.u)
     loose_err = float(np.max(state_error(loose.q, loose.u, ref.q, ref.u)))
-    E_loose = _energy_series(nm, loose.t, loose.q, loose.u)
+    E_loose = energy_series(nm, loose.t, loose.q, loose.u)
     loose_E = energy_drift(E_loose) if conserved else work_energy_balance(E_loose, work)
     ctx = _Reference(name, nm, t_end, grid, q0, u0, ref, work, conserved, loose_err, loose_E)
-    rec = ctx.rec
+    records, series = _reference_records(ctx, tight)
+    return ctx, records, series
+
+
+def _reference_records(ctx: _Reference, tight):
+    """The reference's records (its accuracy against the tighter run, its drifts within the
+    projection's guarantees, its energy) and its plot series."""
+    nm, ref, rec = ctx.nm, ctx.ref, ctx.rec
+    ref_acc = float(np.max(state_error(ref.q, ref.u, tight.q, tight.u)))
+    E_ref = energy_series(nm, ref.t, ref.q, ref.u)
+    res_ref, vel_ref = residual_series(nm, ref.t, ref.q, ref.u)
+    label = "DOP853+projection"
     records = [
         rec(
             "reference",
             "state_error",
             ref_acc,
             REFERENCE_ACCURACY,
-            label=f"DOP853+projection rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
+            label=f"{label} rtol={REF_RTOL:g} vs {REF_CHECK_RTOL:g}",
             nfev=ref.nfev,
         )
     ]
@@ -481,7 +394,7 @@ def _reference_run(name: str, nm: NumericModel, t_end: float):
                 "constraint_drift",
                 float(res_ref.max()),
                 projected_drift(ref.q),
-                label="DOP853+projection",
+                label=label,
             )
         )
         records.append(
@@ -490,54 +403,60 @@ def _reference_run(name: str, nm: NumericModel, t_end: float):
                 "velocity_drift",
                 float(vel_ref.max()),
                 projected_velocity_drift(ref.u),
-                label="DOP853+projection",
+                label=label,
             )
         )
-    ref_energy_tol = C.Tolerance(
-        1e-9,
-        "DOP853 at rtol 1e-12 over 5 s: energy error well below 1e-9 relative "
-        "(projection does not conserve energy exactly, docs/numerics.md)",
-    )
-    if conserved:
-        records.append(rec("reference", "energy_drift", energy_drift(E_ref), ref_energy_tol))
+    if ctx.conserved:
+        records.append(rec("reference", "energy_drift", energy_drift(E_ref), REF_ENERGY))
     else:
         records.append(
             rec(
                 "reference",
                 "work_energy_balance",
-                work_energy_balance(E_ref, work),
-                ref_energy_tol,
+                work_energy_balance(E_ref, ctx.work),
+                REF_ENERGY,
                 label="E(t) - E(0) - W(t), W integrated with the run",
             )
         )
-    series = [
-        _series(
-            name,
-            "reference",
-            nm.formulation,
-            f"DOP853+projection rtol={REF_RTOL:g}",
-            ref.t,
-            state_error(ref.q, ref.u, tight.q, tight.u),
-            res_ref,
-            E_ref,
-            None if conserved else work,
+    series = _series(
+        ctx.name,
+        "reference",
+        nm.formulation,
+        f"{label} rtol={REF_RTOL:g}",
+        ref.t,
+        state_error(ref.q, ref.u, tight.q, tight.u),
+        res_ref,
+        E_ref,
+        None if ctx.conserved else ctx.work,
+    )
+    return records, [series]
+
+
+def _check_on_grid(ctx: _Reference, engine: str, label: str, t) -> None:
+    """An engine run must land on the reference's output times (a bug here, not a finding)."""
+    ref_t = ctx.ref.t
+    if len(t) != len(ref_t) or np.max(np.abs(np.asarray(t) - ref_t)) > GRID_SLACK * max(
+        ctx.t_end, 1.0
+    ):
+        raise RuntimeError(
+            f"{engine} trajectory of {ctx.name} ({label}, {len(t)} times) "
+            f"is not on the reference's output grid ({len(ref_t)} times over "
+            f"{ctx.t_end:g} s): a bug in output_grid / step_ladder"
         )
-    ]
-    return ctx, records, series
 
 
 def _engine_run(ctx: _Reference, adapter, em, variant):
     """Records (the first rung) and series (every rung) of one engine model's trajectories."""
-    nm, ref, name = ctx.nm, ctx.ref, ctx.name
+    nm, ref = ctx.nm, ctx.ref
     integrator = adapter.capabilities.integrators[0]
     extra = {"variant": variant} if variant else {}
     try:
         if integrator in adapter.capabilities.adaptive_integrators:
-            runs, state_tol, drift_tol, energy_tol, velocity_tol, more = _adaptive_runs(
+            runs, tols, more = _adaptive_runs(
                 em, integrator, ctx.q0, ctx.u0, ctx.grid, ctx.loose_err, ctx.loose_E
             )
         else:
-            runs, state_tol, drift_tol, energy_tol, velocity_tol, more = _fixed_step_runs(
+            runs, tols, more = _fixed_step_runs(
                 ctx, em, integrator, adapter.capabilities.soft_limit
             )
     except Exception as exc:
@@ -547,97 +466,60 @@ def _engine_run(ctx: _Reference, adapter, em, variant):
         ], []
     records, series = [], []
     for k, (label, t, q, u, info) in enumerate(runs):
-        if len(t) != len(ref.t) or np.max(np.abs(np.asarray(t) - ref.t)) > GRID_SLACK * max(
-            ctx.t_end, 1.0
-        ):
-            raise RuntimeError(
-                f"{adapter.name} trajectory of {name} ({label}, {len(t)} times) "
-                f"is not on the reference's output grid ({len(ref.t)} times over "
-                f"{ctx.t_end:g} s): a bug in output_grid / step_ladder"
-            )
+        _check_on_grid(ctx, adapter.name, label, t)
         err = state_error(q, u, ref.q, ref.u)
-        res, vel = _residual_series(nm, t, q, u)
-        E = _energy_series(nm, t, q, u)
+        res, vel = residual_series(nm, t, q, u)
+        E = energy_series(nm, t, q, u)
+        work = None if ctx.conserved else ctx.work
         series.append(
-            _series(
-                name,
-                adapter.name,
-                nm.formulation,
-                label,
-                t,
-                err,
-                res,
-                E,
-                None if ctx.conserved else ctx.work,
-                variant,
-            )
+            _series(ctx.name, adapter.name, nm.formulation, label, t, err, res, E, work, variant)
         )
-        if k:  # records for the first rung; the others feed the estimate and plots
-            continue
-        records.append(
-            ctx.rec(
-                adapter.name,
-                "state_error",
-                float(err.max()),
-                state_tol,
-                label=label,
-                **info,
-                **extra,
-            )
-        )
-        if nm.m:
-            records.append(
-                ctx.rec(
-                    adapter.name,
-                    "constraint_drift",
-                    float(res.max()),
-                    drift_tol,
-                    label=label,
-                    **extra,
-                )
-            )
-            records.append(
-                ctx.rec(
-                    adapter.name,
-                    "velocity_drift",
-                    float(vel.max()),
-                    velocity_tol,
-                    label=label,
-                    **extra,
-                )
-            )
-        if ctx.conserved:
-            records.append(
-                ctx.rec(
-                    adapter.name, "energy_drift", energy_drift(E), energy_tol, label=label, **extra
-                )
-            )
-            continue
-        # a soft model's energy tolerance already judges its work-energy balance
-        balance_tol = (
-            energy_tol
-            if em.soft_constraints
-            else C.Tolerance(
-                energy_tol.value + 10 * state_tol.value,
-                "the engine's energy change against the work done along the "
-                "reference's run: they differ by the engine's energy error plus the "
-                "work along the trajectory difference, bounded by the state tolerance "
-                "(x10 for the size of grad E)",
-            )
-        )
-        records.append(
-            ctx.rec(
-                adapter.name,
-                "work_energy_balance",
-                work_energy_balance(E, ctx.work),
-                balance_tol,
-                label=label,
-                **extra,
-            )
-        )
+        if not k:  # records for the first rung; the others feed the estimate and plots
+            measured = (float(err.max()), float(res.max()), float(vel.max()), E)
+            records += _engine_records(ctx, adapter.name, em, tols, label, measured, info, extra)
     for qty, err, tol, label in more:  # e.g. the soft model's rigid limit
         records.append(ctx.rec(adapter.name, qty, err, tol, label=label, **extra))
     return records, series
+
+
+def _engine_records(
+    ctx: _Reference, engine: str, em, tols: _Tolerances, label, measured, info, extra
+):
+    """The records of an engine run's first rung: its state error, drifts and energy against
+    their tolerances; measured = (max state error, max |f|, max |A u + a0|, energy series)."""
+    err, drift, vel, E = measured
+    records = [ctx.rec(engine, "state_error", err, tols.state, label=label, **info, **extra)]
+    if ctx.nm.m:
+        records.append(ctx.rec(engine, "constraint_drift", drift, tols.drift, label=label, **extra))
+        records.append(ctx.rec(engine, "velocity_drift", vel, tols.velocity, label=label, **extra))
+    if ctx.conserved:
+        records.append(
+            ctx.rec(engine, "energy_drift", energy_drift(E), tols.energy, label=label, **extra)
+        )
+        return records
+    # a soft model's energy tolerance already judges its work-energy balance
+    balance_tol = (
+        tols.energy
+        if em.soft_constraints
+        else C.Tolerance(
+            tols.energy.value + 10 * tols.state.value,
+            "the engine's energy change against the work done along the "
+            "reference's run: they differ by the engine's energy error plus the "
+            "work along the trajectory difference, bounded by the state tolerance "
+            "(x10 for the size of grad E)",
+        )
+    )
+    records.append(
+        ctx.rec(
+            engine,
+            "work_energy_balance",
+            work_energy_balance(E, ctx.work),
+            balance_tol,
+            label=label,
+            **extra,
+        )
+    )
+    return records
 
 
 def trajectory_records(

@@ -1,4 +1,4 @@
-"""MuJoCo's soft trajectories are judged against the rigid limit (crosscheck.trajectory,
+"""MuJoCo's soft trajectories are judged against the rigid limit (crosscheck.trajectory_soft,
 SOFT_LIMIT_*): its runs at solref tc and tc/2 extrapolated to tc -> 0 agree with the reference
 within the extrapolation's own bound, and a 1 % mass error, which the soft effect used to hide
 (state error 2.8e-4 under a one-size tolerance of 5e-2), fails there."""

@@ -97,11 +97,11 @@ def test_reference_drift_is_held_to_the_projection_guarantee():
     both, with projection it stays inside."""
     from crosscheck.trajectory import (
         REF_RTOL,
-        _residual_series,
         output_grid,
         projected_drift,
         projected_velocity_drift,
     )
+    from crosscheck.trajectory_measures import residual_series
     from reference import NumericModel
     from reference.integrate import simulate
 
@@ -109,7 +109,7 @@ def test_reference_drift_is_held_to_the_projection_guarantee():
     q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
     for method, inside in (("projection", True), ("index1", False)):
         r = simulate(nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL, t_eval=output_grid(5.0))
-        pos, vel = _residual_series(nm, r.t, r.q, r.u)
+        pos, vel = residual_series(nm, r.t, r.q, r.u)
         assert bool(pos.max() <= projected_drift(r.q).value) is inside, (method, pos.max())
         assert bool(vel.max() <= projected_velocity_drift(r.u).value) is inside, (method, vel.max())
 

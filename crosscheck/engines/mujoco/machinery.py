@@ -1,6 +1,6 @@
 """MuJoCo machinery shared by every engine model: the MJCF conventions and text helpers,
-the soft-constraint recovery (forward), energy, mass matrix, trajectories. The
-conventions are in the package's adapter docstring."""
+forward (its soft-constraint recovery in soft_recovery.py), energy, mass matrix, trajectories.
+The conventions are in the package's adapter docstring."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import mujoco
 
 from ...compare import Tolerance
 from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
-from .soft_prediction import documented_R, predict
+from .soft_recovery import full_M, predict_soft, soft_recovery
 
 SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 SOLREF = (0.02, 1.0)
@@ -59,11 +59,7 @@ def vec(*xs) -> str:
     return " ".join(num(x) for x in xs)
 
 
-# ======================================================================================
-# MJCF text
-
-
-# ======================================================================================
+# ---- MJCF text ---------------------------------------------------------------------------------
 
 
 def document(
@@ -117,31 +113,7 @@ def lamina(I_zz: float) -> str:
     return vec(0.5 * I_zz, 0.5 * I_zz, I_zz)
 
 
-# ======================================================================================
-# helpers
-
-
-# ======================================================================================
-
-
-def dense_efc_J(m, d) -> np.ndarray:
-    """efc_J as a dense (nefc, nv) array, from dense or CSR storage (mj_isSparse)."""
-    nefc, nv = d.nefc, m.nv
-    if nefc == 0:
-        return np.zeros((0, nv))
-    if mujoco.mj_isSparse(m):
-        J = np.zeros((nefc, nv))
-        for i in range(nefc):
-            adr, nnz = d.efc_J_rowadr[i], d.efc_J_rownnz[i]
-            J[i, d.efc_J_colind[adr : adr + nnz]] = d.efc_J[adr : adr + nnz]
-        return J
-    return np.array(d.efc_J[: nefc * nv]).reshape(nefc, nv)
-
-
-def full_M(m, d) -> np.ndarray:
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
-    return M
+# ---- helpers -----------------------------------------------------------------------------------
 
 
 def quat_to_R(qwxyz) -> np.ndarray:
@@ -155,19 +127,6 @@ def R_to_quat(R) -> np.ndarray:
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.asarray(R, float).reshape(9))
     return q / np.linalg.norm(q)
-
-
-def kkt_lstsq(M, J, rhs_c):
-    """Least-squares solution (y, delta) of [[M, -J^T], [J, 0]] [y; delta] = [0; rhs_c]."""
-    nv, ne = M.shape[0], J.shape[0]
-    K = np.zeros((nv + ne, nv + ne))
-    K[:nv, :nv] = M
-    K[:nv, nv:] = -J.T
-    K[nv:, :nv] = J
-    rhs_c = np.asarray(rhs_c, float)
-    rhs = np.concatenate([np.zeros((nv, *rhs_c.shape[1:])), rhs_c])
-    sol, _res, rank, _sv = np.linalg.lstsq(K, rhs, rcond=None)
-    return sol[:nv], sol[nv:], int(rank)
 
 
 def _warnings(d) -> dict:
@@ -184,11 +143,7 @@ def _warnings(d) -> dict:
     return out
 
 
-# ======================================================================================
-# shared machinery
-
-
-# ======================================================================================
+# ---- shared machinery --------------------------------------------------------------------------
 
 
 class MjEngineModel(EngineModel):
@@ -298,30 +253,8 @@ class MjEngineModel(EngineModel):
 
     def predict_soft(self, q, u, reference_accelerations):
         """MuJoCo's raw soft (accelerations, multipliers) predicted from the reference's
-        accelerations and the documented solref/solimp impedance (soft_prediction.py), in
-        reference coordinates. Reads only model quantities at the state (M, J, smooth forces,
-        aref, solimp, invweights) after mj_forward, never its constraint solution."""
-        m, d = self.m, self.d
-        self._set(*self.to_engine_state(q, u))
-        mujoco.mj_forward(m, d)
-        qe, ve = d.qpos.copy(), d.qvel.copy()
-        if d.nefc == 0:
-            raise EngineUnsupported("no equality rows: MuJoCo's answer is not soft here")
-        G = self._affine_gain(lambda z: self._acc_to_reference(qe, ve, z), np.zeros(m.nv))
-        c = np.asarray(self._acc_to_reference(qe, ve, np.zeros(m.nv)), float)
-        soft = predict(
-            full_M(m, d),
-            dense_efc_J(m, d),
-            d.qfrc_smooth.copy(),
-            d.efc_aref[: d.nefc].copy(),
-            documented_R(m, d),
-            G,
-            c,
-            reference_accelerations,
-        )
-        acc = np.asarray(self._acc_to_reference(qe, ve, soft.engine_accelerations), float)
-        lam = self._multipliers(qe, ve, soft.engine_accelerations, soft.engine_forces)
-        return acc, (None if lam is None else np.asarray(lam, float))
+        accelerations and the documented solref/solimp impedance (soft_recovery.py)."""
+        return predict_soft(self, q, u, reference_accelerations)
 
     def _applied(self) -> np.ndarray:
         """qfrc_applied: the reference's constant loads as engine generalized forces."""
@@ -431,87 +364,9 @@ class MjEngineModel(EngineModel):
         return self._answer(acc, lam, raw)
 
     def _soft_recovery(self, qe, ve, qacc, acc, raw) -> np.ndarray:
-        """The mapped multipliers of MuJoCo's soft answer at the state in self.d; fills raw with
-        the rigid answer recovered from it, the impedance's predicted error and its bounds, and
-        independent residuals (see the package's adapter docstring)."""
-        m, d = self.m, self.d
-        nefc = d.nefc
-        f = d.efc_force[:nefc].copy()
-        J = dense_efc_J(m, d)
-        M = full_M(m, d)
-        R = d.efc_R[:nefc].copy()
-        diagA = d.efc_diagA[:nefc].copy()
-        imp = d.efc_KBIP[:nefc, 2].copy()
-        aref = d.efc_aref[:nefc].copy()
-        lam = self._multipliers(qe, ve, qacc, f)
-        # de-regularized answer: f_rigid = f + A^-1 R f, qacc_rigid = qacc + M^-1 J^T (A^-1 R f)
-        y, delta, rank = kkt_lstsq(M, J, R * f)
-        qacc_r, f_r = qacc + y, f + delta
-        acc_r = self._acc_to_reference(qe, ve, qacc_r)
-        lam_r = self._multipliers(qe, ve, qacc_r, f_r)
-        # prediction from the impedance alone: R_pred = (1 - d)/d diagA
-        eps = (1.0 - imp) / imp
-        R_pred = eps * diagA
-        y_p, delta_p, _ = kkt_lstsq(M, J, R_pred * f)
-        acc_p = self._acc_to_reference(qe, ve, qacc + y_p)
-        lam_p = self._multipliers(qe, ve, qacc + y_p, f + delta_p)
-        # rigorous bounds given f: delta = A^-1 R f = eps A^-1 D f (one d for all rows), so
-        # |G_lam delta|_inf <= eps |G_lam A^-1 D|_inf |f|_inf and likewise for the accelerations
-        # with M^-1 J^T A^-1 D; G_* are the (affine) maps' linear parts, A^-1 D from the KKT.
-        Y, X, _ = kkt_lstsq(M, J, np.diag(diagA))
-        G_lam = self._affine_gain(lambda z: self._multipliers(qe, ve, qacc, z), f)
-        G_acc = self._affine_gain(lambda z: self._acc_to_reference(qe, ve, z), qacc)
-        f_inf = float(np.max(np.abs(f)))
-        e_max = float(np.max(eps))
-        bound_f = e_max * float(np.linalg.norm(X, np.inf))
-        bound_lam = e_max * float(np.linalg.norm(G_lam @ X, np.inf)) * f_inf
-        bound_acc = e_max * float(np.linalg.norm(G_acc @ Y, np.inf)) * f_inf
-        # the rigid KKT assembled directly from MuJoCo's matrices (M, J, qfrc_smooth, aref),
-        # independent of the soft solve: a diagnostic of the recovery's precision floor
-        sol = np.linalg.lstsq(
-            np.block([[M, -J.T], [J, np.zeros((nefc, nefc))]]),
-            np.concatenate([d.qfrc_smooth, aref]),
-            rcond=None,
-        )[0]
-        raw["kkt_accelerations"] = self._acc_to_reference(qe, ve, sol[: m.nv])
-        raw["kkt_multipliers"] = self._multipliers(qe, ve, sol[: m.nv], sol[m.nv :])
-        jdv = self._jdot_v()
-        raw.update(
-            {
-                "engine_forces": f,
-                "impedance": imp,
-                "soft_eps": float(np.max(eps)),
-                "efc_R": R,
-                "efc_diagA": diagA,
-                "R_model_rel_mismatch": float(
-                    np.max(np.abs(R - R_pred) / np.maximum(np.abs(R), 1e-300))
-                ),
-                "predicted_acceleration_error": acc - acc_p,  # raw - rigid, predicted from d
-                "predicted_multiplier_error": lam - lam_p,
-                "predicted_rel_force_bound": bound_f,
-                "raw_multiplier_error_bound": bound_lam,
-                "raw_acceleration_error_bound": bound_acc,
-                "rigid_accelerations": acc_r,
-                "rigid_multipliers": lam_r,
-                "rigid_engine_accelerations": qacc_r,
-                "rigid_engine_forces": f_r,
-                "kkt_rank": rank,
-                "efc_pos_max": float(np.max(np.abs(d.efc_pos[:nefc]))),
-                "efc_vel_max": float(np.max(np.abs(J @ ve))),
-                # soft model: J qacc - aref = -R f (MuJoCo's own solve, checked on its output)
-                "soft_model_residual": float(np.max(np.abs(J @ qacc - aref + R * f))),
-                # the recovered rigid answer satisfies J qacc_rigid = aref ...
-                "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref))),
-                # ... and M qacc_rigid = qfrc_smooth + J^T f_rigid
-                "rigid_dynamics_residual": float(
-                    np.max(np.abs(M @ qacc_r - d.qfrc_smooth - J.T @ f_r))
-                ),
-            }
-        )
-        if jdv is not None:
-            # at a consistent state MuJoCo's aref must be -J-dot v (connect rows)
-            raw["aref_plus_jdot_v"] = float(np.max(np.abs(aref + jdv)))
-        return lam
+        """The mapped multipliers of MuJoCo's soft answer at the state in self.d; fills raw
+        with the rigid answer recovered from it and its checks (soft_recovery.py)."""
+        return soft_recovery(self, qe, ve, qacc, acc, raw)
 
     @staticmethod
     def _answer(acc, lam, raw) -> EngineForward:

@@ -27,7 +27,8 @@ import numpy as np
 import mujoco
 
 from ..base import EngineUnsupported
-from .machinery import SOLIMP, SOLREF, MjEngineModel, dense_efc_J
+from .machinery import SOLIMP, SOLREF, MjEngineModel
+from .soft_recovery import dense_efc_J
 
 JNT = mujoco.mjtJoint
 # MuJoCo's constraint solver on a user's file: the built-in files' setting (machinery.document),

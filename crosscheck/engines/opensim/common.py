@@ -305,6 +305,23 @@ class OsimModel(EngineModel):
         return hashlib.sha256(blob).hexdigest()[:16]
 
     # ---- trajectories ------------------------------------------------------------------------
+    def _manager(self, integrator: str, rtol: float | None, timestep: float | None):
+        """An opensim.Manager on this model with the integrator set: a fixed step where a
+        timestep is given, else the accuracy rtol (default 1e-8), used as the constraint
+        tolerance too. Returns it with the setting the trajectory records."""
+        manager = osim.Manager(self.model)
+        manager.setIntegratorMethod(INTEGRATORS[integrator])
+        setting: dict[str, Any] = {"integrator": integrator}
+        if timestep is not None:
+            manager.setIntegratorFixedStepSize(float(timestep))
+            setting["timestep"] = float(timestep)
+        else:
+            acc = float(rtol) if rtol else 1e-8
+            manager.setIntegratorAccuracy(acc)
+            manager.setIntegratorConstraintTolerance(acc)
+            setting["rtol"] = acc
+        return manager, setting
+
     def simulate(
         self,
         q0,
@@ -338,17 +355,7 @@ class OsimModel(EngineModel):
         qe, ve = self.to_engine_state(q0, u0)
         state = self.model.initializeState()
         self._set_state_on(state, qe, ve, 0.0)
-        manager = osim.Manager(self.model)
-        manager.setIntegratorMethod(INTEGRATORS[integrator])
-        setting: dict[str, Any] = {"integrator": integrator}
-        if fixed and timestep is not None:
-            manager.setIntegratorFixedStepSize(float(timestep))
-            setting["timestep"] = float(timestep)
-        else:
-            acc = float(rtol) if rtol else 1e-8
-            manager.setIntegratorAccuracy(acc)
-            manager.setIntegratorConstraintTolerance(acc)
-            setting["rtol"] = acc
+        manager, setting = self._manager(integrator, rtol, timestep if fixed else None)
         # realized before the Manager takes it: an exactly consistent pendulum_xy state handed
         # over unrealized failed at t = 0 ("unable to advance time past 0"), realized it runs
         self.model.realizeAcceleration(state)

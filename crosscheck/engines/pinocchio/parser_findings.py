@@ -31,29 +31,49 @@ def _close(a, b) -> bool:
     )
 
 
+def _finding(element, kind, text) -> dict:
+    return {"element": element, "kind": kind, "finding": text}
+
+
 def parser_findings(path, m) -> list[dict]:
     """[{"element", "kind", "finding"}] for the differences between pin's parse of `path` and
     MuJoCo's compiled model `m`; [] when the parser kept everything compared."""
-    out: list[dict] = []
-
-    def add(element, kind, text):
-        out.append({"element": element, "kind": kind, "finding": text})
-
     try:
         pm = pin.buildModelFromMJCF(str(path))
     except Exception as exc:
-        add(str(path), "file", f"pin.buildModelFromMJCF fails: {' '.join(str(exc).split())}")
-        return out
+        message = " ".join(str(exc).split())
+        return [_finding(str(path), "file", f"pin.buildModelFromMJCF fails: {message}")]
     body_frames = {f.name: f for f in pm.frames if f.type == pin.FrameType.BODY}
+    jnames = list(pm.names)
+    return (
+        _missing_bodies(m, body_frames)
+        + _joint_findings(pm, m, jnames)
+        + _mass_findings(pm, m, body_frames, jnames)
+        + _gravity_findings(pm, m)
+        + _equality_findings(path, m)
+    )
+
+
+def _missing_bodies(m, body_frames) -> list[dict]:
+    """MuJoCo's bodies that have no frame in the parsed model."""
+    out = []
     for b in range(1, m.nbody):
         name = _name(m, mujoco.mjtObj.mjOBJ_BODY, b)
         if name not in body_frames:
-            add(
-                name,
-                "body",
-                f"body {name} (mass {m.body_mass[b]:.6g}) is missing from the parsed model",
+            out.append(
+                _finding(
+                    name,
+                    "body",
+                    f"body {name} (mass {m.body_mass[b]:.6g}) is missing from the parsed model",
+                )
             )
-    jnames = list(pm.names)
+    return out
+
+
+def _joint_findings(pm, m, jnames) -> list[dict]:
+    """Every MuJoCo joint: missing from the parse, or (hinge, slide) its world axis at the
+    neutral pose, armature, and the damping and stiffness pin's dynamics leave out."""
+    out = []
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
     pd = pm.createData()
@@ -62,45 +82,65 @@ def parser_findings(path, m) -> list[dict]:
     for j in range(m.njnt):
         name = _name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
         if name not in jnames:
-            add(name, "joint", f"joint {name} is missing from the parsed model")
+            out.append(_finding(name, "joint", f"joint {name} is missing from the parsed model"))
             continue
         jid = jnames.index(name)
         t = int(m.jnt_type[j])
         if t in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            Jw = np.asarray(pin.getJointJacobian(pm, pd, jid, pin.ReferenceFrame.WORLD)).reshape(
-                6, pm.nv
+            out += _dof_findings(pm, pd, m, d, j, jid, name)
+    return out
+
+
+def _dof_findings(pm, pd, m, d, j, jid, name) -> list[dict]:
+    """One hinge or slide joint j (pin's joint jid): axis, armature, damping, stiffness."""
+    out = []
+    t = int(m.jnt_type[j])
+    Jw = np.asarray(pin.getJointJacobian(pm, pd, jid, pin.ReferenceFrame.WORLD)).reshape(6, pm.nv)
+    col = Jw[:, pm.idx_vs[jid]]
+    axis = col[3:] if t == int(mujoco.mjtJoint.mjJNT_HINGE) else col[:3]
+    if not _close(axis, d.xaxis[j]):
+        out.append(
+            _finding(
+                name,
+                "joint axis",
+                f"joint {name}: parsed axis {np.round(axis, 9)} (world, "
+                f"neutral pose), MuJoCo {np.round(d.xaxis[j], 9)}",
             )
-            col = Jw[:, pm.idx_vs[jid]]
-            axis = col[3:] if t == int(mujoco.mjtJoint.mjJNT_HINGE) else col[:3]
-            if not _close(axis, d.xaxis[j]):
-                add(
-                    name,
-                    "joint axis",
-                    f"joint {name}: parsed axis {np.round(axis, 9)} (world, "
-                    f"neutral pose), MuJoCo {np.round(d.xaxis[j], 9)}",
-                )
-            adr = m.jnt_dofadr[j]
-            if not _close(pm.armature[pm.idx_vs[jid]], m.dof_armature[adr]):
-                add(
-                    name,
-                    "armature",
-                    f"joint {name}: parsed armature "
-                    f"{pm.armature[pm.idx_vs[jid]]:.6g}, MuJoCo "
-                    f"{m.dof_armature[adr]:.6g}",
-                )
-            if m.dof_damping[adr]:
-                add(
-                    name,
-                    "damping",
-                    f"joint {name}: damping {m.dof_damping[adr]:.6g} lands in "
-                    "model.damping, which pin's dynamics do not apply",
-                )
-            if m.jnt_stiffness[j]:
-                add(
-                    name,
-                    "stiffness",
-                    f"joint {name}: stiffness {m.jnt_stiffness[j]:.6g} (springref) is not parsed",
-                )
+        )
+    adr = m.jnt_dofadr[j]
+    if not _close(pm.armature[pm.idx_vs[jid]], m.dof_armature[adr]):
+        out.append(
+            _finding(
+                name,
+                "armature",
+                f"joint {name}: parsed armature "
+                f"{pm.armature[pm.idx_vs[jid]]:.6g}, MuJoCo "
+                f"{m.dof_armature[adr]:.6g}",
+            )
+        )
+    if m.dof_damping[adr]:
+        out.append(
+            _finding(
+                name,
+                "damping",
+                f"joint {name}: damping {m.dof_damping[adr]:.6g} lands in "
+                "model.damping, which pin's dynamics do not apply",
+            )
+        )
+    if m.jnt_stiffness[j]:
+        out.append(
+            _finding(
+                name,
+                "stiffness",
+                f"joint {name}: stiffness {m.jnt_stiffness[j]:.6g} (springref) is not parsed",
+            )
+        )
+    return out
+
+
+def _mass_findings(pm, m, body_frames, jnames) -> list[dict]:
+    """Every parsed body's mass against MuJoCo's, compared on the body's joint."""
+    out = []
     for b in range(1, m.nbody):
         name = _name(m, mujoco.mjtObj.mjOBJ_BODY, b)
         if name not in body_frames:
@@ -116,22 +156,29 @@ def parser_findings(path, m) -> list[dict]:
             and body_frames[_name(m, mujoco.mjtObj.mjOBJ_BODY, c)].parentJoint == jid
         )
         if jid and not _close(pm.inertias[jid].mass, mj_mass):
-            add(
-                name,
-                "mass",
-                f"body {name}: parsed mass on joint {jnames[jid]} "
-                f"{pm.inertias[jid].mass:.6g}, MuJoCo {mj_mass:.6g} (geom-derived "
-                "masses and inertias are not computed by the parser)",
+            out.append(
+                _finding(
+                    name,
+                    "mass",
+                    f"body {name}: parsed mass on joint {jnames[jid]} "
+                    f"{pm.inertias[jid].mass:.6g}, MuJoCo {mj_mass:.6g} (geom-derived "
+                    "masses and inertias are not computed by the parser)",
+                )
             )
+    return out
+
+
+def _gravity_findings(pm, m) -> list[dict]:
+    """The parsed gravity against the file's (zero where the file disables gravity)."""
     g = (
         np.zeros(3)
         if m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
         else np.array(m.opt.gravity, float)
     )
     if not _close(pm.gravity.linear, g):
-        add("option", "gravity", f"parsed gravity {pm.gravity.linear}, the file's {g}")
-    out += _equality_findings(path, m)
-    return out
+        text = f"parsed gravity {pm.gravity.linear}, the file's {g}"
+        return [_finding("option", "gravity", text)]
+    return []
 
 
 def _equality_findings(path, m) -> list[dict]:
@@ -146,14 +193,9 @@ def _equality_findings(path, m) -> list[dict]:
     try:
         _pm, constraints = pin.buildModelAndLegacyConstraintsFromMJCF(str(path))[:2]
     except Exception as exc:
-        return [
-            {
-                "element": "equality",
-                "kind": "equality",
-                "finding": f"pin.buildModelAndLegacyConstraintsFromMJCF fails: "
-                f"{' '.join(str(exc).split())}",
-            }
-        ]
+        message = " ".join(str(exc).split())
+        text = f"pin.buildModelAndLegacyConstraintsFromMJCF fails: {message}"
+        return [_finding("equality", "equality", text)]
     want = {"connect": pin.ContactType.CONTACT_3D, "weld": pin.ContactType.CONTACT_6D}
     got = [c.type for c in constraints]
     out = []
@@ -163,13 +205,8 @@ def _equality_findings(path, m) -> list[dict]:
         if kind in want and want[kind] in got:
             got.remove(want[kind])
             continue
-        out.append(
-            {
-                "element": name,
-                "kind": "equality",
-                "finding": f"equality {kind} {name} has no constraint in the parsed model",
-            }
-        )
+        text = f"equality {kind} {name} has no constraint in the parsed model"
+        out.append(_finding(name, "equality", text))
     return out
 
 
