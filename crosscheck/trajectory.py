@@ -42,10 +42,6 @@ from .trajectory_soft import (
     soft_limit,
 )
 
-# re-exported: scripts/mujoco_soft.py reads the rigid-limit setting from here
-from .trajectory_soft import SOFT_LIMIT_FACTOR as SOFT_LIMIT_FACTOR
-from .trajectory_soft import SOFT_LIMIT_ORDER as SOFT_LIMIT_ORDER
-
 T_END = 5.0
 N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots
 REF_RTOL, REF_CHECK_RTOL = 1e-12, 1e-13

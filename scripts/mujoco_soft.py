@@ -23,13 +23,9 @@ import numpy as np
 from crosscheck.compare import scaled_error, soft_prediction
 from crosscheck.engines.mujoco.adapter import MujocoAdapter
 from crosscheck.sampling import consistent_states
-from crosscheck.trajectory import (
-    SOFT_LIMIT_FACTOR,
-    SOFT_LIMIT_ORDER,
-    T_END,
-    output_grid,
-    state_error,
-)
+from crosscheck.trajectory import T_END, output_grid
+from crosscheck.trajectory_measures import state_error
+from crosscheck.trajectory_soft import SOFT_LIMIT_FACTOR, SOFT_LIMIT_ORDER
 from reference import models
 from reference.integrate import simulate
 from reference.models import get
