@@ -116,6 +116,7 @@ class StateComparison:
     soft: bool
     iterations: int | None = None
     predicted: list = field(default_factory=list)
+    answers: dict = field(default_factory=dict)  # the judged u' and lambda (the agreement matrix)
 
 
 # engine coordinates of two readings of one configuration agree to round-off of the trig
@@ -166,6 +167,7 @@ def compare_at_state(
     if "multipliers" not in skips:
         pairs.append(("multipliers", ef.multipliers, ef.rigid_multipliers, ref.multipliers))
     predicted = _soft_predictions(em, q, u, ref, ef.soft, caps, skips)
+    answers = {qty: (rigid if ef.soft else raw) for qty, raw, rigid, _ in pairs}
     for k, (qty, raw_value, rigid, reference) in enumerate(pairs):
         if not ef.soft:
             vals[qty] = C.scaled_error(raw_value, reference)
@@ -182,6 +184,7 @@ def compare_at_state(
         ef.soft,
         ef.iterations,
         _predicted_errors(pairs, predicted),
+        answers,
     )
 
 
@@ -242,10 +245,17 @@ def build(
 
 
 def engine_records(
-    name: str, nm, states, adapter: EngineAdapter, params: dict, variant: str | None = None
+    name: str,
+    nm,
+    states,
+    adapter: EngineAdapter,
+    params: dict,
+    variant: str | None = None,
+    answers=None,
 ) -> list[dict]:
     """results.json records of one engine model over a run's states (t = 0): the worst error
-    of each quantity, at which state, against its tolerance."""
+    of each quantity, at which state, against its tolerance. ``answers`` (an
+    agreement.Answers) collects the judged answers for the agreement matrix."""
 
     def rec(*a, **k):
         r = C.record(name, nm.formulation, adapter.name, *a, **k)
@@ -272,6 +282,11 @@ def engine_records(
         predicted += sc.predicted
         if sc.iterations is not None:
             iterations.append(sc.iterations)
+        if answers is not None:
+            side = adapter.name + (f"/{variant}" if variant else "")
+            for qty, value in sc.answers.items():
+                tol = tolerance(qty, sc.soft, adapter, name)[0]
+                answers.add(side, i, qty, value, tol)
     return _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name)
 
 

@@ -316,6 +316,11 @@ class Content:
     def series_of(self, model):
         return [s for s in (self.series or []) if s.get("model", "?") == model]
 
+    def agreement_of(self, model) -> list[dict]:
+        """The model's agreement matrices (results.json "agreement"; absent in older files)."""
+        rows = self.results.get("agreement") or []
+        return [m for m in rows if isinstance(m, dict) and m.get("model") == model]
+
     def forward_of(self, model):
         return [r for r in self.forward if r.get("model", "?") == model]
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 from . import (
+    report_agreement,  # engine against engine
     report_sensitivity,  # the section of sensitivity.json beside results.json
     report_sweep,  # the section of sweep.json
 )
@@ -340,6 +341,10 @@ def _model_html(c: Content, model: str) -> str:
                 "checks are ringed in red; skipped checks are named in grey.",
             )
         )
+        matrix = report_agreement.html(c, model)
+        if matrix:
+            out.append("<h3>Engine against engine</h3>")
+            out.append(matrix)
     else:
         out.append('<p class="note">No cross-check records for this model in results.json.</p>')
     out.append("<h3>Trajectories</h3>")

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from . import report_sensitivity  # the section of sensitivity.json beside results.json
+from . import (  # the section of sensitivity.json beside results.json
+    report_agreement,
+    report_sensitivity,
+)
 from .report_content import (
     Content,
     details,
@@ -276,6 +279,7 @@ def render_md(c: Content) -> str:
         source, title = model_info(m)
         out += [f"## {m}" + (f" — {title} ({source})" if title or source else ""), ""]
         out += _checks_md(c, m)
+        out += report_agreement.md(c, m, _md_table)
         out += _trajectories_md(c, m)
         if c.bench is not None:
             out += _bench_md(c, m)

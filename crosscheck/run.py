@@ -18,6 +18,7 @@ from reference.generic import generic_parameters
 
 from . import compare as C
 from . import jsonio
+from .agreement import reference_answers
 from .comparison import engine_records
 from .engines.registry import get_engine
 from .perturb import check_perturb, check_perturb_changes, parse_perturb, perturbed
@@ -147,9 +148,17 @@ def _soft_file_trajectories(name, recs, adapters):
 
 
 def run(
-    model_names, engine_names, n_states=6, perturb=None, progress=None, trajectories=True, t_end=5.0
+    model_names,
+    engine_names,
+    n_states=6,
+    perturb=None,
+    progress=None,
+    trajectories=True,
+    t_end=5.0,
+    agreement: list | None = None,
 ):
-    """All records (and trajectory series) for the models; see the module docstring."""
+    """All records (and trajectory series) for the models; see the module docstring.
+    ``agreement``, when given, receives the agreement matrices (crosscheck.agreement)."""
     from .trajectory import trajectory_records
 
     perturb = perturb or {}
@@ -160,12 +169,15 @@ def run(
         nm = NumericModel(model)
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)
+        answers = reference_answers(name, nm, states)
         for adapter in adapters:
             params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
             for variant in adapter.variants(name):
                 records += adapter.annotate_records(
-                    name, engine_records(name, nm, states, adapter, params, variant)
+                    name, engine_records(name, nm, states, adapter, params, variant, answers)
                 )
+        if agreement is not None:
+            agreement += answers.matrices()
         records += _generic_records(name, adapters, n_states, perturb)
         if trajectories:
             engine_params = {
@@ -224,6 +236,7 @@ def cmd_run(args) -> int:
         from tqdm import tqdm
 
         bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
+    agreement: list[dict] = []
     records, series = run(
         names,
         engine_names,
@@ -232,6 +245,7 @@ def cmd_run(args) -> int:
         progress=(lambda n: bar.update(1)) if bar else None,
         trajectories=not args.instantaneous,
         t_end=args.t_end,
+        agreement=agreement,
     )
     if bar:
         bar.close()
@@ -245,6 +259,7 @@ def cmd_run(args) -> int:
         },
         "records": records,
         "series": series,
+        "agreement": agreement,
     }
     _write_outputs(out, jsonio.dumps(result), not args.no_report)
     failed = [r for r in records if r["passed"] is False]

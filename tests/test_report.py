@@ -571,3 +571,12 @@ def test_series_energy_error_is_the_records_definition():
     assert series_stats(s)["energy"] == energy_drift(s["energy"])
     s["work"] = [0.5 * (e - s["energy"][0]) for e in s["energy"]]
     assert series_stats(s)["energy"] == work_energy_balance(s["energy"], s["work"])
+
+
+def test_engine_against_engine_tables(full_report):
+    """results.json "agreement" is shown per model and quantity, the faulty pair marked."""
+    html = (full_report["dir"] / "index.html").read_text()
+    md = (full_report["dir"] / "report.md").read_text()
+    assert "<h3>Engine against engine</h3>" in html
+    assert "Engine against engine, accelerations: some pairs disagree" in md
+    assert full_report["results"]["agreement"], "the run wrote no agreement matrix"
