@@ -2,9 +2,10 @@
 
 Past codegen.UNROLL_KKT_MAX rows the reference does not unroll its KKT solve; it solves the
 generated M, A, f, b per state with reference.redundant. Checked against MuJoCo's rigid answer
-(crosscheck.mjcf_rigid) at TOL_MJCF of tests/test_user_models.py: 1e-9 relative, the issue's
-bar (measured: 6e-15 at these states for N = 5, printed by `python -m crosscheck.mjcf_rigid
-FILE`; 1.9e-14 at the parallelogram states of docs/scaling.md).
+(crosscheck.engines.mujoco.mjcf_rigid) at TOL_MJCF of tests/test_user_models.py: 1e-9
+relative, the issue's bar (measured: 6e-15 at these states for N = 5, printed by
+`python -m crosscheck.engines.mujoco.mjcf_rigid FILE`; 1.9e-14 at the parallelogram states of
+docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -12,8 +13,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from crosscheck.mjcf_rigid import agreement
-
+from crosscheck.engines.mujoco.mjcf_rigid import agreement
 from reference import codegen
 from reference.mjcf import import_mjcf
 from reference.numeric import NumericModel

@@ -2,9 +2,9 @@
 force elements, and the model-file loader. Real MuJoCo, no mocks.
 
 The MJCF checks compare the reference's accelerations, mapped to MuJoCo's qacc, with MuJoCo's
-rigid answer (crosscheck.mjcf_rigid: the exact KKT solve from MuJoCo's own M, qfrc_smooth,
-equality Jacobians and J-dot v), at the file's initial state and at seeded random states
-projected onto the constraint manifold.
+rigid answer (crosscheck.engines.mujoco.mjcf_rigid: the exact KKT solve from MuJoCo's own M,
+qfrc_smooth, equality Jacobians and J-dot v), at the file's initial state and at seeded random
+states projected onto the constraint manifold.
 
 TOL_MJCF = 1e-9 relative to max(1, max|qacc|): the issue's bar. Measured (kane and lagrange,
 `PYTHONPATH=$PWD python -m pytest -q tests/test_user_models.py -k mjcf -s` prints the figures):

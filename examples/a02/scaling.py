@@ -6,7 +6,8 @@ release state and at seeded random states of the parallelogram motion (a state t
 reference refuses as singular would be listed and skipped), every
 engine that loads the file gives u': the reference (Kane; the unrolled or the numeric KKT
 solve, codegen.UNROLL_KKT_MAX), Pinocchio (a model built from MuJoCo's compiled one, the
-suite's user-file adapter), MuJoCo's rigid answer (crosscheck.mjcf_rigid) and its soft answer.
+suite's user-file adapter), MuJoCo's rigid answer (crosscheck.engines.mujoco.mjcf_rigid) and
+its soft answer.
 Per engine: the time of one forward call and the largest |u' - u'_ref| / max(1, |u'_ref|).
 Then 10 s from the release state:
 MuJoCo's own simulation (its default semi-implicit Euler, 1 ms) and the reference's DOP853 with
@@ -102,7 +103,8 @@ def build(n: int, work: Path) -> dict:
 def timings(nm, pin, m, qpos, qvel, u) -> dict:
     """Seconds per forward call of each engine at one state."""
     import mujoco
-    from crosscheck.mjcf_rigid import rigid_forward
+
+    from crosscheck.engines.mujoco.mjcf_rigid import rigid_forward
 
     d = mujoco.MjData(m)
     d.qpos[:], d.qvel[:] = qpos, qvel
@@ -133,8 +135,7 @@ def parallelogram_states(n: int, count: int, seed: int = 7):
 
 def engines_at_states(b: dict) -> dict:
     """Per engine: seconds per forward call and worst relative u' error against the reference."""
-    from crosscheck.mjcf_rigid import rigid_forward
-
+    from crosscheck.engines.mujoco.mjcf_rigid import rigid_forward
     from crosscheck.engines.pinocchio.user_file import UserFilePinModel
     from reference.errors import SingularSystemError
     from reference.mjcf import rates_from_qvel

@@ -160,7 +160,8 @@ def agreement(imp, nm, count: int = 4, seed: int = 7) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    """python -m crosscheck.mjcf_rigid FILE [--formulations kane,lagrange] [--states N]"""
+    """python -m crosscheck.engines.mujoco.mjcf_rigid FILE [--formulations kane,lagrange]
+    [--states N]"""
     import argparse
     import time
 
@@ -168,7 +169,7 @@ def main(argv=None) -> int:
     from reference.numeric import NumericModel
 
     ap = argparse.ArgumentParser(
-        prog="python -m crosscheck.mjcf_rigid",
+        prog="python -m crosscheck.engines.mujoco.mjcf_rigid",
         description="reference vs MuJoCo's rigid answer on an MJCF file",
     )
     ap.add_argument("file")
