@@ -16,17 +16,33 @@ def _statuses(rec):
     return rec["status"], "; ".join(rec["reasons"])
 
 
-def test_slider_crank_rank_loss_is_refused_or_flagged_never_silent():
+def test_slider_crank_rank_loss_is_refused_or_reported_never_silent():
     rec = stress.slider_crank_rank_loss(quick=True)
     assert rec["status"] == "flagged", _statuses(rec)
     assert rec["wall_s"] < rec["bound_s"] * len(rec["runs"])
     for run in rec["runs"]:
-        # each run either refused with SingularSystemError or crossed the pose and was flagged
-        if run["outcome"] == "refused":
-            assert run["error"] == "SingularSystemError" and "at t =" in run["message"]
+        # each run refused with SingularSystemError at the pose, or crossed it and its
+        # integrator reported every passage (never a timeout, never a silent passage)
+        assert run["verdict"] in stress.RANK_LOSS_ALLOWED, (run["run"], run["verdict"])
+        if run["verdict"] == "refused_singular":
+            assert "at t =" in run["message"]
         else:
-            assert run["outcome"] == "completed" and run["crossings_t"]
-            assert any(run["run"] in r and "rank-deficient pose" in r for r in rec["reasons"])
+            through = [t for t, r in zip(run["crossings_t"], run["reversed"]) if r]
+            assert through and set(through) <= set(run["integrator_rank_crossings_t"])
+            assert any("lost rank" in w for w in run["warnings"]), run["warnings"]
+            assert any(run["run"] in r and "reported by the integrator" in r
+                       for r in rec["reasons"])
+
+
+def test_a_silent_passage_of_the_rank_loss_pose_fails():
+    # the judge on a run whose integrator did not report the passage (as the projection run at
+    # rtol 1e-8 was before the rank monitor: pivot ratio 9.7e-4, no warning)
+    rec = stress._record("s", "w", "t", 1.0)
+    run = {"run": "projection rtol=1e-08", "outcome": "completed", "crossings_t": [0.26, 0.72],
+           "reversed": [True, True], "integrator_rank_crossings_t": [0.26], "min_pivot_ratio": 9.7e-4,
+           "max_abs_sin_theta1_plus_theta2": 0.0, "warnings": []}
+    stress._rank_loss_judge(rec, run["run"], run)
+    assert run["verdict"] == "crossed_silently" and rec["status"] == "failed", rec
 
 
 def test_redundant_constraints_are_refused_naming_the_row():
@@ -41,6 +57,8 @@ def test_redundant_constraints_are_refused_naming_the_row():
 def test_pendulum_drift_growth_flags_only_the_unstabilized_form():
     rec = stress.pendulum_long(quick=True)
     assert rec["status"] == "flagged", _statuses(rec)
+    # flagged for drift only: every run completed (a timeout is a flag too, and not expected)
+    assert [r["outcome"] for r in rec["runs"]] == ["completed"] * 4, rec["runs"]
     assert all(r.startswith("index1") for r in rec["reasons"]), rec["reasons"]
     runs = {r["run"]: r for r in rec["runs"]}
     assert runs["index1"]["growth_per_decade"] > 1.5  # quadratic drift-off
@@ -55,14 +73,15 @@ def test_mass_ratio_within_tolerance():
 
 def test_top_spinning_fast_within_tolerance():
     rec = stress.top_fast_spin(quick=True)
-    assert rec["status"] in ("ok", "skipped"), _statuses(rec)
+    # top_euler is a built-in model: a skip would mean it left the registry
+    assert rec["status"] == "ok", _statuses(rec)
 
 
 def test_double_pendulum_near_the_313_pole():
     rec = stress.double_pendulum_313(quick=True)
-    assert rec["status"] in ("ok", "skipped"), _statuses(rec)
-    if rec["status"] == "ok":
-        assert rec["closest_sin_theta12"] < 1e-3  # the scene really passes near the pole
+    # double_pendulum_3d is a built-in model: a skip would mean it left the registry
+    assert rec["status"] == "ok", _statuses(rec)
+    assert rec["closest_sin_theta12"] < 1e-3  # the scene really passes near the pole
 
 
 def test_a_scene_that_breaks_is_recorded_not_raised(monkeypatch):
