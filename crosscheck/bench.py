@@ -178,7 +178,8 @@ def cmd_bench(args) -> int:
     from .output import write_atomic
     from .stress import stress_records
     from .targets import profile_for_missed, targets
-    from .workprecision import skip_savings, work_precision_records
+    from .skip_savings import skip_savings
+    from .workprecision import work_precision_records
 
     t_start = time.perf_counter()
     # the benchmark times the compiled kernels: compile them here if the cache is cold (the

@@ -133,3 +133,16 @@ def test_bench_quick_writes_every_section(tmp_path):
     assert {"reference", "pinocchio", "mujoco"} <= engines
     assert all(s["status"] != "failed" for s in data["stress"])
     assert data["meta"]["wall_s"] < 180
+
+
+def test_kkt_saving_compares_one_model_with_and_without_its_rows():
+    from crosscheck import skip_savings
+    from reference import NumericModel, models
+    model = models.get("pendulum_xy")
+    free = NumericModel(skip_savings.unconstrained(model))
+    # like for like: the same coordinates and speeds, only the constraint rows gone
+    assert free.m == 0 and free.nq == len(model.coordinates) and free.n == len(model.speeds)
+    rec = skip_savings.kkt_saving("pendulum_xy", rounds=1)
+    assert rec["constraint_rows"] == 1 and rec["states"] == skip_savings.KKT_STATES
+    assert rec["forward_us"]["kkt"] > 0 and rec["forward_us"]["rows_removed"] > 0
+    assert rec["projection_run"]["nfev"] > 0
