@@ -2,16 +2,23 @@
 
 One record per model x engine x method x setting:
 - reference: every method of reference.integrate over a tolerance ladder (rtol = atol), DOP853;
-- every engine, through its simulate() and Capabilities.integrators: an error-controlled
-  integrator over the same rtol ladder (method "index1": Pinocchio's forward dynamics under scipy's
-  DOP853 in engine coordinates, no stabilization), a fixed-step one over a time-step ladder per
-  integrator (MuJoCo's mj_step).
+- every engine, through its simulate() and Capabilities.integrators: each error-controlled
+  integrator (adaptive_integrators; quick: the first) over the same rtol ladder (method "index1":
+  e.g. Pinocchio's forward dynamics under scipy's DOP853, OpenSim's Simbody integrators), each
+  fixed-step one over a time-step ladder (MuJoCo's mj_step per integrator, FIXED_STEPS_*; any
+  other, e.g. Exudyn's implicit solvers, FIXED_STEPS_OTHER), every step adjusted to divide the
+  horizon; a soft engine whose adapter takes `solref` also at stiffer constraint settings (time
+  constant SOFT_TIMECONST_STEPS steps: method "<integrator> solref=<k>h", field solref).
 Fields: model, engine, method, integrator, setting (rtol = atol, or the time step), setting_kind,
 wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state - reference|,
 the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u + a0|,
 evaluated by the reference on the engine's mapped states), residual_position/_velocity,
 energy_drift (max |E - E0 - W| / |E| scale, None where not checked), nfev, t_end, and the
-reference's kind and estimated accuracy. A run that fails keeps its row with "failed": reason.
+reference's kind and estimated accuracy; error_resolved (False: the error is at or below the
+reference's own accuracy, error_note says so: the figure bounds the run's error, it does not
+measure it). A run that fails keeps its row with "failed": reason; an engine's refusal of a
+model (EngineUnsupported) is a row with "skipped", "refusal" and the reason, any other build
+error a failed row.
 
 Timings are medians over repeats and meaningful only as ratios within one run (crosscheck/timing).
 What is inside each wall_s: reference: simulate() from the projected initial state to t_end
@@ -21,6 +28,7 @@ calls plus two recorded states), else the call.
 """
 from __future__ import annotations
 
+import inspect
 import math
 import statistics
 import time
@@ -34,7 +42,7 @@ from reference.errors import ModelInputError
 from reference.minimal import reference_final_state
 
 from .comparison import constraint_residual, energy_drift
-from .engines.base import EngineAdapter
+from .engines.base import EngineAdapter, EngineUnsupported
 from .engines.registry import available_engines, engine_label, get_engine
 
 # benchmark horizons [s]: the pendulum over ~6 periods (the exploratory study's 10 s), the
@@ -53,6 +61,15 @@ FIXED_STEPS_FULL = {"Euler": (1e-2, 1e-3, 1e-4, 1e-5), "implicitfast": (1e-2, 1e
                      "RK4": (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)}
 FIXED_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4),
                       "RK4": (1e-2, 1e-3, 1e-4)}
+# every other fixed-step integrator (Exudyn's implicit solvers, OpenSim's ExplicitEuler): one
+# ladder for all (quick: ~0.2-0.7 s per slider-crank run at 1e-3 on this machine)
+FIXED_STEPS_OTHER = {True: (1e-3,), False: (1e-2, 1e-3, 1e-4)}
+# a soft engine at its stiffest: its constraint time constant (MuJoCo's solref[0], damping
+# ratio 1) set to this many time steps per run, beside the adapter's default; 2 steps is
+# MuJoCo's documented floor (a smaller one is clamped to it); quick leaves out the steps below
+# STIFF_MIN_STEP (the 1e-4 runs cost ~2 s each)
+SOFT_TIMECONST_STEPS = (2, 5)
+STIFF_MIN_STEP = {True: 1e-3, False: 0.0}
 # fixed-step runs longer than this many steps are left out (quick: ~0.3 s per MuJoCo run on
 # this machine)
 FIXED_MAX_STEPS = {True: 25_000, False: 1_000_000}
@@ -84,6 +101,18 @@ def _finite(x) -> Optional[float]:
         return None
     x = float(x)
     return x if math.isfinite(x) else None
+
+
+def _judge_error(rec: dict, err, ref) -> None:
+    """rec["error"], and whether it is above the reference's own estimated accuracy: an error at
+    or below it is not resolved (the figure is the reference's error as much as the run's)."""
+    rec["error"] = _finite(err)
+    if rec["error"] is None:
+        return
+    rec["error_resolved"] = rec["error"] > ref.accuracy
+    if not rec["error_resolved"]:
+        rec["error_note"] = (f"at or below the reference's accuracy ({ref.accuracy:.1e}, "
+                             f"{ref.kind}): the run's error is not resolved")
 
 
 def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool):
@@ -122,8 +151,8 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
                     return tr, tr.wall_s
                 tr, wall, wmin, n = _timed(run, repeats)
                 r = tr.max_residual()
+                _judge_error(rec, np.max(np.abs(tr.final_state - ref.state)), ref)
                 rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
-                           error=_finite(np.max(np.abs(tr.final_state - ref.state))),
                            residual=max(r["position"], r["velocity"]),
                            residual_position=r["position"], residual_velocity=r["velocity"],
                            energy_drift=_finite(tr.energy_drift()), nfev=tr.nfev,
@@ -140,15 +169,19 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
 
 
 def _engine_model(adapter, name, nm, row):
-    """(engine model, None), or (None, [row marked skipped with the reason]) when the engine
-    cannot build the model or has no trajectories."""
+    """(engine model, None), or (None, [row]): skipped with the reason where the engine has no
+    trajectories or refuses the model (EngineUnsupported), failed where the build breaks."""
     if not adapter.capabilities.integrators:
         return None, [{**row, "skipped": True,
                        "reason": f"the {adapter.name} engine has no trajectories in this suite"}]
     try:
         em = adapter.build(name, nm.params)
-    except Exception as exc:  # EngineUnsupported, or a model the engine refuses: recorded
-        return None, [{**row, "skipped": True, "reason": f"{type(exc).__name__}: {exc}"}]
+    except EngineUnsupported as exc:  # the one expected refusal: the engine says why
+        return None, [{**row, "skipped": True, "refusal": "EngineUnsupported",
+                       "reason": f"EngineUnsupported: {exc}"}]
+    except Exception as exc:  # anything else is a broken build: a failure, never a skip
+        return None, [{**row, "wall_s": None, "error": None, "residual": None,
+                       "failed": f"engine build: {type(exc).__name__}: {exc}"}]
     return em, None
 
 
@@ -176,7 +209,8 @@ def adaptive_records(name, quick, ref, nm, em, engine, integrator):
                 raise RuntimeError(tr.failure)
             err, rp, rv, drift = _state_metrics(nm, tr.t, tr.q, tr.u, ref.state,
                                                 m.energy_conserved)
-            rec.update(wall_s=wall, wall_s_min=wmin, repeats=n, error=_finite(err),
+            _judge_error(rec, err, ref)
+            rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
                        residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
                        energy_drift=_finite(drift), nfev=int(tr.steps),
                        note="residual and energy drift over 21 output states")
@@ -190,50 +224,94 @@ def adaptive_records(name, quick, ref, nm, em, engine, integrator):
 STAGES = {"Euler": 1, "implicitfast": 1, "implicit": 1, "RK4": 4}
 
 
-def fixed_step_records(name, quick, ref, nm, em, engine, integ):
-    """An engine's fixed-step integrator over its time-step ladder (FIXED_STEPS_*; integrators
-    without a ladder are not benchmarked)."""
-    T = horizon(name)
+def _fixed_step_run(rec, quick, ref, nm, em, integ, h, n):
+    """Fill one fixed-step record: the timed run to n * h, then an untimed recorded run."""
     m = nm.model
+    engine = rec["engine"]
+    try:
+        tr, wall, wmin, nrep = _timed(lambda: _simulate_timed(
+            em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h),
+            REPEATS_QUICK if quick else REPEATS_FULL)
+        # an untimed run that records ~100 states for the residual and the energy
+        every = max(1, n // 100)
+        marks = sorted(set(range(0, n + 1, every)) | {n})
+        trr = em.simulate(m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ,
+                          timestep=h)
+        err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
+                                            m.energy_conserved)
+        err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
+        _judge_error(rec, err_timed, ref)
+        stages = STAGES.get(integ)  # None: an implicit solver's calls are not counted here
+        rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep,
+                   residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
+                   energy_drift=_finite(drift), nfev=n * stages if stages else None,
+                   nsteps=n, engine_steps=tr.steps,
+                   engine_violation=_finite(np.max(trr.violation)),
+                   note="residual and energy drift over ~100 recorded states; nfev = "
+                        "steps x stages (None: stages unknown)")
+        if err != err_timed:
+            rec["error_recorded_run"] = _finite(err)
+        warnings = {**tr.warnings, **trr.warnings}
+        if warnings:  # the engine reset an unstable state and went on: not a trajectory
+            rec.update(warnings=warnings, flagged=f"{engine_label(engine)} reported an "
+                       f"unstable simulation ({', '.join(warnings)}) and reset its state")
+    except Exception as exc:
+        rec.update(wall_s=None, error=None, residual=None,
+                   failed=f"{type(exc).__name__}: {exc}")
+    return rec
+
+
+def fixed_step_ladder(integ: str, quick: bool) -> tuple:
+    """The time steps an engine's fixed-step integrator is run at (FIXED_STEPS_*, else
+    FIXED_STEPS_OTHER)."""
+    named = FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL
+    return named.get(integ, FIXED_STEPS_OTHER[quick])
+
+
+def fixed_step_records(name, quick, ref, nm, em, engine, integ, stiff=None):
+    """An engine's fixed-step integrator over its time-step ladder. Each step is adjusted to
+    divide the horizon (T / round(T / h)), so the final state is compared at T itself.
+    `stiff` = (adapter, k): a soft engine rebuilt per step with its constraint time constant
+    at k steps (SOFT_TIMECONST_STEPS), recorded as method "<integrator> solref=<k>h"."""
+    T = horizon(name)
     out = []
-    for h in (FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL).get(integ, ()):
-        rec = _base(name, engine, integ, integ, h, "timestep", T, ref)
-        n = int(round(T / h))
-        if n > FIXED_MAX_STEPS[quick]:
+    for h0 in fixed_step_ladder(integ, quick):
+        n = int(round(T / h0))
+        h = T / n
+        if n > FIXED_MAX_STEPS[quick] or (stiff and h < STIFF_MIN_STEP[quick]):
             continue
-        try:
-            tr, wall, wmin, nrep = _timed(lambda: _simulate_timed(
-                em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h),
-                REPEATS_QUICK if quick else REPEATS_FULL)
-            # an untimed run that records ~100 states for the residual and the energy
-            every = max(1, n // 100)
-            marks = sorted(set(range(0, n + 1, every)) | {n})
-            trr = em.simulate(m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ,
-                              timestep=h)
-            err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
-                                                m.energy_conserved)
-            err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
-            rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep, error=_finite(err_timed),
-                       residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
-                       energy_drift=_finite(drift), nfev=n * STAGES.get(integ, 1),
-                       nsteps=n, engine_violation=_finite(np.max(trr.violation)),
-                       note="residual and energy drift over ~100 recorded states; nfev = "
-                            "steps x stages")
-            if err != err_timed:
-                rec["error_recorded_run"] = _finite(err)
-            warnings = {**tr.warnings, **trr.warnings}
-            if warnings:  # the engine reset an unstable state and went on: not a trajectory
-                rec.update(warnings=warnings, flagged=f"{engine_label(engine)} reported an "
-                           f"unstable simulation ({', '.join(warnings)}) and reset its state")
-        except Exception as exc:
-            rec.update(wall_s=None, error=None, residual=None,
-                       failed=f"{type(exc).__name__}: {exc}")
-        out.append(rec)
+        rec = _base(name, engine, integ, integ, h, "timestep", T, ref)
+        if h != h0:
+            rec["setting_requested"] = h0
+        model = em
+        if stiff:
+            adapter, k = stiff
+            rec.update(method=f"{integ} solref={k}h", solref=[k * h, 1.0])
+            try:
+                model = type(adapter)(solref=(k * h, 1.0)).build(name, nm.params)
+            except Exception as exc:  # the default build worked: this one must too
+                out.append({**rec, "wall_s": None, "error": None, "residual": None,
+                            "failed": f"engine build: {type(exc).__name__}: {exc}"})
+                continue
+        out.append(_fixed_step_run(rec, quick, ref, nm, model, integ, h, n))
     return out
 
 
+def _stiffer(adapter) -> list:
+    """(adapter, k) for every stiffer setting of a soft engine whose adapter takes a `solref`
+    option (its constraint time constant and damping ratio); [] for every other engine."""
+    if adapter.capabilities.exact:
+        return []
+    try:
+        takes = "solref" in inspect.signature(type(adapter)).parameters
+    except (TypeError, ValueError):
+        takes = False
+    return [(adapter, k) for k in SOFT_TIMECONST_STEPS] if takes else []
+
+
 def engine_records(name, quick, ref, nm, adapter):
-    """Every integrator of one engine (Capabilities.integrators) on one model."""
+    """Every integrator of one engine (Capabilities.integrators) on one model; a soft engine
+    also at its stiffer settings (_stiffer)."""
     T = horizon(name)
     caps = adapter.capabilities
     first = caps.integrators[0] if caps.integrators else None
@@ -249,10 +327,14 @@ def engine_records(name, quick, ref, nm, adapter):
     out = []
     for integ in adaptive:
         out += adaptive_records(name, quick, ref, nm, em, adapter.name, integ)
-    ladder = FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL
-    for integ in ladder:  # the ladder's order (cheap integrators first)
-        if integ in caps.integrators and integ not in adaptive:
-            out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ)
+    named = list(FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL)
+    fixed = [i for i in caps.integrators if i not in caps.adaptive_integrators]
+    # the named ladders' order first (cheap integrators first), then the engine's own order
+    fixed.sort(key=lambda i: named.index(i) if i in named else len(named))
+    for integ in fixed:
+        out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ)
+        for stiff in _stiffer(adapter):
+            out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ, stiff)
     return out
 
 

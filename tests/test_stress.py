@@ -112,6 +112,69 @@ def test_work_precision_records_have_the_promised_fields(monkeypatch):
     assert t1["met"] is None  # no MuJoCo rows in this run: not decided
 
 
+def _wp_inputs(name):
+    from reference import NumericModel, models
+    from reference.minimal import reference_final_state
+    nm = NumericModel(models.get(name))
+    ref = reference_final_state(name, workprecision.horizon(name))
+    return nm, ref, workprecision._base(name, "e", None, None, None, "timestep", 1.0, ref)
+
+
+def test_an_engine_refusal_is_a_listed_skip_and_a_broken_build_a_failure():
+    from crosscheck.engines.registry import get_engine
+    nm, ref, row = _wp_inputs("knife_edge")
+    em, (rec,) = workprecision._engine_model(get_engine("mujoco"), "knife_edge", nm, row)
+    assert em is None and rec["skipped"] and rec["refusal"] == "EngineUnsupported", rec
+    nm, ref, row = _wp_inputs("slider_crank")
+    # a build that breaks (an option MuJoCo cannot parse) is a failure, never a skip
+    broken = get_engine("mujoco", solref=("x", 1.0))
+    em, (rec,) = workprecision._engine_model(broken, "slider_crank", nm, row)
+    assert em is None and "skipped" not in rec and "ValueError" in rec["failed"], rec
+    from crosscheck.bench import failed_checks
+    assert failed_checks({"work_precision": [rec], "stress": []})  # the bench exits 1
+
+
+def test_errors_below_the_reference_accuracy_are_not_reported_as_resolved():
+    nm, ref, row = _wp_inputs("slider_crank")
+    low, high = dict(row), dict(row)
+    workprecision._judge_error(low, ref.accuracy / 10, ref)
+    workprecision._judge_error(high, ref.accuracy * 10, ref)
+    assert low["error_resolved"] is False and "at or below the reference's accuracy" in \
+        low["error_note"]
+    assert high["error_resolved"] is True and "error_note" not in high
+
+
+def test_engine_fixed_step_integrators_are_benchmarked_with_steps_dividing_the_horizon():
+    # Exudyn declares only fixed-step integrators: every one gets rows (the generic ladder)
+    from crosscheck.engines.registry import get_engine
+    nm, ref, _row = _wp_inputs("slider_crank")
+    adapter = get_engine("exudyn")
+    recs = workprecision.engine_records("slider_crank", True, ref, nm, adapter)
+    assert {r["integrator"] for r in recs} == set(adapter.capabilities.integrators)
+    T = workprecision.horizon("slider_crank")
+    for r in recs:
+        assert "failed" not in r and r["error"] is not None, r
+        assert r["nsteps"] * r["setting"] == pytest.approx(T, rel=1e-12)
+
+
+def test_work_precision_target_compares_with_mujocos_most_accurate_run():
+    # the target's decision on records of one real quick run: MuJoCo's rows at their default
+    # and stiffer constraint settings, the reference's ladder
+    from crosscheck.engines.registry import get_engine
+    nm, ref, _row = _wp_inputs("slider_crank")
+    recs = workprecision.reference_records("slider_crank", True, ref, nm,
+                                           methods=("projection",), ladder=(1e-10,))
+    mj = workprecision.engine_records("slider_crank", True, ref, nm, get_engine("mujoco"))
+    assert any(r.get("solref") == [2 * r["setting"], 1.0] for r in mj)  # 2 steps: the floor
+    t1 = targets.work_precision_target(recs + mj, "slider_crank")
+    assert t1["ratio"] is not None and t1["met"] == (t1["ratio"] > 1.0), t1
+    timed = [r for r in mj if r.get("error") is not None and not r.get("flagged")]
+    hit = [r for r in timed if r["error"] <= targets.TARGET_MUJOCO_ERROR]
+    other = (min(hit, key=lambda r: r["wall_s"]) if hit
+             else min(timed, key=lambda r: r["error"]))
+    assert t1["ratio"] == other["wall_s"] / t1["reference"]["wall_s"]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("scene", list(stress.SCENES))
 def test_full_scenes(scene):
