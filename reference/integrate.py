@@ -258,10 +258,16 @@ class _Run:
         if not prob.mc:
             return
         q = prob.full(t, y)[0]
-        A = np.array(prob.pjac(q, prob.zeros_u, t, prob.p)[0], float).reshape(prob.mc,
-                                                                                   prob.nq)
-        if self.A_last is not None and np.linalg.det(A @ self.A_last.T) < 0.0:
-            self.rank_crossings.append(float(t))
+        A = prob.pjac(q, prob.zeros_u, t, prob.p)[0]
+        last = self.A_last
+        if last is not None:
+            if prob.mc == 1:  # one row: the determinant is the dot product (no numpy call)
+                d = sum(a * b for a, b in zip(A, last))
+            else:
+                Ak = np.asarray(A, float).reshape(prob.mc, prob.nq)
+                d = np.linalg.det(Ak @ np.asarray(last, float).reshape(prob.mc, prob.nq).T)
+            if d < 0.0:
+                self.rank_crossings.append(float(t))
         self.A_last = A
 
     def trajectory(self, method, settings, wall) -> Trajectory:
