@@ -100,7 +100,7 @@ def test_work_precision_records_have_the_promised_fields(monkeypatch):
     assert {r["method"] for r in ref} == {"index1", "baumgarte", "projection", "nullspace"}
     for r in ref:
         for key in ("model", "engine", "method", "setting", "wall_s", "error", "residual",
-                    "energy_drift", "nfev", "reference_accuracy"):
+                    "energy_drift", "nfev", "reference_accuracy", "error_resolved"):
             assert key in r, key
         assert r["error"] is not None and r["wall_s"] > 0
     skipped = [r for r in recs if r["engine"] == "nope"]
@@ -192,9 +192,19 @@ def test_bench_quick_writes_every_section(tmp_path):
     data = json.loads((tmp_path / "bench.json").read_text())
     for key in ("forward", "work_precision", "stress", "targets", "skips"):
         assert data[key], key
-    engines = {rec["engine"] for rec in data["work_precision"] if rec["model"] == "slider_crank"}
-    assert {"reference", "pinocchio", "mujoco"} <= engines
-    assert all(s["status"] != "failed" for s in data["stress"])
+    from crosscheck.engines.registry import available_engines, get_engine
+    # every engine with trajectories runs its own integrators beside the reference's methods
+    with_trajectories = {e for e in available_engines() if get_engine(e).capabilities.integrators}
+    for engine in with_trajectories | {"reference"}:
+        rows = [rec for rec in data["work_precision"]
+                if rec["model"] == "slider_crank" and rec["engine"] == engine]
+        assert rows and all(rec.get("error") is not None for rec in rows), engine
+    for e in with_trajectories:
+        integrators = {rec["integrator"] for rec in data["work_precision"] if rec["engine"] == e}
+        caps = get_engine(e).capabilities
+        fixed = {i for i in caps.integrators if i not in caps.adaptive_integrators}
+        assert fixed <= integrators, (e, fixed - integrators)
+    assert data["failed_checks"] == [] and all(s["status"] != "failed" for s in data["stress"])
     assert data["meta"]["wall_s"] < 180
 
 
