@@ -175,11 +175,31 @@ def test_work_precision_target_compares_with_mujocos_most_accurate_run():
     assert t1["ratio"] == other["wall_s"] / t1["reference"]["wall_s"]
 
 
+# each full-length scene's expected status and the runs a flag may name (measured: every run
+# of these scenes completes; the rank-loss scene's runs are judged by their verdicts instead)
+FULL_EXPECTED = {
+    "slider_crank_rank_loss": ("flagged", None),
+    "double_pendulum_313": ("ok", ()),
+    "pendulum_long": ("flagged", ("index1",)),  # the unstabilized form drifts off
+    "mass_ratio_1e6": ("ok", ()),
+    # 64 partitions at this spin: each restart costs accuracy (the scene's own explanation)
+    "top_1000_rad_s": ("flagged", ("nullspace",)),
+    "redundant_constraints": ("ok", ()),
+}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("scene", list(stress.SCENES))
 def test_full_scenes(scene):
+    assert set(FULL_EXPECTED) == set(stress.SCENES)  # a new scene states its expectation
+    status, flagged_runs = FULL_EXPECTED[scene]
     rec = stress.SCENES[scene](quick=False)
-    assert rec["status"] != "failed", _statuses(rec)
+    assert rec["status"] == status, _statuses(rec)
+    if flagged_runs is None:
+        assert all(r["verdict"] in stress.RANK_LOSS_ALLOWED for r in rec["runs"]), rec["runs"]
+    elif scene != "redundant_constraints":  # its one run is an expected refusal
+        assert all(r["outcome"] == "completed" for r in rec["runs"]), rec["runs"]
+        assert all(r.split(":")[0] in flagged_runs for r in rec["reasons"]), rec["reasons"]
 
 
 @pytest.mark.slow
