@@ -16,7 +16,8 @@ evaluated by the reference on the engine's mapped states), residual_position/_ve
 energy_drift (max |E - E0 - W| / |E| scale, None where not checked), nfev, t_end, and the
 reference's kind and estimated accuracy; error_resolved (False: the error is at or below the
 reference's own accuracy, error_note says so: the figure bounds the run's error, it does not
-measure it). A run that fails keeps its row with "failed": reason; an engine's refusal of a
+measure it); reference_same_method (True: the reference solution is a tighter run of this row's
+own method, models without an independent reference: the error shows convergence only). A run that fails keeps its row with "failed": reason; an engine's refusal of a
 model (EngineUnsupported) is a row with "skipped", "refusal" and the reason, any other build
 error a failed row.
 
@@ -107,6 +108,9 @@ def _judge_error(rec: dict, err, ref) -> None:
     """rec["error"], and whether it is above the reference's own estimated accuracy: an error at
     or below it is not resolved (the figure is the reference's error as much as the run's)."""
     rec["error"] = _finite(err)
+    if rec["engine"] == "reference" and ref.kind.startswith(f"tight run ({rec['method']},"):
+        # the reference is a tighter run of this very method: convergence, not independence
+        rec["reference_same_method"] = True
     if rec["error"] is None:
         return
     rec["error_resolved"] = rec["error"] > ref.accuracy
