@@ -182,9 +182,9 @@ def _engines(requested):
 def cmd_bench(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .output import write_atomic
+    from .skip_savings import skip_savings
     from .stress import stress_records
     from .targets import profile_for_missed, targets
-    from .skip_savings import skip_savings
     from .workprecision import work_precision_records
 
     t_start = time.perf_counter()
@@ -266,7 +266,8 @@ def _print_summary(result: dict, out: Path) -> None:
         head = (f"{r['model']:20s} {r['engine']:10s} {str(r.get('method')):20s} "
                 f"{str(r.get('setting'))[:8]:8s}")
         if r.get("wall_s") is None:
-            print(f"{head} {'skipped: ' + str(r.get('reason')) if r.get('skipped') else r.get('failed')}")
+            print(f"{head} " + (f"skipped: {r.get('reason')}" if r.get("skipped")
+                                else str(r.get("failed"))))
         else:
             res = r.get("residual")
             print(f"{head} {r['wall_s'] * 1e3:9.2f} ms  err {_fmt_err(r)}"

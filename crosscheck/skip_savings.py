@@ -81,7 +81,7 @@ def _forward_loop(nm: NumericModel, Q, U):
 
     def loop():
         for _ in range(KKT_PASSES):
-            for q, u in zip(Q, U):
+            for q, u in zip(Q, U, strict=True):
                 raw(q, u, 0.0)
     return loop
 
@@ -199,7 +199,8 @@ def derivation_cache(quick: bool, rounds: int) -> dict:
             else:
                 os.environ[k] = v
     return {"what": "NumericModel construction on the Python backend with an empty "
-                    "CROSSCHECK_CACHE_DIR (derive, simplify, generate code) in a fresh process (cold_s), in a second "
+                    "CROSSCHECK_CACHE_DIR (derive, simplify, generate code) in a fresh process "
+                    "(cold_s), in a second "
                     "fresh process that finds the cache (warm_fresh_process_s: the like-for-like "
                     "figure), and repeated in this process (warm_s: also skips the imports and "
                     "sympy's first-use costs); the Model object is built before the clock starts",

@@ -91,7 +91,7 @@ def _rank_loss_verdict(run) -> str:
         # close and turned back (a touch) must have fired the KKT pivot warning
         warned = (run["min_pivot_ratio"] or math.inf) < PIVOT_WARN
         ok = all(t in reported if through else warned
-                 for t, through in zip(run["crossings_t"], run["reversed"]))
+                 for t, through in zip(run["crossings_t"], run["reversed"], strict=True))
         return "crossed_reported" if ok else "crossed_silently"
     return ("branch_change_silent" if run["max_abs_sin_theta1_plus_theta2"] > 1e-6
             else "no_crossing")

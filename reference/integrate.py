@@ -262,7 +262,7 @@ class _Run:
         last = self.A_last
         if last is not None:
             if prob.mc == 1:  # one row: the determinant is the dot product (no numpy call)
-                d = sum(a * b for a, b in zip(A, last))
+                d = sum(a * b for a, b in zip(A, last, strict=True))
             else:
                 Ak = np.asarray(A, float).reshape(prob.mc, prob.nq)
                 d = np.linalg.det(Ak @ np.asarray(last, float).reshape(prob.mc, prob.nq).T)

@@ -27,7 +27,7 @@ def test_slider_crank_rank_loss_is_refused_or_reported_never_silent():
         if run["verdict"] == "refused_singular":
             assert "at t =" in run["message"]
         else:
-            through = [t for t, r in zip(run["crossings_t"], run["reversed"]) if r]
+            through = [t for t, r in zip(run["crossings_t"], run["reversed"], strict=True) if r]
             assert through and set(through) <= set(run["integrator_rank_crossings_t"])
             assert any("lost rank" in w for w in run["warnings"]), run["warnings"]
             assert any(run["run"] in r and "reported by the integrator" in r
@@ -39,7 +39,8 @@ def test_a_silent_passage_of_the_rank_loss_pose_fails():
     # rtol 1e-8 was before the rank monitor: pivot ratio 9.7e-4, no warning)
     rec = stress._record("s", "w", "t", 1.0)
     run = {"run": "projection rtol=1e-08", "outcome": "completed", "crossings_t": [0.26, 0.72],
-           "reversed": [True, True], "integrator_rank_crossings_t": [0.26], "min_pivot_ratio": 9.7e-4,
+           "reversed": [True, True], "integrator_rank_crossings_t": [0.26],
+           "min_pivot_ratio": 9.7e-4,
            "max_abs_sin_theta1_plus_theta2": 0.0, "warnings": []}
     stress._rank_loss_judge(rec, run["run"], run)
     assert run["verdict"] == "crossed_silently" and rec["status"] == "failed", rec
@@ -122,10 +123,10 @@ def _wp_inputs(name):
 
 def test_an_engine_refusal_is_a_listed_skip_and_a_broken_build_a_failure():
     from crosscheck.engines.registry import get_engine
-    nm, ref, row = _wp_inputs("knife_edge")
+    nm, _ref, row = _wp_inputs("knife_edge")
     em, (rec,) = workprecision._engine_model(get_engine("mujoco"), "knife_edge", nm, row)
     assert em is None and rec["skipped"] and rec["refusal"] == "EngineUnsupported", rec
-    nm, ref, row = _wp_inputs("slider_crank")
+    nm, _ref, row = _wp_inputs("slider_crank")
     # a build that breaks (an option MuJoCo cannot parse) is a failure, never a skip
     broken = get_engine("mujoco", solref=("x", 1.0))
     em, (rec,) = workprecision._engine_model(broken, "slider_crank", nm, row)
@@ -135,7 +136,7 @@ def test_an_engine_refusal_is_a_listed_skip_and_a_broken_build_a_failure():
 
 
 def test_errors_below_the_reference_accuracy_are_not_reported_as_resolved():
-    nm, ref, row = _wp_inputs("slider_crank")
+    _nm, ref, row = _wp_inputs("slider_crank")
     low, high = dict(row), dict(row)
     workprecision._judge_error(low, ref.accuracy / 10, ref)
     workprecision._judge_error(high, ref.accuracy * 10, ref)
