@@ -391,7 +391,10 @@ def work_precision_records(model_names, quick: bool = False, engines=None,
                 out.append({"model": name, "engine": ename, "t_end": T,
                             "skipped": True, "reason": f"engine adapter unavailable: {why}"})
             else:
+                t_e = time.perf_counter()
                 out += engine_records(name, quick, ref, nm, a)
+                if log:  # a full ladder runs for minutes per engine: show where it is
+                    log(f"work-precision {name} {ename}: {time.perf_counter() - t_e:.1f} s")
         if log:
             log(f"work-precision {name}: {time.perf_counter() - t0:.1f} s")
     return out
