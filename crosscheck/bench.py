@@ -22,6 +22,7 @@ from reference import NumericModel, models
 from reference.formulations import derive
 
 from . import jsonio
+from .engines.base import EngineUnsupported
 from .provenance import meta
 from .timing import per_call_seconds
 
@@ -111,10 +112,15 @@ def forward_records(names, quick=False, engines=()):
         for engine in engines:
             try:
                 em = engine.build(name, nm.params)
-            except Exception as exc:  # EngineUnsupported and friends: recorded, not hidden
+            except EngineUnsupported as exc:  # the expected refusal: a skip with its reason
                 recs.append({"model": name, "engine": engine.name, "path": "engine",
                              "batch": 1, "us_per_state": None, "skipped": True,
-                             "reason": str(exc)})
+                             "refusal": "EngineUnsupported", "reason": str(exc)})
+                continue
+            except Exception as exc:  # anything else is a broken build: a failed check
+                recs.append({"model": name, "engine": engine.name, "path": "engine",
+                             "batch": 1, "us_per_state": None,
+                             "failed": f"engine build: {type(exc).__name__}: {exc}"})
                 continue
             rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(q, u)))
             # the engine over the batch's states, one call each (a Python loop)
@@ -176,9 +182,10 @@ def _engines(requested):
 def cmd_bench(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .output import write_atomic
+    from .skip_savings import skip_savings
     from .stress import stress_records
     from .targets import profile_for_missed, targets
-    from .workprecision import skip_savings, work_precision_records
+    from .workprecision import work_precision_records
 
     t_start = time.perf_counter()
     # the benchmark times the compiled kernels: compile them here if the cache is cold (the
@@ -216,32 +223,69 @@ def cmd_bench(args) -> int:
     result["skips"] = skip_savings(args.quick)
     log("targets and skip measurements done")
     result["meta"]["quick"] = bool(args.quick)
+    result["failed_checks"] = failed_checks(result)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
     write_atomic(out / "bench.json", jsonio.dumps(result))
+    _print_summary(result, out)
+    return 1 if result["failed_checks"] else 0
+
+
+def failed_checks(result: dict) -> list[str]:
+    """Every check of this bench that failed (the command then exits 1): a stress scene whose
+    guard did not hold, a work-precision run or engine build that failed (an expected refusal,
+    EngineUnsupported, is a skip with its reason, not a failure)."""
+    out = [f"stress {r['scene']}: {'; '.join(r.get('reasons', []))[:300]}"
+           for r in result.get("stress", []) if r.get("status") == "failed"]
+    out += [f"work-precision {r['model']} {r['engine']} {r.get('method')} {r.get('setting')}: "
+            f"{str(r['failed'])[:300]}" for r in result.get("work_precision", [])
+            if r.get("failed")]
+    out += [f"forward {r['model']} {r['engine']}: {r['failed']}"
+            for r in result.get("forward", []) if r.get("failed")]
+    return out
+
+
+def _fmt_err(r) -> str:
+    err = r.get("error")
+    if err is None:
+        return "None"
+    return f"{err:.1e}" + ("" if r.get("error_resolved", True) else " (<= ref accuracy)")
+
+
+def _print_summary(result: dict, out: Path) -> None:
     for r in result["forward"]:
         t = r["us_per_state"]
         print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "
               + (f"{t:10.3f} us/state" if t is not None
-                 else f"skipped: {r.get('reason') or r.get('skipped')}"))
+                 else r.get("failed") or f"skipped: {r.get('reason') or r.get('skipped')}"))
     print("\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20)")
     for r in result["forward_ratios"]:
         print(f"{r['model']:22s} ({r['backend']}) " + ", ".join(
             f"{k} {v:.2f}" for k, v in r.items() if isinstance(v, float)))
     print("\nwork-precision (model engine method setting: wall, error, residual)")
     for r in result["work_precision"]:
-        head = (f"{r['model']:20s} {r['engine']:10s} {str(r.get('method')):12s} "
-                f"{str(r.get('setting')):8s}")
+        head = (f"{r['model']:20s} {r['engine']:10s} {str(r.get('method')):20s} "
+                f"{str(r.get('setting'))[:8]:8s}")
         if r.get("wall_s") is None:
-            print(f"{head} {'skipped: ' + str(r.get('reason')) if r.get('skipped') else r.get('failed')}")
+            print(f"{head} " + (f"skipped: {r.get('reason')}" if r.get("skipped")
+                                else str(r.get("failed"))))
         else:
-            err, res = r.get("error"), r.get("residual")
-            print(f"{head} {r['wall_s'] * 1e3:9.2f} ms  err {err if err is None else f'{err:.1e}'}"
+            res = r.get("residual")
+            print(f"{head} {r['wall_s'] * 1e3:9.2f} ms  err {_fmt_err(r)}"
                   f"  res {res if res is None else f'{res:.1e}'}")
     print("\nstress")
     for r in result["stress"]:
         print(f"  {r['scene']:24s} {r['status']}")
         for why in r.get("reasons", []):
             print(f"      - {why[:160]}")
+    _print_targets(result["targets"])
+    for why in result["failed_checks"]:
+        print(f"FAILED {why}")
+    print(f"\nwrote {out / 'bench.json'} in {result['meta']['wall_s']:.1f} s"
+          + (f"; {len(result['failed_checks'])} check(s) failed" if result["failed_checks"]
+             else ""))
+
+
+def _print_targets(tg: dict) -> None:
     print("\ntargets")
     for key, t in tg.items():
         if "models" in t:
@@ -252,9 +296,8 @@ def cmd_bench(args) -> int:
                 print(f"      {name:20s} pinocchio/reference = {v['ratio']:.2f}{raw}")
         else:
             print(f"  {key}: met={t.get('met')} ratio={t.get('ratio')}"
-                  + (f" ({t['reason']})" if t.get("reason") else ""))
-    print(f"\nwrote {out / 'bench.json'} in {result['meta']['wall_s']:.1f} s")
-    return 0
+                  + (f" ({t.get('compared_with') or t.get('reason')})"
+                     if t.get("compared_with") or t.get("reason") else ""))
 
 
 def register(sub):

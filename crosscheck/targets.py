@@ -31,7 +31,7 @@ def _brief(r):
     if r is None:
         return None
     return {k: r.get(k) for k in ("engine", "method", "integrator", "setting", "wall_s", "error",
-                                  "residual", "nfev")}
+                                  "residual", "nfev", "solref")}
 
 
 def _profile_run(fn, top=8) -> list[str]:
@@ -51,37 +51,9 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
     time the reference and Pinocchio back to back (forward_pair) on every model with a
     Pinocchio forward record (quick: QUICK_MODELS only)."""
     out = {}
-    # 1. reference to 1e-8 with residual 1e-10 vs MuJoCo to 1e-4
-    recs = [r for r in wp if r.get("model") == model]
-    ref_best = _best([r for r in recs if r["engine"] == "reference"],
-                     e=lambda r: r.get("error") is not None and r["error"] <= TARGET_ERROR,
-                     c=lambda r: r.get("residual") is not None and r["residual"] <= TARGET_RESIDUAL)
-    soft = _target_engine(exact=False) or "soft_engine"  # target 1's engine (MuJoCo)
-    mj = [r for r in recs if r["engine"] == soft and r.get("wall_s") is not None]
-    mj_best = _best(mj, e=lambda r: r.get("error") is not None
-                    and r["error"] <= TARGET_MUJOCO_ERROR)
-    t1 = {"model": model, "t_end": horizon(model),
-          "statement": f"reference reaches error <= {TARGET_ERROR:g} with residual <= "
-                       f"{TARGET_RESIDUAL:g} in less wall time than MuJoCo needs for error <= "
-                       f"{TARGET_MUJOCO_ERROR:g}",
-          "reference": _brief(ref_best), soft: _brief(mj_best)}
-    if ref_best is None:
-        t1.update(met=False, ratio=None,
-                  reason="no reference run on the ladder met both the error and the residual")
-    elif not mj:
-        t1.update(met=None, ratio=None, reason="no MuJoCo records in this run")
-    elif mj_best is None:
-        closest = min((r for r in mj if r.get("error") is not None), key=lambda r: r["error"],
-                      default=None)
-        t1.update(met=True, ratio=None, **{f"{soft}_closest": _brief(closest)},
-                  reason=f"MuJoCo did not reach {TARGET_MUJOCO_ERROR:g} anywhere on its "
-                         f"time-step ladder (its soft equality constraints bound the error); "
-                         f"ratio_vs_closest = MuJoCo's most accurate run's wall / reference's",
-                  ratio_vs_closest=(closest["wall_s"] / ref_best["wall_s"]) if closest else None)
-    else:
-        ratio = mj_best["wall_s"] / ref_best["wall_s"]
-        t1.update(met=ratio > 1.0, ratio=ratio)
-    out["slider_crank_work_precision"] = t1
+    # 1. reference to 1e-8 with residual 1e-10 vs MuJoCo to 1e-4 (or at its most accurate)
+    out["slider_crank_work_precision"] = work_precision_target(
+        [r for r in wp if r.get("model") == model], model)
 
     # 2./3. forward dynamics: single state vs Pinocchio, batched vs Pinocchio
     def us(name, engine, path):
@@ -138,6 +110,53 @@ def targets(forward: list[dict], wp: list[dict], model: str = "slider_crank",
                      f"{TARGET_BATCH_SPEEDUP:g}x faster per state than Pinocchio's call",
         "models": batched, "met": _all_met(batched)}
     return out
+
+
+def work_precision_target(recs: list[dict], model: str) -> dict:
+    """Target 1: the reference's fastest run with error <= TARGET_ERROR (above the reference's
+    own accuracy) and residual <= TARGET_RESIDUAL against the soft engine's fastest run with
+    error <= TARGET_MUJOCO_ERROR, over every setting it was run at (its default constraint
+    stiffness and the stiffer ones). Where no soft run reaches that error, the comparison is
+    against its most accurate run: met when the reference is faster than that run too (it is
+    then faster and more accurate), ratio = that run's wall / the reference's."""
+    soft = _target_engine(exact=False) or "soft_engine"  # target 1's engine (MuJoCo)
+    ref_best = _best([r for r in recs if r["engine"] == "reference"],
+                     e=lambda r: r.get("error") is not None and r["error"] <= TARGET_ERROR,
+                     c=lambda r: r.get("residual") is not None and r["residual"] <= TARGET_RESIDUAL)
+    mj = [r for r in recs if r["engine"] == soft and r.get("wall_s") is not None
+          and r.get("error") is not None and not r.get("flagged")]
+    mj_best = _best(mj, e=lambda r: r["error"] <= TARGET_MUJOCO_ERROR)
+    t1 = {"model": model, "t_end": horizon(model),
+          "statement": f"reference reaches error <= {TARGET_ERROR:g} with residual <= "
+                       f"{TARGET_RESIDUAL:g} in less wall time than MuJoCo needs for error <= "
+                       f"{TARGET_MUJOCO_ERROR:g} (at any of its settings, the stiffer soft "
+                       f"constraints included), or than its most accurate run where none gets "
+                       f"there",
+          "reference": _brief(ref_best), soft: _brief(mj_best),
+          f"{soft}_settings": sorted({str(r.get("method")) for r in mj})}
+    if ref_best is None:
+        t1.update(met=False, ratio=None,
+                  reason="no reference run on the ladder met both the error and the residual")
+        return t1
+    if ref_best.get("reference_accuracy") is not None \
+            and ref_best["reference_accuracy"] > TARGET_ERROR:
+        t1.update(met=None, ratio=None, reason=f"the reference solution's accuracy "
+                  f"{ref_best['reference_accuracy']:.1e} does not resolve {TARGET_ERROR:g}")
+        return t1
+    if not mj:
+        t1.update(met=None, ratio=None, reason="no MuJoCo records in this run")
+        return t1
+    if mj_best is not None:
+        ratio = mj_best["wall_s"] / ref_best["wall_s"]
+        t1.update(met=ratio > 1.0, ratio=ratio, compared_with=f"{soft}'s fastest run with "
+                  f"error <= {TARGET_MUJOCO_ERROR:g}")
+        return t1
+    closest = min(mj, key=lambda r: r["error"])
+    ratio = closest["wall_s"] / ref_best["wall_s"]
+    t1.update(met=ratio > 1.0, ratio=ratio, **{f"{soft}_closest": _brief(closest)},
+              compared_with=f"{soft}'s most accurate run (error {closest['error']:.1e}: no run "
+                            f"reached {TARGET_MUJOCO_ERROR:g})")
+    return t1
 
 
 def _all_met(rows: dict):

@@ -2,16 +2,26 @@
 
 One record per model x engine x method x setting:
 - reference: every method of reference.integrate over a tolerance ladder (rtol = atol), DOP853;
-- every engine, through its simulate() and Capabilities.integrators: an error-controlled
-  integrator over the same rtol ladder (method "index1": Pinocchio's forward dynamics under scipy's
-  DOP853 in engine coordinates, no stabilization), a fixed-step one over a time-step ladder per
-  integrator (MuJoCo's mj_step).
+- every engine, through its simulate() and Capabilities.integrators: each error-controlled
+  integrator (adaptive_integrators; quick: the first) over the same rtol ladder (method "index1":
+  e.g. Pinocchio's forward dynamics under scipy's DOP853, OpenSim's Simbody integrators), each
+  fixed-step one over a time-step ladder (MuJoCo's mj_step per integrator, FIXED_STEPS_*; any
+  other, e.g. Exudyn's implicit solvers, FIXED_STEPS_OTHER), every step adjusted to divide the
+  horizon; a soft engine whose adapter takes `solref` also at stiffer constraint settings (time
+  constant SOFT_TIMECONST_STEPS steps: method "<integrator> solref=<k>h", field solref).
 Fields: model, engine, method, integrator, setting (rtol = atol, or the time step), setting_kind,
 wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state - reference|,
 the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u + a0|,
 evaluated by the reference on the engine's mapped states), residual_position/_velocity,
 energy_drift (max |E - E0 - W| / |E| scale, None where not checked), nfev, t_end, and the
-reference's kind and estimated accuracy. A run that fails keeps its row with "failed": reason.
+reference's kind and estimated accuracy; error_resolved (False: the error is at or below the
+reference's own accuracy, error_note says so: the figure bounds the run's error, it does not
+measure it); reference_same_method (True: the reference solution is a tighter run of this
+row's own method, models without an independent reference: the error shows convergence only);
+setting_requested (the ladder's step where it was adjusted to divide the horizon), solref,
+engine_steps. A run that fails keeps its row with "failed": reason; an engine's refusal of a
+model (EngineUnsupported) is a row with "skipped", "refusal" and the reason, any other build
+error a failed row.
 
 Timings are medians over repeats and meaningful only as ratios within one run (crosscheck/timing).
 What is inside each wall_s: reference: simulate() from the projected initial state to t_end
@@ -21,12 +31,9 @@ calls plus two recorded states), else the call.
 """
 from __future__ import annotations
 
-import cProfile
+import inspect
 import math
-import os
-import pstats
 import statistics
-import tempfile
 import time
 from typing import Optional
 
@@ -38,7 +45,7 @@ from reference.errors import ModelInputError
 from reference.minimal import reference_final_state
 
 from .comparison import constraint_residual, energy_drift
-from .engines.base import EngineAdapter
+from .engines.base import EngineAdapter, EngineUnsupported
 from .engines.registry import available_engines, engine_label, get_engine
 
 # benchmark horizons [s]: the pendulum over ~6 periods (the exploratory study's 10 s), the
@@ -57,11 +64,27 @@ FIXED_STEPS_FULL = {"Euler": (1e-2, 1e-3, 1e-4, 1e-5), "implicitfast": (1e-2, 1e
                      "RK4": (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)}
 FIXED_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4),
                       "RK4": (1e-2, 1e-3, 1e-4)}
+# every other fixed-step integrator (Exudyn's implicit solvers, OpenSim's ExplicitEuler,
+# MuJoCo's implicit): one ladder for all (quick: ~0.2-0.7 s per slider-crank run at 1e-3 on this
+# machine). No 1e-2: Exudyn's generalized-alpha stops there on slider_crank_free, top_cartesian
+# and top_euler (its Newton iteration does not converge); 1e-3 runs on every model of every
+# engine (measured by running each engine's fixed-step integrators on each of its models)
+FIXED_STEPS_OTHER = {True: (1e-3,), False: (1e-3, 1e-4)}
+# a soft engine at its stiffest: its constraint time constant (MuJoCo's solref[0], damping
+# ratio 1) set to this many time steps per run, beside the adapter's default; 2 steps is
+# MuJoCo's documented floor (a smaller one is clamped to it); quick leaves out the steps below
+# STIFF_MIN_STEP (the 1e-4 runs cost ~2 s each)
+SOFT_TIMECONST_STEPS = (2, 5)
+STIFF_MIN_STEP = {True: 1e-3, False: 0.0}
 # fixed-step runs longer than this many steps are left out (quick: ~0.3 s per MuJoCo run on
 # this machine)
 FIXED_MAX_STEPS = {True: 25_000, False: 1_000_000}
 QUICK_MODELS = ("pendulum_xy", "slider_crank")
 REPEATS_FULL, REPEATS_QUICK = 5, 3
+# an engine's error-controlled run longer than this leaves out the tighter settings of its
+# ladder (engines take no wall bound): OpenSim's second-order Verlet had not finished its full
+# ladder on the slider-crank after 5 minutes, where its other integrators take 4-33 s per ladder
+ENGINE_RUN_BUDGET_S = {True: 10.0, False: 30.0}
 # a single run longer than this is not repeated (its timing noise is small against its length)
 REPEAT_BUDGET_S = 1.0
 RUN_BOUND_S = {True: 10.0, False: 60.0}  # max_wall_s of one reference run (quick, full)
@@ -88,6 +111,21 @@ def _finite(x) -> Optional[float]:
         return None
     x = float(x)
     return x if math.isfinite(x) else None
+
+
+def _judge_error(rec: dict, err, ref) -> None:
+    """rec["error"], and whether it is above the reference's own estimated accuracy: an error at
+    or below it is not resolved (the figure is the reference's error as much as the run's)."""
+    rec["error"] = _finite(err)
+    if rec["engine"] == "reference" and ref.kind.startswith(f"tight run ({rec['method']},"):
+        # the reference is a tighter run of this very method: convergence, not independence
+        rec["reference_same_method"] = True
+    if rec["error"] is None:
+        return
+    rec["error_resolved"] = rec["error"] > ref.accuracy
+    if not rec["error_resolved"]:
+        rec["error_note"] = (f"at or below the reference's accuracy ({ref.accuracy:.1e}, "
+                             f"{ref.kind}): the run's error is not resolved")
 
 
 def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool):
@@ -126,8 +164,8 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
                     return tr, tr.wall_s
                 tr, wall, wmin, n = _timed(run, repeats)
                 r = tr.max_residual()
+                _judge_error(rec, np.max(np.abs(tr.final_state - ref.state)), ref)
                 rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
-                           error=_finite(np.max(np.abs(tr.final_state - ref.state))),
                            residual=max(r["position"], r["velocity"]),
                            residual_position=r["position"], residual_velocity=r["velocity"],
                            energy_drift=_finite(tr.energy_drift()), nfev=tr.nfev,
@@ -144,15 +182,19 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
 
 
 def _engine_model(adapter, name, nm, row):
-    """(engine model, None), or (None, [row marked skipped with the reason]) when the engine
-    cannot build the model or has no trajectories."""
+    """(engine model, None), or (None, [row]): skipped with the reason where the engine has no
+    trajectories or refuses the model (EngineUnsupported), failed where the build breaks."""
     if not adapter.capabilities.integrators:
         return None, [{**row, "skipped": True,
                        "reason": f"the {adapter.name} engine has no trajectories in this suite"}]
     try:
         em = adapter.build(name, nm.params)
-    except Exception as exc:  # EngineUnsupported, or a model the engine refuses: recorded
-        return None, [{**row, "skipped": True, "reason": f"{type(exc).__name__}: {exc}"}]
+    except EngineUnsupported as exc:  # the one expected refusal: the engine says why
+        return None, [{**row, "skipped": True, "refusal": "EngineUnsupported",
+                       "reason": f"EngineUnsupported: {exc}"}]
+    except Exception as exc:  # anything else is a broken build: a failure, never a skip
+        return None, [{**row, "wall_s": None, "error": None, "residual": None,
+                       "failed": f"engine build: {type(exc).__name__}: {exc}"}]
     return em, None
 
 
@@ -170,8 +212,14 @@ def adaptive_records(name, quick, ref, nm, em, engine, integrator):
     m = nm.model
     out = []
     t_eval = np.linspace(0.0, T, 21)
+    slow = None  # the wall of a run over ENGINE_RUN_BUDGET_S: tighter settings are left out
     for tol in (ENGINE_LADDER_QUICK if quick else ENGINE_LADDER_FULL):
         rec = _base(name, engine, "index1", integrator, tol, "rtol=atol", T, ref)
+        if slow is not None:
+            out.append({**rec, "skipped": True, "reason": f"left out: the looser setting took "
+                        f"{slow:.0f} s > {ENGINE_RUN_BUDGET_S[quick]:g} s (a tighter one costs "
+                        f"more; an engine run cannot be bounded from outside)"})
+            continue
         try:
             tr, wall, wmin, n = _timed(lambda: _simulate_timed(
                 em, m.initial_q, m.initial_u, t_eval, integrator=integrator, rtol=tol),
@@ -180,10 +228,13 @@ def adaptive_records(name, quick, ref, nm, em, engine, integrator):
                 raise RuntimeError(tr.failure)
             err, rp, rv, drift = _state_metrics(nm, tr.t, tr.q, tr.u, ref.state,
                                                 m.energy_conserved)
-            rec.update(wall_s=wall, wall_s_min=wmin, repeats=n, error=_finite(err),
+            _judge_error(rec, err, ref)
+            rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
                        residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
                        energy_drift=_finite(drift), nfev=int(tr.steps),
                        note="residual and energy drift over 21 output states")
+            if wall > ENGINE_RUN_BUDGET_S[quick]:
+                slow = wall
         except Exception as exc:
             rec.update(wall_s=None, error=None, residual=None,
                        failed=f"{type(exc).__name__}: {exc}")
@@ -194,50 +245,94 @@ def adaptive_records(name, quick, ref, nm, em, engine, integrator):
 STAGES = {"Euler": 1, "implicitfast": 1, "implicit": 1, "RK4": 4}
 
 
-def fixed_step_records(name, quick, ref, nm, em, engine, integ):
-    """An engine's fixed-step integrator over its time-step ladder (FIXED_STEPS_*; integrators
-    without a ladder are not benchmarked)."""
-    T = horizon(name)
+def _fixed_step_run(rec, quick, ref, nm, em, integ, h, n):
+    """Fill one fixed-step record: the timed run to n * h, then an untimed recorded run."""
     m = nm.model
+    engine = rec["engine"]
+    try:
+        tr, wall, wmin, nrep = _timed(lambda: _simulate_timed(
+            em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h),
+            REPEATS_QUICK if quick else REPEATS_FULL)
+        # an untimed run that records ~100 states for the residual and the energy
+        every = max(1, n // 100)
+        marks = sorted(set(range(0, n + 1, every)) | {n})
+        trr = em.simulate(m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ,
+                          timestep=h)
+        err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
+                                            m.energy_conserved)
+        err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
+        _judge_error(rec, err_timed, ref)
+        stages = STAGES.get(integ)  # None: an implicit solver's calls are not counted here
+        rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep,
+                   residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
+                   energy_drift=_finite(drift), nfev=n * stages if stages else None,
+                   nsteps=n, engine_steps=tr.steps,
+                   engine_violation=_finite(np.max(trr.violation)),
+                   note="residual and energy drift over ~100 recorded states; nfev = "
+                        "steps x stages (None: stages unknown)")
+        if err != err_timed:
+            rec["error_recorded_run"] = _finite(err)
+        warnings = {**tr.warnings, **trr.warnings}
+        if warnings:  # the engine reset an unstable state and went on: not a trajectory
+            rec.update(warnings=warnings, flagged=f"{engine_label(engine)} reported an "
+                       f"unstable simulation ({', '.join(warnings)}) and reset its state")
+    except Exception as exc:
+        rec.update(wall_s=None, error=None, residual=None,
+                   failed=f"{type(exc).__name__}: {exc}")
+    return rec
+
+
+def fixed_step_ladder(integ: str, quick: bool) -> tuple:
+    """The time steps an engine's fixed-step integrator is run at (FIXED_STEPS_*, else
+    FIXED_STEPS_OTHER)."""
+    named = FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL
+    return named.get(integ, FIXED_STEPS_OTHER[quick])
+
+
+def fixed_step_records(name, quick, ref, nm, em, engine, integ, stiff=None):
+    """An engine's fixed-step integrator over its time-step ladder. Each step is adjusted to
+    divide the horizon (T / round(T / h)), so the final state is compared at T itself.
+    `stiff` = (adapter, k): a soft engine rebuilt per step with its constraint time constant
+    at k steps (SOFT_TIMECONST_STEPS), recorded as method "<integrator> solref=<k>h"."""
+    T = horizon(name)
     out = []
-    for h in (FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL).get(integ, ()):
-        rec = _base(name, engine, integ, integ, h, "timestep", T, ref)
-        n = int(round(T / h))
-        if n > FIXED_MAX_STEPS[quick]:
+    for h0 in fixed_step_ladder(integ, quick):
+        n = int(round(T / h0))
+        h = T / n
+        if n > FIXED_MAX_STEPS[quick] or (stiff and h < STIFF_MIN_STEP[quick]):
             continue
-        try:
-            tr, wall, wmin, nrep = _timed(lambda: _simulate_timed(
-                em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h),
-                REPEATS_QUICK if quick else REPEATS_FULL)
-            # an untimed run that records ~100 states for the residual and the energy
-            every = max(1, n // 100)
-            marks = sorted(set(range(0, n + 1, every)) | {n})
-            trr = em.simulate(m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ,
-                              timestep=h)
-            err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
-                                                m.energy_conserved)
-            err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
-            rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep, error=_finite(err_timed),
-                       residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
-                       energy_drift=_finite(drift), nfev=n * STAGES.get(integ, 1),
-                       nsteps=n, engine_violation=_finite(np.max(trr.violation)),
-                       note="residual and energy drift over ~100 recorded states; nfev = "
-                            "steps x stages")
-            if err != err_timed:
-                rec["error_recorded_run"] = _finite(err)
-            warnings = {**tr.warnings, **trr.warnings}
-            if warnings:  # the engine reset an unstable state and went on: not a trajectory
-                rec.update(warnings=warnings, flagged=f"{engine_label(engine)} reported an "
-                           f"unstable simulation ({', '.join(warnings)}) and reset its state")
-        except Exception as exc:
-            rec.update(wall_s=None, error=None, residual=None,
-                       failed=f"{type(exc).__name__}: {exc}")
-        out.append(rec)
+        rec = _base(name, engine, integ, integ, h, "timestep", T, ref)
+        if h != h0:
+            rec["setting_requested"] = h0
+        model = em
+        if stiff:
+            adapter, k = stiff
+            rec.update(method=f"{integ} solref={k}h", solref=[k * h, 1.0])
+            try:
+                model = type(adapter)(solref=(k * h, 1.0)).build(name, nm.params)
+            except Exception as exc:  # the default build worked: this one must too
+                out.append({**rec, "wall_s": None, "error": None, "residual": None,
+                            "failed": f"engine build: {type(exc).__name__}: {exc}"})
+                continue
+        out.append(_fixed_step_run(rec, quick, ref, nm, model, integ, h, n))
     return out
 
 
+def _stiffer(adapter) -> list:
+    """(adapter, k) for every stiffer setting of a soft engine whose adapter takes a `solref`
+    option (its constraint time constant and damping ratio); [] for every other engine."""
+    if adapter.capabilities.exact:
+        return []
+    try:
+        takes = "solref" in inspect.signature(type(adapter)).parameters
+    except (TypeError, ValueError):
+        takes = False
+    return [(adapter, k) for k in SOFT_TIMECONST_STEPS] if takes else []
+
+
 def engine_records(name, quick, ref, nm, adapter):
-    """Every integrator of one engine (Capabilities.integrators) on one model."""
+    """Every integrator of one engine (Capabilities.integrators) on one model; a soft engine
+    also at its stiffer settings (_stiffer)."""
     T = horizon(name)
     caps = adapter.capabilities
     first = caps.integrators[0] if caps.integrators else None
@@ -253,10 +348,14 @@ def engine_records(name, quick, ref, nm, adapter):
     out = []
     for integ in adaptive:
         out += adaptive_records(name, quick, ref, nm, em, adapter.name, integ)
-    ladder = FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL
-    for integ in ladder:  # the ladder's order (cheap integrators first)
-        if integ in caps.integrators and integ not in adaptive:
-            out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ)
+    named = list(FIXED_STEPS_QUICK if quick else FIXED_STEPS_FULL)
+    fixed = [i for i in caps.integrators if i not in caps.adaptive_integrators]
+    # the named ladders' order first (cheap integrators first), then the engine's own order
+    fixed.sort(key=lambda i: named.index(i) if i in named else len(named))
+    for integ in fixed:
+        out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ)
+        for stiff in _stiffer(adapter):
+            out += fixed_step_records(name, quick, ref, nm, em, adapter.name, integ, stiff)
     return out
 
 
@@ -304,167 +403,10 @@ def work_precision_records(model_names, quick: bool = False, engines=None,
                 out.append({"model": name, "engine": ename, "t_end": T,
                             "skipped": True, "reason": f"engine adapter unavailable: {why}"})
             else:
+                t_e = time.perf_counter()
                 out += engine_records(name, quick, ref, nm, a)
+                if log:  # a full ladder runs for minutes per engine: show where it is
+                    log(f"work-precision {name} {ename}: {time.perf_counter() - t_e:.1f} s")
         if log:
             log(f"work-precision {name}: {time.perf_counter() - t0:.1f} s")
     return out
-
-
-# ---- what skipping saves -------------------------------------------------------------------
-def _interleaved(fns: dict, rounds: int) -> dict:
-    """Time several callables in alternating rounds (A B C A B C ...), so a load change on this
-    shared machine hits all of them alike. Returns label -> {median_s, min_s, result}."""
-    walls = {k: [] for k in fns}
-    last = {}
-    for _ in range(rounds):
-        for k, fn in fns.items():
-            t0 = time.perf_counter()
-            last[k] = fn()
-            walls[k].append(time.perf_counter() - t0)
-    return {k: {"median_s": statistics.median(w), "min_s": min(w), "result": last[k]}
-            for k, w in walls.items()}
-
-
-def _ratio(a: dict, b: dict) -> dict:
-    return {"median": a["median_s"] / b["median_s"], "min": a["min_s"] / b["min_s"]}
-
-
-def skip_savings(quick: bool = False) -> dict:
-    """Measured savings of what a scene does not need (all figures from this run, interleaved;
-    ratios of medians and of minima: the minimum is the least disturbed by other load)."""
-    from .timing import per_call_seconds
-    rounds = 5 if quick else 9
-    out = {}
-    # 1. no KKT without constraints: the same pendulum in theta and in (x, y)
-    a = NumericModel(models.get("pendulum_angle"))
-    b = NumericModel(models.get("pendulum_xy"))
-    qa, ua = list(a.model.initial_q), list(a.model.initial_u)
-    qb, ub = list(b.model.initial_q), list(b.model.initial_u)
-    fa = per_call_seconds(lambda: a.forward_raw(qa, ua, 0.0))
-    fb = per_call_seconds(lambda: b.forward_raw(qb, ub, 0.0))
-    T = horizon("pendulum_xy")
-    refs = {"pendulum_angle": reference_final_state("pendulum_angle", T),
-            "pendulum_xy": reference_final_state("pendulum_xy", T)}
-    runs = {
-        "pendulum_angle/index1": lambda: simulate(a, qa, ua, T, "index1", rtol=1e-10, atol=1e-10),
-        "pendulum_xy/index1": lambda: simulate(b, qb, ub, T, "index1", rtol=1e-10, atol=1e-10),
-        "pendulum_xy/projection": lambda: simulate(b, qb, ub, T, "projection", rtol=1e-10,
-                                                   atol=1e-10)}
-    timed = _interleaved(runs, rounds)
-    sim = {}
-    for k, v in timed.items():
-        tr = v["result"]
-        ref = refs[k.split("/")[0]]
-        sim[k] = {"wall_s": v["median_s"], "wall_s_min": v["min_s"], "nfev": tr.nfev,
-                  "us_per_rhs": v["min_s"] / tr.nfev * 1e6,
-                  "error": float(np.max(np.abs(tr.final_state - ref.state))),
-                  "residual": max(tr.max_residual().values())}
-    out["no_kkt_without_constraints"] = {
-        "what": "pendulum in theta (no constraint: the compiled forward is a 1x1 solve, no Schur "
-                "complement) vs in (x, y) (KKT with one row); rtol = atol = 1e-10, 10 s",
-        "forward_us": {"pendulum_angle": fa["median"] * 1e6, "pendulum_xy": fb["median"] * 1e6,
-                       "ratio_xy_over_angle": fb["median"] / fa["median"]},
-        "simulate": sim,
-        "ratio_wall_xy_index1_over_angle": _ratio(timed["pendulum_xy/index1"],
-                                                  timed["pendulum_angle/index1"]),
-        "ratio_wall_xy_projection_over_angle": _ratio(timed["pendulum_xy/projection"],
-                                                      timed["pendulum_angle/index1"]),
-        "note": "the forward call is a few us of the ~10-20 us each RHS call costs inside "
-                "scipy's Python-level DOP853 step (see time_split): skipping the KKT saves its "
-                "share of the call, and the 1-coordinate form needs fewer calls"}
-
-    # 2. energy bookkeeping: the work integral W as an extra state, or nothing
-    sc = NumericModel(models.get("slider_crank"))
-    Tsc = horizon("slider_crank")
-    q0, u0 = sc.model.initial_q, sc.model.initial_u
-    timed = _interleaved({
-        mode: (lambda mode=mode: simulate(sc, q0, u0, Tsc, "projection", rtol=1e-10,
-                                          atol=1e-10, energy=mode))
-        for mode in ("work", "none")}, rounds)
-    tw, tn = timed["work"]["result"], timed["none"]["result"]
-    out["energy_bookkeeping"] = {
-        "what": "slider_crank, projection, rtol 1e-10: work integral W carried as an ODE state "
-                "(energy='work') vs none; W is excluded from error control, so the steps are "
-                "the same up to the rounding of the error norm",
-        "work": {"wall_s": timed["work"]["median_s"], "wall_s_min": timed["work"]["min_s"],
-                 "nfev": tw.nfev, "nsteps": tw.nsteps},
-        "none": {"wall_s": timed["none"]["median_s"], "wall_s_min": timed["none"]["min_s"],
-                 "nfev": tn.nfev, "nsteps": tn.nsteps},
-        "max_final_state_difference": float(np.max(np.abs(tw.final_state - tn.final_state))),
-        "same_step_count": tw.nsteps == tn.nsteps,
-        "ratio_wall_work_over_none": _ratio(timed["work"], timed["none"]),
-        "note": "the power comes from the compiled energy function, which also returns dE/dq "
-                "and dE/du for NumericModel.power_balance: a power-only function would cut "
-                "most of the cost"}
-
-    # 3. the derivation cache: NumericModel construction cold (empty cache dir) vs warm
-    cache = {}
-    names = ("pendulum_xy", "slider_crank") if quick else ("pendulum_xy", "slider_crank",
-                                                            "slider_crank_split")
-    old = os.environ.get("CROSSCHECK_CACHE_DIR")
-    try:
-        with tempfile.TemporaryDirectory(prefix="crosscheck-cache-") as tmp:
-            os.environ["CROSSCHECK_CACHE_DIR"] = tmp
-            for name in names:
-                model = models.get(name)
-                t0 = time.perf_counter()
-                NumericModel(model)
-                cold = time.perf_counter() - t0
-                w = _interleaved({"warm": lambda: NumericModel(model)}, rounds)["warm"]
-                cache[name] = {"cold_s": cold, "warm_s": w["median_s"], "warm_s_min": w["min_s"],
-                               "ratio_cold_over_warm": cold / w["median_s"]}
-    finally:
-        if old is None:
-            os.environ.pop("CROSSCHECK_CACHE_DIR", None)
-        else:
-            os.environ["CROSSCHECK_CACHE_DIR"] = old
-    out["derivation_cache"] = {
-        "what": "NumericModel construction with an empty CROSSCHECK_CACHE_DIR (derive, simplify, "
-                "generate code) vs the cached generated module (read, compile); the registry's "
-                "Model objects are built beforehand in both cases; cold is one run (a second "
-                "cold run would hit sympy's in-memory caches)",
-        "models": cache}
-
-    # 4. projection: refresh the FSAL derivative after projecting, or reuse the unprojected one
-    ref = reference_final_state("slider_crank", Tsc)
-    timed = _interleaved({
-        key: (lambda refresh=refresh: simulate(sc, q0, u0, Tsc, "projection", rtol=1e-10,
-                                               atol=1e-10, energy="none", refresh=refresh))
-        for key, refresh in (("refresh", True), ("reuse", False))}, rounds)
-    pr = {}
-    for key, v in timed.items():
-        tr = v["result"]
-        pr[key] = {"wall_s": v["median_s"], "wall_s_min": v["min_s"], "nfev": tr.nfev,
-                   "nsteps": tr.nsteps,
-                   "error": float(np.max(np.abs(tr.final_state - ref.state)))}
-    out["projection_fsal_refresh"] = {
-        "what": "slider_crank, DOP853 + projection, rtol 1e-10: solver.f recomputed at the "
-                "projected point (one RHS call per step) vs kept from the unprojected point",
-        **pr, "ratio_wall_refresh_over_reuse": _ratio(timed["refresh"], timed["reuse"])}
-
-    # 5. where the time of a reference run goes (the bound on the work-precision figures)
-    out["time_split"] = time_split(sc, Tsc)
-    return out
-
-
-def time_split(nm: NumericModel, T: float, method: str = "projection", tol: float = 1e-10):
-    """cProfile of one run: the share of the model's compiled code vs scipy's step machinery."""
-    pr = cProfile.Profile()
-    m = nm.model
-    pr.enable()
-    tr = simulate(nm, m.initial_q, m.initial_u, T, method, rtol=tol, atol=tol, energy="none")
-    pr.disable()
-    st = pstats.Stats(pr)
-    total = st.total_tt
-    from reference.codegen import cache_dir
-    gen_dir = os.path.realpath(str(cache_dir()))
-    compiled = sum(v[2] for k, v in st.stats.items()  # tottime of the generated functions
-                   if os.path.dirname(os.path.realpath(k[0])) == gen_dir)
-    top = sorted(st.stats.items(), key=lambda kv: -kv[1][2])[:8]
-    return {"what": f"cProfile of {nm.model.name} {method} rtol {tol:g} over {T:g} s "
-                    f"({tr.nfev} RHS calls, {tr.nsteps} steps; profiling inflates absolute "
-                    f"times, the split is what matters)",
-            "profiled_total_s": total, "compiled_model_code_s": compiled,
-            "compiled_share": compiled / total if total else None,
-            "top_tottime": [f"{v[2] * 1e3:8.2f} ms {k[2]} ({os.path.basename(k[0])}:{k[1]})"
-                            for k, v in top]}

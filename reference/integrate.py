@@ -184,6 +184,7 @@ class _Run:
         self.integrator, self.method = what
         self.T, self.Q, self.U, self.W = [], [], [], []
         self.nfev = self.nsteps = 0
+        self.A_last, self.rank_crossings = None, []  # the rank-loss monitor (_orientation)
 
     def record(self, t, qq, uu, W):
         self.T.append(t)
@@ -200,6 +201,8 @@ class _Run:
 
     def integrate(self, y, t, t_end):
         prob = self.prob
+        if self.A_last is None:
+            self._orientation(t, y)
         while True:  # one solver per partition
             self._tolerances(len(y))
             solver = self.cls(prob.fun, t, y, t_end, **self.opts)
@@ -231,6 +234,7 @@ class _Run:
                 self.record(float(tk), *prob.full(tk, prob.dense_state(tk, dense(tk))))
                 self.k_eval += 1
         restart = prob.after_step(solver)
+        self._orientation(solver.t, solver.y)
         if te is None:
             self.record(float(solver.t), *prob.full(solver.t, solver.y))
         running = solver.status == "running"
@@ -245,6 +249,27 @@ class _Run:
                 f"{solver.t:.6g} of {t_end} after {self.nsteps} steps")
         return restart
 
+    def _orientation(self, t, y):
+        """Rank-loss monitor: det(A_k A_{k-1}^T) < 0 between two accepted steps means a singular
+        value of the configuration Jacobian A passed through zero (a row direction reversed):
+        the step crossed a pose where A loses rank, whatever the KKT pivots sampled on the way.
+        One Jacobian evaluation per accepted step (the RHS costs several per step)."""
+        prob = self.prob
+        if not prob.mc:
+            return
+        q = prob.full(t, y)[0]
+        A = prob.pjac(q, prob.zeros_u, t, prob.p)[0]
+        last = self.A_last
+        if last is not None:
+            if prob.mc == 1:  # one row: the determinant is the dot product (no numpy call)
+                d = sum(a * b for a, b in zip(A, last, strict=True))
+            else:
+                Ak = np.asarray(A, float).reshape(prob.mc, prob.nq)
+                d = np.linalg.det(Ak @ np.asarray(last, float).reshape(prob.mc, prob.nq).T)
+            if d < 0.0:
+                self.rank_crossings.append(float(t))
+        self.A_last = A
+
     def trajectory(self, method, settings, wall) -> Trajectory:
         prob, nm, T = self.prob, self.nm, self.T
         stats = dict(prob.stats)
@@ -257,6 +282,13 @@ class _Run:
                 f"the KKT pivot ratio fell to {stats['min_pivot_ratio']:.1e} (< {PIVOT_WARN:g}): "
                 f"the run passed close to a singular pose (a kinematic singularity or dependent "
                 f"rows), where the motion may not be unique and digits are lost")
+        if self.rank_crossings:
+            stats["rank_crossings_t"] = list(self.rank_crossings)
+            warnings.append(
+                f"the constraint Jacobian lost rank between accepted steps at t = "
+                f"{', '.join(f'{t:.6g}' for t in self.rank_crossings)} (det(A_k A_k-1^T) < 0: a "
+                f"row direction reversed): the run crossed a singular pose, where the "
+                f"continuation is not unique")
         return Trajectory(
             t=np.array(T), q=np.array(self.Q, float).reshape(len(T), nm.nq),
             u=np.array(self.U, float).reshape(len(T), nm.n), nfev=self.nfev,
