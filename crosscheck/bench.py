@@ -9,6 +9,7 @@ Forward records time one evaluation of the accelerations and multipliers at a st
   `timed_forward` hook when it has one (engine call only, no mapping).
 All figures come from one run, so their ratios are meaningful on this noisy machine.
 """
+
 from __future__ import annotations
 
 import sys
@@ -32,6 +33,7 @@ BATCH = 10_000
 def _states(nm, n):
     """n seeded consistent states (the ones `crosscheck run` compares at) as (Q, U) arrays."""
     from .sampling import consistent_states
+
     states = consistent_states(nm, n)
     return np.array([q for q, _ in states]), np.array([u for _, u in states])
 
@@ -60,17 +62,17 @@ def _baseline(model, formulation, params):
     def batched(Q, U, t=0.0):
         N = Q.shape[0]
         vals = [np.broadcast_to(v, (N,)) for v in fn_flat(*Q.T, *U.T, t, *p)]
-        M = np.stack(vals[:n * n], -1).reshape(N, n, n)
-        f = np.stack(vals[n * n:n * n + n], -1)
+        M = np.stack(vals[: n * n], -1).reshape(N, n, n)
+        f = np.stack(vals[n * n : n * n + n], -1)
         K = np.zeros((N, n + m, n + m))
         K[:, :n, :n] = M
         rhs = np.zeros((N, n + m))
         rhs[:, :n] = f
         if m:
-            A = np.stack(vals[n * n + n:n * n + n + m * n], -1).reshape(N, m, n)
+            A = np.stack(vals[n * n + n : n * n + n + m * n], -1).reshape(N, m, n)
             K[:, :n, n:] = -np.transpose(A, (0, 2, 1))
             K[:, n:, :n] = A
-            rhs[:, n:] = np.stack(vals[n * n + n + m * n:], -1)
+            rhs[:, n:] = np.stack(vals[n * n + n + m * n :], -1)
         if model.redundant_constraints:  # dependent rows (user models): minimum-norm solve
             return (np.linalg.pinv(K) @ rhs[..., None])[..., 0]
         return np.linalg.solve(K, rhs[..., None])[..., 0]
@@ -79,59 +81,89 @@ def _baseline(model, formulation, params):
 
 
 def forward_records(names, quick=False, engines=()):
+    """Timings of one forward call per model: the reference's paths, a lambdify+solve
+    baseline, and each engine's call (single and as a Python loop over the batch)."""
     recs = []
     for name in names:
-        model = models.get(name)
-        nm = NumericModel(model)
-        Q, U = _states(nm, 16 if quick else 64)
-        q, u = Q[0], U[0]
-        ql, ul = q.tolist(), u.tolist()
-        rec = lambda path, batch, t: recs.append(  # noqa: E731
-            {"model": name, "engine": "reference" if not path.startswith("engine") else path.split(":")[1],
-             "formulation": nm.formulation, "path": path, "batch": batch,
-             "us_per_state": t["median"] / batch * 1e6, "us_per_state_min": t["min"] / batch * 1e6})
-        rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
-        raw = nm.forward_raw
-        # each backend's native inputs: float64 vectors for the kernels, lists for Python
-        qr, ur = (q, u) if nm.backend == "numba" else (ql, ul)
-        rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
-        if nm.backend == "numba":  # the kernel alone, output into a preallocated array
-            into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
-            rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
-        reps = int(np.ceil(BATCH / Q.shape[0]))
-        QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
-        rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
-        b_single, b_batched = _baseline(model, nm.formulation, nm.params)
-        # the baseline must agree before it is timed (a fast wrong baseline proves nothing)
-        ref = nm.forward(q, u)
-        sol = b_single(q, u)
-        assert np.allclose(sol[:nm.n], ref.accelerations, rtol=1e-9, atol=1e-9), name
-        rec("baseline-lambdify-solve", 1, per_call_seconds(lambda: b_single(q, u)))
-        rec("baseline-lambdify-solve-batched", BATCH,
-            per_call_seconds(lambda: b_batched(QB, UB), repeats=3))
-        for engine in engines:
-            try:
-                em = engine.build(name, nm.params)
-            except EngineUnsupported as exc:  # the expected refusal: a skip with its reason
-                recs.append({"model": name, "engine": engine.name, "path": "engine",
-                             "batch": 1, "us_per_state": None, "skipped": True,
-                             "refusal": "EngineUnsupported", "reason": str(exc)})
-                continue
-            except Exception as exc:  # anything else is a broken build: a failed check
-                recs.append({"model": name, "engine": engine.name, "path": "engine",
-                             "batch": 1, "us_per_state": None,
-                             "failed": f"engine build: {type(exc).__name__}: {exc}"})
-                continue
-            rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(q, u)))
-            # the engine over the batch's states, one call each (a Python loop)
-            calls = [em.timed_forward(Q[i], U[i]) for i in range(Q.shape[0])]
-            seq = [calls[i % len(calls)] for i in range(BATCH)]
-
-            def loop(seq=seq):
-                for c in seq:
-                    c()
-            rec(f"engine-loop:{engine.name}", BATCH, per_call_seconds(loop, repeats=3))
+        recs += _model_forward_records(name, quick, engines)
     return recs
+
+
+def _model_forward_records(name, quick, engines) -> list[dict]:
+    model = models.get(name)
+    nm = NumericModel(model)
+    Q, U = _states(nm, 16 if quick else 64)
+    q, u = Q[0], U[0]
+    recs: list[dict] = []
+
+    def rec(path, batch, t):
+        engine = "reference" if not path.startswith("engine") else path.split(":")[1]
+        recs.append(
+            {
+                "model": name,
+                "engine": engine,
+                "formulation": nm.formulation,
+                "path": path,
+                "batch": batch,
+                "us_per_state": t["median"] / batch * 1e6,
+                "us_per_state_min": t["min"] / batch * 1e6,
+            }
+        )
+
+    rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
+    raw = nm.forward_raw
+    # each backend's native inputs: float64 vectors for the kernels, lists for Python
+    qr, ur = (q, u) if nm.backend == "numba" else (q.tolist(), u.tolist())
+    rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
+    if nm.backend == "numba":  # the kernel alone, output into a preallocated array
+        into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
+        rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
+    reps = int(np.ceil(BATCH / Q.shape[0]))
+    QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
+    rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
+    b_single, b_batched = _baseline(model, nm.formulation, nm.params)
+    # the baseline must agree before it is timed (a fast wrong baseline proves nothing)
+    ref = nm.forward(q, u)
+    sol = b_single(q, u)
+    assert np.allclose(sol[: nm.n], ref.accelerations, rtol=1e-9, atol=1e-9), name
+    rec("baseline-lambdify-solve", 1, per_call_seconds(lambda: b_single(q, u)))
+    rec(
+        "baseline-lambdify-solve-batched",
+        BATCH,
+        per_call_seconds(lambda: b_batched(QB, UB), repeats=3),
+    )
+    for engine in engines:
+        recs += _engine_forward_records(name, nm, engine, Q, U, rec)
+    return recs
+
+
+def _engine_forward_records(name, nm, engine, Q, U, rec) -> list[dict]:
+    """One engine's call at the first state and as a loop over the batch; a refusal is a
+    skip with its reason, any other build error a failed check."""
+    base = {
+        "model": name,
+        "engine": engine.name,
+        "path": "engine",
+        "batch": 1,
+        "us_per_state": None,
+    }
+    try:
+        em = engine.build(name, nm.params)
+    except EngineUnsupported as exc:  # the expected refusal: a skip with its reason
+        return [{**base, "skipped": True, "refusal": "EngineUnsupported", "reason": str(exc)}]
+    except Exception as exc:  # anything else is a broken build: a failed check
+        return [{**base, "failed": f"engine build: {type(exc).__name__}: {exc}"}]
+    rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(Q[0], U[0])))
+    # the engine over the batch's states, one call each (a Python loop)
+    calls = [em.timed_forward(Q[i], U[i]) for i in range(Q.shape[0])]
+    seq = [calls[i % len(calls)] for i in range(BATCH)]
+
+    def loop():
+        for c in seq:
+            c()
+
+    rec(f"engine-loop:{engine.name}", BATCH, per_call_seconds(loop, repeats=3))
+    return []
 
 
 def forward_ratios(recs) -> list[dict]:
@@ -147,6 +179,7 @@ def _ratios(name, recs) -> dict:
     from reference import compiled
 
     from .engines.registry import get_engine
+
     t = {r["path"]: r["us_per_state"] for r in recs if r.get("us_per_state") is not None}
     out: dict = {"model": name, "backend": compiled.backend()}
     if "single" not in t:
@@ -165,8 +198,9 @@ def _ratios(name, recs) -> dict:
             met[f"checked <= 0.5 x {eng}"] = out[f"checked_over_{eng}"] <= 0.5
             met[f"raw <= 0.25 x {eng}"] = out[f"raw_over_{eng}"] <= 0.25
             if "single-into" in t:
-                met[f"kernel into a preallocated output <= 0.25 x {eng}"] = \
+                met[f"kernel into a preallocated output <= 0.25 x {eng}"] = (
                     out[f"into_over_{eng}"] <= 0.25
+                )
             if loop:
                 met[f"batched >= 20 x {eng} loop"] = out[f"{eng}_loop_over_batched"] >= 20
     if met:
@@ -176,6 +210,7 @@ def _ratios(name, recs) -> dict:
 
 def _engines(requested):
     from .engines.registry import get_engine
+
     return [get_engine(name) for name in requested]
 
 
@@ -191,6 +226,7 @@ def cmd_bench(args) -> int:
     # the benchmark times the compiled kernels: compile them here if the cache is cold (the
     # 'auto' default would time the Python path until a background worker has compiled them)
     import os
+
     os.environ.setdefault("CROSSCHECK_BACKEND", "numba")
     # the same rules as `run`: bad names exit 2 up front
     names = resolve_models(args.models, getattr(args, "user_models", None))
@@ -204,15 +240,20 @@ def cmd_bench(args) -> int:
 
     result = {"meta": meta(sys.argv[1:]), "forward": forward_records(names, args.quick, engines)}
     from reference import compiled
+
     # per generated module: writing the numba source, importing it, and each kernel's first
     # call (a compile, or a load from numba's on-disk cache: from_cache says which)
     result["forward_ratios"] = forward_ratios(result["forward"])
     from reference.codegen import cache_dir
-    result["compiled"] = {"backend": compiled.backend(), "threads": compiled.threads(),
-                          "modules": dict(compiled.TIMINGS),
-                          "background_compile_s": {
-                              stem: compiled.worker_times(stem, cache_dir())
-                              for stem in compiled.TIMINGS}}
+
+    result["compiled"] = {
+        "backend": compiled.backend(),
+        "threads": compiled.threads(),
+        "modules": dict(compiled.TIMINGS),
+        "background_compile_s": {
+            stem: compiled.worker_times(stem, cache_dir()) for stem in compiled.TIMINGS
+        },
+    }
     log("forward records done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)
@@ -234,13 +275,22 @@ def failed_checks(result: dict) -> list[str]:
     """Every check of this bench that failed (the command then exits 1): a stress scene whose
     guard did not hold, a work-precision run or engine build that failed (an expected refusal,
     EngineUnsupported, is a skip with its reason, not a failure)."""
-    out = [f"stress {r['scene']}: {'; '.join(r.get('reasons', []))[:300]}"
-           for r in result.get("stress", []) if r.get("status") == "failed"]
-    out += [f"work-precision {r['model']} {r['engine']} {r.get('method')} {r.get('setting')}: "
-            f"{str(r['failed'])[:300]}" for r in result.get("work_precision", [])
-            if r.get("failed")]
-    out += [f"forward {r['model']} {r['engine']}: {r['failed']}"
-            for r in result.get("forward", []) if r.get("failed")]
+    out = [
+        f"stress {r['scene']}: {'; '.join(r.get('reasons', []))[:300]}"
+        for r in result.get("stress", [])
+        if r.get("status") == "failed"
+    ]
+    out += [
+        f"work-precision {r['model']} {r['engine']} {r.get('method')} {r.get('setting')}: "
+        f"{str(r['failed'])[:300]}"
+        for r in result.get("work_precision", [])
+        if r.get("failed")
+    ]
+    out += [
+        f"forward {r['model']} {r['engine']}: {r['failed']}"
+        for r in result.get("forward", [])
+        if r.get("failed")
+    ]
     return out
 
 
@@ -254,24 +304,39 @@ def _fmt_err(r) -> str:
 def _print_summary(result: dict, out: Path) -> None:
     for r in result["forward"]:
         t = r["us_per_state"]
-        print(f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "
-              + (f"{t:10.3f} us/state" if t is not None
-                 else r.get("failed") or f"skipped: {r.get('reason') or r.get('skipped')}"))
-    print("\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20)")
+        print(
+            f"{r['model']:22s} {r['engine']:10s} {r['path']:34s} {r['batch']:6d} "
+            + (
+                f"{t:10.3f} us/state"
+                if t is not None
+                else r.get("failed") or f"skipped: {r.get('reason') or r.get('skipped')}"
+            )
+        )
+    print(
+        "\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20)"
+    )
     for r in result["forward_ratios"]:
-        print(f"{r['model']:22s} ({r['backend']}) " + ", ".join(
-            f"{k} {v:.2f}" for k, v in r.items() if isinstance(v, float)))
+        print(
+            f"{r['model']:22s} ({r['backend']}) "
+            + ", ".join(f"{k} {v:.2f}" for k, v in r.items() if isinstance(v, float))
+        )
     print("\nwork-precision (model engine method setting: wall, error, residual)")
     for r in result["work_precision"]:
-        head = (f"{r['model']:20s} {r['engine']:10s} {str(r.get('method')):20s} "
-                f"{str(r.get('setting'))[:8]:8s}")
+        head = (
+            f"{r['model']:20s} {r['engine']:10s} {r.get('method')!s:20s} "
+            f"{str(r.get('setting'))[:8]:8s}"
+        )
         if r.get("wall_s") is None:
-            print(f"{head} " + (f"skipped: {r.get('reason')}" if r.get("skipped")
-                                else str(r.get("failed"))))
+            print(
+                f"{head} "
+                + (f"skipped: {r.get('reason')}" if r.get("skipped") else str(r.get("failed")))
+            )
         else:
             res = r.get("residual")
-            print(f"{head} {r['wall_s'] * 1e3:9.2f} ms  err {_fmt_err(r)}"
-                  f"  res {res if res is None else f'{res:.1e}'}")
+            print(
+                f"{head} {r['wall_s'] * 1e3:9.2f} ms  err {_fmt_err(r)}"
+                f"  res {res if res is None else f'{res:.1e}'}"
+            )
     print("\nstress")
     for r in result["stress"]:
         print(f"  {r['scene']:24s} {r['status']}")
@@ -280,29 +345,38 @@ def _print_summary(result: dict, out: Path) -> None:
     _print_targets(result["targets"])
     for why in result["failed_checks"]:
         print(f"FAILED {why}")
-    print(f"\nwrote {out / 'bench.json'} in {result['meta']['wall_s']:.1f} s"
-          + (f"; {len(result['failed_checks'])} check(s) failed" if result["failed_checks"]
-             else ""))
+    print(
+        f"\nwrote {out / 'bench.json'} in {result['meta']['wall_s']:.1f} s"
+        + (f"; {len(result['failed_checks'])} check(s) failed" if result["failed_checks"] else "")
+    )
 
 
 def _print_targets(tg: dict) -> None:
     print("\ntargets")
     for key, t in tg.items():
         if "models" in t:
-            print(f"  {key}: met={t.get('met')}"
-                  + (f" met_raw={t['met_raw']}" if "met_raw" in t else ""))
+            print(
+                f"  {key}: met={t.get('met')}"
+                + (f" met_raw={t['met_raw']}" if "met_raw" in t else "")
+            )
             for name, v in t["models"].items():
                 raw = f" (unchecked path {v['ratio_raw']:.2f})" if v.get("ratio_raw") else ""
                 print(f"      {name:20s} pinocchio/reference = {v['ratio']:.2f}{raw}")
         else:
-            print(f"  {key}: met={t.get('met')} ratio={t.get('ratio')}"
-                  + (f" ({t.get('compared_with') or t.get('reason')})"
-                     if t.get("compared_with") or t.get("reason") else ""))
+            print(
+                f"  {key}: met={t.get('met')} ratio={t.get('ratio')}"
+                + (
+                    f" ({t.get('compared_with') or t.get('reason')})"
+                    if t.get("compared_with") or t.get("reason")
+                    else ""
+                )
+            )
 
 
 def register(sub):
     b = sub.add_parser("bench", help="benchmark forward dynamics (and work-precision)")
     from .arguments import add_engines, add_models
+
     add_models(b)
     b.add_argument("--quick", action="store_true")
     add_engines(b)

@@ -29,19 +29,19 @@ What is inside each wall_s: reference: simulate() from the projected initial sta
 whole call, including the mapping of its 21 output states; MuJoCo: its own loop timer, mj_step
 calls plus two recorded states), else the call.
 """
+
 from __future__ import annotations
 
 import inspect
 import math
 import statistics
 import time
-from typing import Optional
 
 import numpy as np
 
 from reference import NumericModel, models
-from reference.integrate import METHODS, simulate
 from reference.errors import ModelInputError
+from reference.integrate import METHODS, simulate
 from reference.minimal import reference_final_state
 
 from .comparison import constraint_residual, energy_drift
@@ -50,9 +50,15 @@ from .engines.registry import available_engines, engine_label, get_engine
 
 # benchmark horizons [s]: the pendulum over ~6 periods (the exploratory study's 10 s), the
 # slider-crank over ~2.5 crank revolutions, the 3-D models over 1-2 s
-HORIZON = {"pendulum_angle": 10.0, "pendulum_xy": 10.0, "slider_crank": 2.0,
-           "slider_crank_split": 2.0, "slider_crank_free": 2.0, "top_euler": 1.0,
-           "top_cartesian": 1.0}
+HORIZON = {
+    "pendulum_angle": 10.0,
+    "pendulum_xy": 10.0,
+    "slider_crank": 2.0,
+    "slider_crank_split": 2.0,
+    "slider_crank_free": 2.0,
+    "top_euler": 1.0,
+    "top_cartesian": 1.0,
+}
 DEFAULT_HORIZON = 2.0
 
 LADDER_FULL = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
@@ -60,10 +66,12 @@ LADDER_QUICK = (1e-6, 1e-8, 1e-10, 1e-12)
 ENGINE_LADDER_FULL = (1e-6, 1e-8, 1e-10, 1e-12)
 ENGINE_LADDER_QUICK = (1e-6, 1e-8, 1e-10)
 # fixed-step engine integrators (MuJoCo's): a time-step ladder per integrator
-FIXED_STEPS_FULL = {"Euler": (1e-2, 1e-3, 1e-4, 1e-5), "implicitfast": (1e-2, 1e-3, 1e-4, 1e-5),
-                     "RK4": (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)}
-FIXED_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4),
-                      "RK4": (1e-2, 1e-3, 1e-4)}
+FIXED_STEPS_FULL = {
+    "Euler": (1e-2, 1e-3, 1e-4, 1e-5),
+    "implicitfast": (1e-2, 1e-3, 1e-4, 1e-5),
+    "RK4": (1e-2, 3e-3, 1e-3, 3e-4, 1e-4),
+}
+FIXED_STEPS_QUICK = {"Euler": (1e-3, 1e-4), "implicitfast": (1e-3, 1e-4), "RK4": (1e-2, 1e-3, 1e-4)}
 # every other fixed-step integrator (Exudyn's implicit solvers, OpenSim's ExplicitEuler,
 # MuJoCo's implicit): one ladder for all (quick: ~0.2-0.7 s per slider-crank run at 1e-3 on this
 # machine). No 1e-2: Exudyn's generalized-alpha stops there on slider_crank_free, top_cartesian
@@ -90,7 +98,6 @@ REPEAT_BUDGET_S = 1.0
 RUN_BOUND_S = {True: 10.0, False: 60.0}  # max_wall_s of one reference run (quick, full)
 
 
-
 def horizon(name: str) -> float:
     return HORIZON.get(name, DEFAULT_HORIZON)
 
@@ -98,7 +105,7 @@ def horizon(name: str) -> float:
 def _timed(fn, repeats: int):
     """(last result, median wall, min wall, runs): fn() returns (result, seconds)."""
     walls, out = [], None
-    for k in range(repeats):
+    for _k in range(repeats):
         out, w = fn()
         walls.append(w)
         if w > REPEAT_BUDGET_S:
@@ -106,7 +113,7 @@ def _timed(fn, repeats: int):
     return out, statistics.median(walls), min(walls), len(walls)
 
 
-def _finite(x) -> Optional[float]:
+def _finite(x) -> float | None:
     if x is None:
         return None
     x = float(x)
@@ -124,15 +131,17 @@ def _judge_error(rec: dict, err, ref) -> None:
         return
     rec["error_resolved"] = rec["error"] > ref.accuracy
     if not rec["error_resolved"]:
-        rec["error_note"] = (f"at or below the reference's accuracy ({ref.accuracy:.1e}, "
-                             f"{ref.kind}): the run's error is not resolved")
+        rec["error_note"] = (
+            f"at or below the reference's accuracy ({ref.accuracy:.1e}, "
+            f"{ref.kind}): the run's error is not resolved"
+        )
 
 
 def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool):
     """error vs the reference, max residuals and energy drift of mapped states."""
     rp = rv = 0.0
     E = []
-    for t, q, u in zip(T, Q, U):
+    for t, q, u in zip(T, Q, U, strict=False):
         pos, vel = constraint_residual(nm, q, u, t)
         rp, rv = max(rp, pos), max(rv, vel)
         if energy_conserved:
@@ -143,9 +152,17 @@ def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool)
 
 
 def _base(name, engine, method, integrator, setting, kind, T, ref):
-    return {"model": name, "engine": engine, "method": method, "integrator": integrator,
-            "setting": setting, "setting_kind": kind, "t_end": T,
-            "reference_kind": ref.kind, "reference_accuracy": ref.accuracy}
+    return {
+        "model": name,
+        "engine": engine,
+        "method": method,
+        "integrator": integrator,
+        "setting": setting,
+        "setting_kind": kind,
+        "t_end": T,
+        "reference_kind": ref.kind,
+        "reference_accuracy": ref.accuracy,
+    }
 
 
 def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
@@ -158,25 +175,44 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
         for tol in ladder:
             rec = _base(name, "reference", method, "DOP853", tol, "rtol=atol", T, ref)
             try:
-                def run():
-                    tr = simulate(nm, m.initial_q, m.initial_u, T, method, rtol=tol, atol=tol,
-                                  energy="auto", max_wall_s=RUN_BOUND_S[quick])
+
+                def run(method=method, tol=tol):
+                    tr = simulate(
+                        nm,
+                        m.initial_q,
+                        m.initial_u,
+                        T,
+                        method,
+                        rtol=tol,
+                        atol=tol,
+                        energy="auto",
+                        max_wall_s=RUN_BOUND_S[quick],
+                    )
                     return tr, tr.wall_s
+
                 tr, wall, wmin, n = _timed(run, repeats)
                 r = tr.max_residual()
                 _judge_error(rec, np.max(np.abs(tr.final_state - ref.state)), ref)
-                rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
-                           residual=max(r["position"], r["velocity"]),
-                           residual_position=r["position"], residual_velocity=r["velocity"],
-                           energy_drift=_finite(tr.energy_drift()), nfev=tr.nfev,
-                           nsteps=tr.nsteps, bookkeeping=tr.settings["bookkeeping"])
+                rec.update(
+                    wall_s=wall,
+                    wall_s_min=wmin,
+                    repeats=n,
+                    residual=max(r["position"], r["velocity"]),
+                    residual_position=r["position"],
+                    residual_velocity=r["velocity"],
+                    energy_drift=_finite(tr.energy_drift()),
+                    nfev=tr.nfev,
+                    nsteps=tr.nsteps,
+                    bookkeeping=tr.settings["bookkeeping"],
+                )
                 if method == "nullspace":
                     rec["partitions"] = tr.stats.get("partitions")
                 if tr.warnings:
                     rec["warnings"] = list(tr.warnings)
             except Exception as exc:  # recorded, never hidden: the row stays, marked failed
-                rec.update(wall_s=None, error=None, residual=None,
-                           failed=f"{type(exc).__name__}: {exc}")
+                rec.update(
+                    wall_s=None, error=None, residual=None, failed=f"{type(exc).__name__}: {exc}"
+                )
             out.append(rec)
     return out
 
@@ -185,16 +221,34 @@ def _engine_model(adapter, name, nm, row):
     """(engine model, None), or (None, [row]): skipped with the reason where the engine has no
     trajectories or refuses the model (EngineUnsupported), failed where the build breaks."""
     if not adapter.capabilities.integrators:
-        return None, [{**row, "skipped": True,
-                       "reason": f"the {adapter.name} engine has no trajectories in this suite"}]
+        return None, [
+            {
+                **row,
+                "skipped": True,
+                "reason": f"the {adapter.name} engine has no trajectories in this suite",
+            }
+        ]
     try:
         em = adapter.build(name, nm.params)
     except EngineUnsupported as exc:  # the one expected refusal: the engine says why
-        return None, [{**row, "skipped": True, "refusal": "EngineUnsupported",
-                       "reason": f"EngineUnsupported: {exc}"}]
+        return None, [
+            {
+                **row,
+                "skipped": True,
+                "refusal": "EngineUnsupported",
+                "reason": f"EngineUnsupported: {exc}",
+            }
+        ]
     except Exception as exc:  # anything else is a broken build: a failure, never a skip
-        return None, [{**row, "wall_s": None, "error": None, "residual": None,
-                       "failed": f"engine build: {type(exc).__name__}: {exc}"}]
+        return None, [
+            {
+                **row,
+                "wall_s": None,
+                "error": None,
+                "residual": None,
+                "failed": f"engine build: {type(exc).__name__}: {exc}",
+            }
+        ]
     return em, None
 
 
@@ -213,31 +267,47 @@ def adaptive_records(name, quick, ref, nm, em, engine, integrator):
     out = []
     t_eval = np.linspace(0.0, T, 21)
     slow = None  # the wall of a run over ENGINE_RUN_BUDGET_S: tighter settings are left out
-    for tol in (ENGINE_LADDER_QUICK if quick else ENGINE_LADDER_FULL):
+    for tol in ENGINE_LADDER_QUICK if quick else ENGINE_LADDER_FULL:
         rec = _base(name, engine, "index1", integrator, tol, "rtol=atol", T, ref)
         if slow is not None:
-            out.append({**rec, "skipped": True, "reason": f"left out: the looser setting took "
-                        f"{slow:.0f} s > {ENGINE_RUN_BUDGET_S[quick]:g} s (a tighter one costs "
-                        f"more; an engine run cannot be bounded from outside)"})
+            out.append(
+                {
+                    **rec,
+                    "skipped": True,
+                    "reason": f"left out: the looser setting took "
+                    f"{slow:.0f} s > {ENGINE_RUN_BUDGET_S[quick]:g} s (a tighter one costs "
+                    f"more; an engine run cannot be bounded from outside)",
+                }
+            )
             continue
         try:
-            tr, wall, wmin, n = _timed(lambda: _simulate_timed(
-                em, m.initial_q, m.initial_u, t_eval, integrator=integrator, rtol=tol),
-                REPEATS_QUICK if quick else REPEATS_FULL)
+            tr, wall, wmin, n = _timed(
+                lambda tol=tol: _simulate_timed(
+                    em, m.initial_q, m.initial_u, t_eval, integrator=integrator, rtol=tol
+                ),
+                REPEATS_QUICK if quick else REPEATS_FULL,
+            )
             if tr.failure:
                 raise RuntimeError(tr.failure)
-            err, rp, rv, drift = _state_metrics(nm, tr.t, tr.q, tr.u, ref.state,
-                                                m.energy_conserved)
+            err, rp, rv, drift = _state_metrics(nm, tr.t, tr.q, tr.u, ref.state, m.energy_conserved)
             _judge_error(rec, err, ref)
-            rec.update(wall_s=wall, wall_s_min=wmin, repeats=n,
-                       residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
-                       energy_drift=_finite(drift), nfev=int(tr.steps),
-                       note="residual and energy drift over 21 output states")
+            rec.update(
+                wall_s=wall,
+                wall_s_min=wmin,
+                repeats=n,
+                residual=max(rp, rv),
+                residual_position=rp,
+                residual_velocity=rv,
+                energy_drift=_finite(drift),
+                nfev=int(tr.steps),
+                note="residual and energy drift over 21 output states",
+            )
             if wall > ENGINE_RUN_BUDGET_S[quick]:
                 slow = wall
         except Exception as exc:
-            rec.update(wall_s=None, error=None, residual=None,
-                       failed=f"{type(exc).__name__}: {exc}")
+            rec.update(
+                wall_s=None, error=None, residual=None, failed=f"{type(exc).__name__}: {exc}"
+            )
         out.append(rec)
     return out
 
@@ -250,35 +320,48 @@ def _fixed_step_run(rec, quick, ref, nm, em, integ, h, n):
     m = nm.model
     engine = rec["engine"]
     try:
-        tr, wall, wmin, nrep = _timed(lambda: _simulate_timed(
-            em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h),
-            REPEATS_QUICK if quick else REPEATS_FULL)
+        tr, wall, wmin, nrep = _timed(
+            lambda: _simulate_timed(
+                em, m.initial_q, m.initial_u, [0.0, n * h], integrator=integ, timestep=h
+            ),
+            REPEATS_QUICK if quick else REPEATS_FULL,
+        )
         # an untimed run that records ~100 states for the residual and the energy
         every = max(1, n // 100)
         marks = sorted(set(range(0, n + 1, every)) | {n})
-        trr = em.simulate(m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ,
-                          timestep=h)
-        err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state,
-                                            m.energy_conserved)
+        trr = em.simulate(
+            m.initial_q, m.initial_u, np.array(marks) * h, integrator=integ, timestep=h
+        )
+        err, rp, rv, drift = _state_metrics(nm, trr.t, trr.q, trr.u, ref.state, m.energy_conserved)
         err_timed = float(np.max(np.abs(np.concatenate([tr.q[-1], tr.u[-1]]) - ref.state)))
         _judge_error(rec, err_timed, ref)
         stages = STAGES.get(integ)  # None: an implicit solver's calls are not counted here
-        rec.update(wall_s=wall, wall_s_min=wmin, repeats=nrep,
-                   residual=max(rp, rv), residual_position=rp, residual_velocity=rv,
-                   energy_drift=_finite(drift), nfev=n * stages if stages else None,
-                   nsteps=n, engine_steps=tr.steps,
-                   engine_violation=_finite(np.max(trr.violation)),
-                   note="residual and energy drift over ~100 recorded states; nfev = "
-                        "steps x stages (None: stages unknown)")
+        rec.update(
+            wall_s=wall,
+            wall_s_min=wmin,
+            repeats=nrep,
+            residual=max(rp, rv),
+            residual_position=rp,
+            residual_velocity=rv,
+            energy_drift=_finite(drift),
+            nfev=n * stages if stages else None,
+            nsteps=n,
+            engine_steps=tr.steps,
+            engine_violation=_finite(np.max(trr.violation)),
+            note="residual and energy drift over ~100 recorded states; nfev = "
+            "steps x stages (None: stages unknown)",
+        )
         if err != err_timed:
             rec["error_recorded_run"] = _finite(err)
         warnings = {**tr.warnings, **trr.warnings}
         if warnings:  # the engine reset an unstable state and went on: not a trajectory
-            rec.update(warnings=warnings, flagged=f"{engine_label(engine)} reported an "
-                       f"unstable simulation ({', '.join(warnings)}) and reset its state")
+            rec.update(
+                warnings=warnings,
+                flagged=f"{engine_label(engine)} reported an "
+                f"unstable simulation ({', '.join(warnings)}) and reset its state",
+            )
     except Exception as exc:
-        rec.update(wall_s=None, error=None, residual=None,
-                   failed=f"{type(exc).__name__}: {exc}")
+        rec.update(wall_s=None, error=None, residual=None, failed=f"{type(exc).__name__}: {exc}")
     return rec
 
 
@@ -297,7 +380,7 @@ def fixed_step_records(name, quick, ref, nm, em, engine, integ, stiff=None):
     T = horizon(name)
     out = []
     for h0 in fixed_step_ladder(integ, quick):
-        n = int(round(T / h0))
+        n = round(T / h0)
         h = T / n
         if n > FIXED_MAX_STEPS[quick] or (stiff and h < STIFF_MIN_STEP[quick]):
             continue
@@ -311,8 +394,15 @@ def fixed_step_records(name, quick, ref, nm, em, engine, integ, stiff=None):
             try:
                 model = type(adapter)(solref=(k * h, 1.0)).build(name, nm.params)
             except Exception as exc:  # the default build worked: this one must too
-                out.append({**rec, "wall_s": None, "error": None, "residual": None,
-                            "failed": f"engine build: {type(exc).__name__}: {exc}"})
+                out.append(
+                    {
+                        **rec,
+                        "wall_s": None,
+                        "error": None,
+                        "residual": None,
+                        "failed": f"engine build: {type(exc).__name__}: {exc}",
+                    }
+                )
                 continue
         out.append(_fixed_step_run(rec, quick, ref, nm, model, integ, h, n))
     return out
@@ -336,9 +426,11 @@ def engine_records(name, quick, ref, nm, adapter):
     T = horizon(name)
     caps = adapter.capabilities
     first = caps.integrators[0] if caps.integrators else None
-    row = (_base(name, adapter.name, "index1", first, None, "rtol=atol", T, ref)
-           if first in caps.adaptive_integrators
-           else _base(name, adapter.name, None, None, None, "timestep", T, ref))
+    row = (
+        _base(name, adapter.name, "index1", first, None, "rtol=atol", T, ref)
+        if first in caps.adaptive_integrators
+        else _base(name, adapter.name, None, None, None, "timestep", T, ref)
+    )
     em, skip = _engine_model(adapter, name, nm, row)
     if skip:
         return skip
@@ -369,8 +461,7 @@ def _adapter(engine):
         return None, str(exc)
 
 
-def work_precision_records(model_names, quick: bool = False, engines=None,
-                           log=None) -> list[dict]:
+def work_precision_records(model_names, quick: bool = False, engines=None, log=None) -> list[dict]:
     """Records for every model x method over the ladder (see the module docstring).
 
     `engines`: names or adapter objects (default: every available engine). With `quick`, only
@@ -383,7 +474,7 @@ def work_precision_records(model_names, quick: bool = False, engines=None,
         if "slider_crank" not in names:  # quick still covers the slider-crank for every engine
             names.append("slider_crank")
     adapters = []
-    for e in (available_engines() if engines is None else engines):
+    for e in available_engines() if engines is None else engines:
         a, why = _adapter(e)
         adapters.append((a.name if a is not None else e, a, why))
     out = []
@@ -393,15 +484,29 @@ def work_precision_records(model_names, quick: bool = False, engines=None,
             nm = NumericModel(models.get(name))
             ref = reference_final_state(name, T)
         except Exception as exc:
-            out.append({"model": name, "engine": "reference", "t_end": T,
-                        "skipped": True, "reason": f"{type(exc).__name__}: {exc}"})
+            out.append(
+                {
+                    "model": name,
+                    "engine": "reference",
+                    "t_end": T,
+                    "skipped": True,
+                    "reason": f"{type(exc).__name__}: {exc}",
+                }
+            )
             continue
         t0 = time.perf_counter()
         out += reference_records(name, quick, ref, nm)
         for ename, a, why in adapters:
             if a is None:
-                out.append({"model": name, "engine": ename, "t_end": T,
-                            "skipped": True, "reason": f"engine adapter unavailable: {why}"})
+                out.append(
+                    {
+                        "model": name,
+                        "engine": ename,
+                        "t_end": T,
+                        "skipped": True,
+                        "reason": f"engine adapter unavailable: {why}",
+                    }
+                )
             else:
                 t_e = time.perf_counter()
                 out += engine_records(name, quick, ref, nm, a)

@@ -72,11 +72,11 @@ Layout: integrate_common (settings, errors, Trajectory, the _Problem base), one 
 method family (integrate_index1: index1 and baumgarte; integrate_projection;
 integrate_nullspace); this module is the driver (simulate) and re-exports the public names.
 """
+
 from __future__ import annotations
 
 import math
 import time
-from typing import Optional
 
 import numpy as np
 
@@ -105,8 +105,12 @@ from .integrate_nullspace import _Nullspace
 from .integrate_projection import _Projection
 from .numeric import NumericModel
 
-_PROBLEMS = {"index1": _Index1, "baumgarte": _Baumgarte, "projection": _Projection,
-             "nullspace": _Nullspace}
+_PROBLEMS = {
+    "index1": _Index1,
+    "baumgarte": _Baumgarte,
+    "projection": _Projection,
+    "nullspace": _Nullspace,
+}
 
 
 # ---- the driver -------------------------------------------------------------------------
@@ -121,13 +125,28 @@ def _tolerances_with_work(size: int, rtol, atol):
     return rv, av
 
 
-def simulate(nm: NumericModel, q0, u0, t_end: float, method: str = "projection",
-             rtol: float = 1e-8, atol: float = 1e-10, integrator: str = "DOP853", t_eval=None,
-             *, t0: float = 0.0, energy: str = "auto", alpha: float = BAUMGARTE_ALPHA,
-             beta: float = BAUMGARTE_BETA, refresh: bool = True,
-             max_wall_s: Optional[float] = None, max_steps: Optional[int] = None,
-             max_correction: float = math.inf, first_step: Optional[float] = None,
-             max_step: float = math.inf) -> Trajectory:
+def simulate(
+    nm: NumericModel,
+    q0,
+    u0,
+    t_end: float,
+    method: str = "projection",
+    rtol: float = 1e-8,
+    atol: float = 1e-10,
+    integrator: str = "DOP853",
+    t_eval=None,
+    *,
+    t0: float = 0.0,
+    energy: str = "auto",
+    alpha: float = BAUMGARTE_ALPHA,
+    beta: float = BAUMGARTE_BETA,
+    refresh: bool = True,
+    max_wall_s: float | None = None,
+    max_steps: int | None = None,
+    max_correction: float = math.inf,
+    first_step: float | None = None,
+    max_step: float = math.inf,
+) -> Trajectory:
     """Integrate from (q0, u0) at t0 to t_end with one of METHODS (see the module docstring).
 
     The initial state is projected onto the manifold first (OffManifoldError where that is
@@ -141,8 +160,9 @@ def simulate(nm: NumericModel, q0, u0, t_end: float, method: str = "projection",
     bookkeeping = energy == "work" or (energy == "auto" and not nm.model.energy_conserved)
     t_start = time.perf_counter()
     q, u, corr = consistent_initial_state(nm, q0, u0, t0, max_correction)
-    prob = _PROBLEMS[method].build(nm, bookkeeping,
-                                   {"alpha": alpha, "beta": beta, "refresh": refresh})
+    prob = _PROBLEMS[method].build(
+        nm, bookkeeping, {"alpha": alpha, "beta": beta, "refresh": refresh}
+    )
     prob.stats["ic_correction"] = corr
     opts = {"rtol": rtol, "atol": atol, "max_step": max_step}
     if first_step is not None:
@@ -150,13 +170,30 @@ def simulate(nm: NumericModel, q0, u0, t_end: float, method: str = "projection",
     te = None if t_eval is None else np.asarray(t_eval, float)
     if te is not None and (np.any(np.diff(te) < 0) or te[0] < t0 or te[-1] > t_end):
         raise ModelInputError("t_eval must be sorted and inside [t0, t_end]")
-    run = _Run(nm, prob, INTEGRATORS[integrator], opts, (rtol, atol), bookkeeping, te,
-               (max_steps, max_wall_s, t_start), (integrator, method))
+    run = _Run(
+        nm,
+        prob,
+        INTEGRATORS[integrator],
+        opts,
+        (rtol, atol),
+        bookkeeping,
+        te,
+        (max_steps, max_wall_s, t_start),
+        (integrator, method),
+    )
     if te is None:
         run.record(t0, list(q), list(u), 0.0 if bookkeeping else None)
     run.integrate(prob.initial(q, u, t0), t0, t_end)
-    settings = {"rtol": rtol, "atol": atol, "integrator": integrator, "energy": energy,
-                "bookkeeping": bookkeeping, "t0": t0, "t_end": t_end, **prob.settings()}
+    settings = {
+        "rtol": rtol,
+        "atol": atol,
+        "integrator": integrator,
+        "energy": energy,
+        "bookkeeping": bookkeeping,
+        "t0": t0,
+        "t_end": t_end,
+        **prob.settings(),
+    }
     return run.trajectory(method, settings, time.perf_counter() - t_start)
 
 
@@ -164,8 +201,7 @@ def _check_arguments(method, integrator, energy, t0, t_end):
     if method not in _PROBLEMS:
         raise ModelInputError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
     if integrator not in INTEGRATORS:
-        raise ModelInputError(
-            f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
+        raise ModelInputError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
     _PROBLEMS[method].check_integrator(integrator)
     if energy not in ("auto", "work", "none"):
         raise ModelInputError(f"energy must be 'auto', 'work' or 'none', got {energy!r}")
@@ -224,8 +260,10 @@ class _Run:
         msg = solver.step()
         if solver.status == "failed":
             self.nfev += solver.nfev
-            raise IntegrationError(f"{name}: {self.integrator} failed at t = {solver.t:.6g} "
-                                   f"with method {self.method}: {msg}")
+            raise IntegrationError(
+                f"{name}: {self.integrator} failed at t = {solver.t:.6g} "
+                f"with method {self.method}: {msg}"
+            )
         self.nsteps += 1
         if te is not None and self.k_eval < len(te) and te[self.k_eval] <= solver.t:
             dense = solver.dense_output()
@@ -241,12 +279,17 @@ class _Run:
         if self.max_steps is not None and self.nsteps >= self.max_steps and running:
             raise IntegrationTimeout(
                 f"{name}: {self.method} reached max_steps = {self.max_steps} at t = "
-                f"{solver.t:.6g} of {t_end}")
-        if self.max_wall_s is not None and running \
-                and time.perf_counter() - self.t_start > self.max_wall_s:
+                f"{solver.t:.6g} of {t_end}"
+            )
+        if (
+            self.max_wall_s is not None
+            and running
+            and time.perf_counter() - self.t_start > self.max_wall_s
+        ):
             raise IntegrationTimeout(
                 f"{name}: {self.method} exceeded max_wall_s = {self.max_wall_s} s at t = "
-                f"{solver.t:.6g} of {t_end} after {self.nsteps} steps")
+                f"{solver.t:.6g} of {t_end} after {self.nsteps} steps"
+            )
         return restart
 
     def _orientation(self, t, y):
@@ -281,17 +324,27 @@ class _Run:
             warnings.append(
                 f"the KKT pivot ratio fell to {stats['min_pivot_ratio']:.1e} (< {PIVOT_WARN:g}): "
                 f"the run passed close to a singular pose (a kinematic singularity or dependent "
-                f"rows), where the motion may not be unique and digits are lost")
+                f"rows), where the motion may not be unique and digits are lost"
+            )
         if self.rank_crossings:
             stats["rank_crossings_t"] = list(self.rank_crossings)
             warnings.append(
                 f"the constraint Jacobian lost rank between accepted steps at t = "
                 f"{', '.join(f'{t:.6g}' for t in self.rank_crossings)} (det(A_k A_k-1^T) < 0: a "
                 f"row direction reversed): the run crossed a singular pose, where the "
-                f"continuation is not unique")
+                f"continuation is not unique"
+            )
         return Trajectory(
-            t=np.array(T), q=np.array(self.Q, float).reshape(len(T), nm.nq),
-            u=np.array(self.U, float).reshape(len(T), nm.n), nfev=self.nfev,
-            nsteps=self.nsteps, wall_s=wall, method=method, settings=settings,
-            work=np.array(self.W, float) if self.bookkeeping else None, stats=stats, nm=nm,
-            warnings=warnings)
+            t=np.array(T),
+            q=np.array(self.Q, float).reshape(len(T), nm.nq),
+            u=np.array(self.U, float).reshape(len(T), nm.n),
+            nfev=self.nfev,
+            nsteps=self.nsteps,
+            wall_s=wall,
+            method=method,
+            settings=settings,
+            work=np.array(self.W, float) if self.bookkeeping else None,
+            stats=stats,
+            nm=nm,
+            warnings=warnings,
+        )

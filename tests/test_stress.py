@@ -1,6 +1,7 @@
 """Stress scenes (crosscheck.stress) end flagged or within tolerance, never failed or hung; the
 work-precision records carry every field the benchmark promises. The full-length scenes and the
 whole `crosscheck bench --quick` are marked slow."""
+
 from __future__ import annotations
 
 import json
@@ -30,18 +31,25 @@ def test_slider_crank_rank_loss_is_refused_or_reported_never_silent():
             through = [t for t, r in zip(run["crossings_t"], run["reversed"], strict=True) if r]
             assert through and set(through) <= set(run["integrator_rank_crossings_t"])
             assert any("lost rank" in w for w in run["warnings"]), run["warnings"]
-            assert any(run["run"] in r and "reported by the integrator" in r
-                       for r in rec["reasons"])
+            assert any(
+                run["run"] in r and "reported by the integrator" in r for r in rec["reasons"]
+            )
 
 
 def test_a_silent_passage_of_the_rank_loss_pose_fails():
     # the judge on a run whose integrator did not report the passage (as the projection run at
     # rtol 1e-8 was before the rank monitor: pivot ratio 9.7e-4, no warning)
     rec = stress._record("s", "w", "t", 1.0)
-    run = {"run": "projection rtol=1e-08", "outcome": "completed", "crossings_t": [0.26, 0.72],
-           "reversed": [True, True], "integrator_rank_crossings_t": [0.26],
-           "min_pivot_ratio": 9.7e-4,
-           "max_abs_sin_theta1_plus_theta2": 0.0, "warnings": []}
+    run = {
+        "run": "projection rtol=1e-08",
+        "outcome": "completed",
+        "crossings_t": [0.26, 0.72],
+        "reversed": [True, True],
+        "integrator_rank_crossings_t": [0.26],
+        "min_pivot_ratio": 9.7e-4,
+        "max_abs_sin_theta1_plus_theta2": 0.0,
+        "warnings": [],
+    }
     stress._rank_loss_judge(rec, run["run"], run)
     assert run["verdict"] == "crossed_silently" and rec["status"] == "failed", rec
 
@@ -88,6 +96,7 @@ def test_double_pendulum_near_the_313_pole():
 def test_a_scene_that_breaks_is_recorded_not_raised(monkeypatch):
     def broken(quick):
         raise RuntimeError("boom")
+
     monkeypatch.setattr(stress, "SCENES", {"broken": broken})
     (rec,) = stress.stress_records(quick=True)
     assert rec["status"] == "failed" and "boom" in rec["reasons"][0]
@@ -100,8 +109,19 @@ def test_work_precision_records_have_the_promised_fields(monkeypatch):
     ref = [r for r in recs if r["engine"] == "reference"]
     assert {r["method"] for r in ref} == {"index1", "baumgarte", "projection", "nullspace"}
     for r in ref:
-        for key in ("model", "engine", "method", "setting", "wall_s", "error", "residual",
-                    "energy_drift", "nfev", "reference_accuracy", "error_resolved"):
+        for key in (
+            "model",
+            "engine",
+            "method",
+            "setting",
+            "wall_s",
+            "error",
+            "residual",
+            "energy_drift",
+            "nfev",
+            "reference_accuracy",
+            "error_resolved",
+        ):
             assert key in r, key
         assert r["error"] is not None and r["wall_s"] > 0
     skipped = [r for r in recs if r["engine"] == "nope"]
@@ -116,6 +136,7 @@ def test_work_precision_records_have_the_promised_fields(monkeypatch):
 def _wp_inputs(name):
     from reference import NumericModel, models
     from reference.minimal import reference_final_state
+
     nm = NumericModel(models.get(name))
     ref = reference_final_state(name, workprecision.horizon(name))
     return nm, ref, workprecision._base(name, "e", None, None, None, "timestep", 1.0, ref)
@@ -123,6 +144,7 @@ def _wp_inputs(name):
 
 def test_an_engine_refusal_is_a_listed_skip_and_a_broken_build_a_failure():
     from crosscheck.engines.registry import get_engine
+
     nm, _ref, row = _wp_inputs("knife_edge")
     em, (rec,) = workprecision._engine_model(get_engine("mujoco"), "knife_edge", nm, row)
     assert em is None and rec["skipped"] and rec["refusal"] == "EngineUnsupported", rec
@@ -132,6 +154,7 @@ def test_an_engine_refusal_is_a_listed_skip_and_a_broken_build_a_failure():
     em, (rec,) = workprecision._engine_model(broken, "slider_crank", nm, row)
     assert em is None and "skipped" not in rec and "ValueError" in rec["failed"], rec
     from crosscheck.bench import failed_checks
+
     assert failed_checks({"work_precision": [rec], "stress": []})  # the bench exits 1
 
 
@@ -140,14 +163,17 @@ def test_errors_below_the_reference_accuracy_are_not_reported_as_resolved():
     low, high = dict(row), dict(row)
     workprecision._judge_error(low, ref.accuracy / 10, ref)
     workprecision._judge_error(high, ref.accuracy * 10, ref)
-    assert low["error_resolved"] is False and "at or below the reference's accuracy" in \
-        low["error_note"]
+    assert (
+        low["error_resolved"] is False
+        and "at or below the reference's accuracy" in low["error_note"]
+    )
     assert high["error_resolved"] is True and "error_note" not in high
 
 
 def test_engine_fixed_step_integrators_are_benchmarked_with_steps_dividing_the_horizon():
     # Exudyn declares only fixed-step integrators: every one gets rows (the generic ladder)
     from crosscheck.engines.registry import get_engine
+
     nm, ref, _row = _wp_inputs("slider_crank")
     adapter = get_engine("exudyn")
     recs = workprecision.engine_records("slider_crank", True, ref, nm, adapter)
@@ -162,17 +188,18 @@ def test_work_precision_target_compares_with_mujocos_most_accurate_run():
     # the target's decision on records of one real quick run: MuJoCo's rows at their default
     # and stiffer constraint settings, the reference's ladder
     from crosscheck.engines.registry import get_engine
+
     nm, ref, _row = _wp_inputs("slider_crank")
-    recs = workprecision.reference_records("slider_crank", True, ref, nm,
-                                           methods=("projection",), ladder=(1e-10,))
+    recs = workprecision.reference_records(
+        "slider_crank", True, ref, nm, methods=("projection",), ladder=(1e-10,)
+    )
     mj = workprecision.engine_records("slider_crank", True, ref, nm, get_engine("mujoco"))
     assert any(r.get("solref") == [2 * r["setting"], 1.0] for r in mj)  # 2 steps: the floor
     t1 = targets.work_precision_target(recs + mj, "slider_crank")
     assert t1["ratio"] is not None and t1["met"] == (t1["ratio"] > 1.0), t1
     timed = [r for r in mj if r.get("error") is not None and not r.get("flagged")]
     hit = [r for r in timed if r["error"] <= targets.TARGET_MUJOCO_ERROR]
-    other = (min(hit, key=lambda r: r["wall_s"]) if hit
-             else min(timed, key=lambda r: r["error"]))
+    other = min(hit, key=lambda r: r["wall_s"]) if hit else min(timed, key=lambda r: r["error"])
     assert t1["ratio"] == other["wall_s"] / t1["reference"]["wall_s"]
 
 
@@ -207,18 +234,35 @@ def test_full_scenes(scene):
 def test_bench_quick_writes_every_section(tmp_path):
     # one model is enough to see every section written (the stress scenes and targets do not
     # depend on the model list); the whole suite's quick bench is a benchmark, not a test
-    r = subprocess.run([sys.executable, "-m", "crosscheck.cli", "bench", "slider_crank", "--quick",
-                        "--out", str(tmp_path)], capture_output=True, text=True, timeout=900)
+    r = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "crosscheck.cli",
+            "bench",
+            "slider_crank",
+            "--quick",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     data = json.loads((tmp_path / "bench.json").read_text())
     for key in ("forward", "work_precision", "stress", "targets", "skips"):
         assert data[key], key
     from crosscheck.engines.registry import available_engines, get_engine
+
     # every engine with trajectories runs its own integrators beside the reference's methods
     with_trajectories = {e for e in available_engines() if get_engine(e).capabilities.integrators}
     for engine in with_trajectories | {"reference"}:
-        rows = [rec for rec in data["work_precision"]
-                if rec["model"] == "slider_crank" and rec["engine"] == engine]
+        rows = [
+            rec
+            for rec in data["work_precision"]
+            if rec["model"] == "slider_crank" and rec["engine"] == engine
+        ]
         assert rows and all(rec.get("error") is not None for rec in rows), engine
     for e in with_trajectories:
         integrators = {rec["integrator"] for rec in data["work_precision"] if rec["engine"] == e}
@@ -232,6 +276,7 @@ def test_bench_quick_writes_every_section(tmp_path):
 def test_kkt_saving_compares_one_model_with_and_without_its_rows():
     from crosscheck import skip_savings
     from reference import NumericModel, models
+
     model = models.get("pendulum_xy")
     free = NumericModel(skip_savings.unconstrained(model))
     # like for like: the same coordinates and speeds, only the constraint rows gone
