@@ -229,7 +229,32 @@ class Exercise61(_ExerciseBase):
         raw["force_of_block_on_bar_at_B"] = d.efc_force[0:3].copy()
 
 
-class Exercise62(_ExerciseBase):
+class _HingedBarMaps:
+    """Engine state (two hinge angles and rates) to the reference's (the angles plus two
+    coordinates of the bar's mass center G, ``_g_axes`` of the point ``_G`` returns), shared
+    by Exercises 6.2 and 6.4."""
+
+    _g_axes: tuple[int, int]
+
+    def to_engine_state(self, q, u):
+        q, u = np.asarray(q, float), np.asarray(u, float)
+        return q[0:2].copy(), u[0:2].copy()
+
+    def from_engine_state(self, qe, ve):
+        i, j = self._g_axes
+        r, v, _ = self._G(float(qe[1]), float(ve[1]), 0.0)
+        return (
+            np.array([qe[0], qe[1], r[i], r[j]], float),
+            np.array([ve[0], ve[1], v[i], v[j]], float),
+        )
+
+    def _acc_to_reference(self, qe, ve, ae):
+        i, j = self._g_axes
+        _, _, a = self._G(float(qe[1]), float(ve[1]), float(ae[1]))
+        return np.array([ae[0], ae[1], a[i], a[j]], float)
+
+
+class Exercise62(_HingedBarMaps, _ExerciseBase):
     """Exercise 6.2 in the reference's own axes (Y DOWN, gravity +g Y): the block (m1) on slide
     x with the spring and damper (F as qfrc_applied on x), the bar on a hinge at A about -Z
     whose angle IS theta (bar along the body's +Y = down at theta = 0, G - A = (l/2)(S, C)).
@@ -252,20 +277,7 @@ class Exercise62(_ExerciseBase):
     def _G(self, th, thd, thdd):
         return _hinge_point(self.m.jnt_axis[self.j_th], self.m.body_ipos[self.bar], th, thd, thdd)
 
-    def to_engine_state(self, q, u):
-        q, u = np.asarray(q, float), np.asarray(u, float)
-        return q[0:2].copy(), u[0:2].copy()
-
-    def from_engine_state(self, qe, ve):
-        r, v, _ = self._G(float(qe[1]), float(ve[1]), 0.0)
-        return (
-            np.array([qe[0], qe[1], r[0], r[1]], float),
-            np.array([ve[0], ve[1], v[0], v[1]], float),
-        )
-
-    def _acc_to_reference(self, qe, ve, ae):
-        _, _, a = self._G(float(qe[1]), float(ve[1]), float(ae[1]))
-        return np.array([ae[0], ae[1], a[0], a[1]], float)
+    _g_axes = (0, 1)  # (x_G, y_G): G in the plane of the hinge axes
 
     def _extra_raw(self, raw):
         mujoco.mj_rnePostConstraint(self.m, self.d)
@@ -276,7 +288,7 @@ class Exercise62(_ExerciseBase):
         return self._F[0:2].copy()
 
 
-class Exercise64(_ExerciseBase):
+class Exercise64(_HingedBarMaps, _ExerciseBase):
     """Exercise 6.4 (Z up, gravity -g Z): the disk (inertia diag(m_d R^2/4, m_d R^2/4,
     m_d R^2/2)) on a hinge about +Z at O (phi; M_phi as qfrc_applied), the bar on a hinge
     about the disk's +X at P = (0, R, 0) (theta; the torsional spring k and damper c as joint
@@ -305,20 +317,7 @@ class Exercise64(_ExerciseBase):
         )
         return self.m.body_pos[self.bar] + r, v, a
 
-    def to_engine_state(self, q, u):
-        q, u = np.asarray(q, float), np.asarray(u, float)
-        return q[0:2].copy(), u[0:2].copy()
-
-    def from_engine_state(self, qe, ve):
-        r, v, _ = self._G(float(qe[1]), float(ve[1]), 0.0)
-        return (
-            np.array([qe[0], qe[1], r[1], r[2]], float),
-            np.array([ve[0], ve[1], v[1], v[2]], float),
-        )
-
-    def _acc_to_reference(self, qe, ve, ae):
-        _, _, a = self._G(float(qe[1]), float(ve[1]), float(ae[1]))
-        return np.array([ae[0], ae[1], a[1], a[2]], float)
+    _g_axes = (1, 2)  # (y_G, z_G): G in disk axes
 
     def _extra_raw(self, raw):
         d = self.d
