@@ -119,13 +119,13 @@ def odd_one_out(sides: list[str], grid, bounds) -> str | None:
     return None
 
 
-def reference_answers(model: str, nm, states) -> Answers:
-    """An Answers holding the reference's u' and lambda at the run's states (t = 0)."""
+def reference_answers(model: str, refs, n_rows: int) -> Answers:
+    """An Answers holding the reference's u' and lambda at the run's states (refs: one
+    comparison.ReferenceAnswer per state, the ones the records are judged against)."""
     answers = Answers(model)
     ref_tol = answers.tolerances[REFERENCE]
-    for i, (q, u) in enumerate(states):
-        fw = nm.forward(q, u, 0.0)
-        answers.add(REFERENCE, i, "accelerations", fw.accelerations, ref_tol)
-        if nm.m:
-            answers.add(REFERENCE, i, "multipliers", fw.multipliers, ref_tol)
+    for i, ref in enumerate(refs):
+        answers.add(REFERENCE, i, "accelerations", ref.accelerations, ref_tol)
+        if n_rows:
+            answers.add(REFERENCE, i, "multipliers", ref.multipliers, ref_tol)
     return answers

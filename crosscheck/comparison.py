@@ -252,10 +252,13 @@ def engine_records(
     params: dict,
     variant: str | None = None,
     answers=None,
+    refs: list[ReferenceAnswer] | None = None,
 ) -> list[dict]:
     """results.json records of one engine model over a run's states (t = 0): the worst error
     of each quantity, at which state, against its tolerance. ``answers`` (an
-    agreement.Answers) collects the judged answers for the agreement matrix."""
+    agreement.Answers) collects the judged answers for the agreement matrix; ``refs`` are the
+    reference's answers at the states when the caller has them (one solve per state for all
+    engines), else they are computed here."""
 
     def rec(*a, **k):
         r = C.record(name, nm.formulation, adapter.name, *a, **k)
@@ -274,7 +277,8 @@ def engine_records(
     skipped: dict[str, str] = {}
     iterations, predicted, soft = [], [], False
     for i, (q, u) in enumerate(states):
-        sc = compare_at_state(em, q, u, 0.0, reference_answer(nm, q, u), nm.m, adapter.capabilities)
+        ref = refs[i] if refs is not None else reference_answer(nm, q, u)
+        sc = compare_at_state(em, q, u, 0.0, ref, nm.m, adapter.capabilities)
         for qty, err in sc.values.items():
             worst.setdefault(qty, C.WorstCase()).add(err, i)
         skipped.update(sc.skips)

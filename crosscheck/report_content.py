@@ -30,6 +30,31 @@ def engine_anchors() -> tuple[tuple[str, str], ...]:
     return tuple((e, engine_label(e)) for e in available_engines())
 
 
+# the columns of a model's checks table and of a sweep's quantiles table (HTML and Markdown)
+CHECK_HEADERS = [
+    "status",
+    "formulation",
+    "engine",
+    "check",
+    "quantity",
+    "error",
+    "tolerance",
+    "error / tolerance",
+    "reason and details",
+]
+SWEEP_HEADERS = [
+    "engine",
+    "quantity",
+    "samples",
+    "max",
+    "median",
+    "q0.99",
+    "tolerance",
+    "outside",
+    "worst sample",
+    "status",
+]
+
 # record fields shown in their own columns; any other field goes to the "details" column
 STANDARD_FIELDS = {
     "model",

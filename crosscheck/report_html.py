@@ -11,6 +11,7 @@ from . import (
 )
 from .html_parts import anchor, e, img, table
 from .report_content import (
+    CHECK_HEADERS,
     Content,
     ReportInputError,
     conserves_energy,
@@ -140,17 +141,7 @@ def _checks_html(c: Content, model: str, recs: list[dict]) -> str:
         )
         classes.append(st)
     out = table(
-        [
-            "status",
-            "formulation",
-            "engine",
-            "check",
-            "quantity",
-            "error",
-            "tolerance",
-            "error / tolerance",
-            "reason and details",
-        ],
+        CHECK_HEADERS,
         rows,
         classes,
         {5, 6, 7},

@@ -7,6 +7,8 @@ from . import (  # the section of sensitivity.json beside results.json
     report_sensitivity,
 )
 from .report_content import (
+    CHECK_HEADERS,
+    SWEEP_HEADERS,
     Content,
     details,
     energy_heading,
@@ -54,18 +56,7 @@ def _sweep_md(c: Content) -> list[str]:
             out += [
                 "",
                 *_md_table(
-                    [
-                        "engine",
-                        "quantity",
-                        "samples",
-                        "max",
-                        "median",
-                        "q0.99",
-                        "tolerance",
-                        "outside",
-                        "worst sample",
-                        "status",
-                    ],
+                    SWEEP_HEADERS,
                     [
                         [
                             r[0],
@@ -152,20 +143,7 @@ def _checks_md(c: Content, m: str) -> list[str]:
                     "; ".join(x for x in (why, extra) if x),
                 ]
             )
-        out += _md_table(
-            [
-                "status",
-                "formulation",
-                "engine",
-                "check",
-                "quantity",
-                "error",
-                "tolerance",
-                "error/tol",
-                "reason and details",
-            ],
-            rows,
-        )
+        out += _md_table(CHECK_HEADERS, rows)
         out += [f"{i + 1}. {t}" for i, t in enumerate(notes)] + [""]
     return out
 

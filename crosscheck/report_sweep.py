@@ -4,20 +4,15 @@ in report_md)."""
 from __future__ import annotations
 
 from .html_parts import anchor, e, img, table
-from .report_content import fmt, fmt_tol, sweep_label, sweep_models, sweep_rows, sweep_verdict
-
-HEADERS = [
-    "engine",
-    "quantity",
-    "samples",
-    "max",
-    "median",
-    "q0.99",
-    "tolerance",
-    "outside",
-    "worst sample",
-    "status",
-]
+from .report_content import (
+    SWEEP_HEADERS,
+    fmt,
+    fmt_tol,
+    sweep_label,
+    sweep_models,
+    sweep_rows,
+    sweep_verdict,
+)
 
 
 def html(c) -> str:
@@ -76,7 +71,7 @@ def _model(sw: dict, m: str) -> list[str]:
                 ]
             )
             classes.append(cls)
-        out.append(table(HEADERS, body, classes, {2, 3, 4, 5, 6, 7, 8}))
+        out.append(table(SWEEP_HEADERS, body, classes, {2, 3, 4, 5, 6, 7, 8}))
     recs = [r for r in sw.get("results", []) if r.get("model") == m]
     out.append(
         img(

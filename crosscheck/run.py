@@ -19,7 +19,7 @@ from reference.generic import generic_parameters
 from . import compare as C
 from . import jsonio
 from .agreement import reference_answers
-from .comparison import engine_records
+from .comparison import engine_records, reference_answer
 from .engines.registry import get_engine
 from .perturb import check_perturb, check_perturb_changes, parse_perturb, perturbed
 from .sampling import consistent_states
@@ -169,12 +169,14 @@ def run(
         nm = NumericModel(model)
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)
-        answers = reference_answers(name, nm, states)
+        refs = [reference_answer(nm, q, u) for q, u in states]  # once for every engine
+        answers = reference_answers(name, refs, nm.m)
         for adapter in adapters:
             params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
             for variant in adapter.variants(name):
                 records += adapter.annotate_records(
-                    name, engine_records(name, nm, states, adapter, params, variant, answers)
+                    name,
+                    engine_records(name, nm, states, adapter, params, variant, answers, refs),
                 )
         if agreement is not None:
             agreement += answers.matrices()
@@ -211,10 +213,11 @@ def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
     nm = generic_model(name)
     states = consistent_states(nm, n_states)
     out = _formulation_records(name, nm, states)
+    refs = [reference_answer(nm, q, u) for q, u in states]
     for adapter in adapters:
         params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
         for variant in adapter.variants(name):
-            out += engine_records(name, nm, states, adapter, params, variant)
+            out += engine_records(name, nm, states, adapter, params, variant, refs=refs)
     for r in out:
         r["check"] += GENERIC_SUFFIX
     return out
