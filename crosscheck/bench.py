@@ -115,7 +115,7 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
     # each backend's native inputs: float64 vectors for the kernels, lists for Python
     qr, ur = (q, u) if nm.backend == "numba" else (q.tolist(), u.tolist())
     rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
-    if nm.backend == "numba":  # the kernel alone, output into a preallocated array
+    if nm.backend == "numba" and not nm.numeric_kkt:  # the kernel alone, into an array
         into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
         rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
     reps = int(np.ceil(BATCH / Q.shape[0]))

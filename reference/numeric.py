@@ -111,18 +111,21 @@ class NumericModel:
         self._no_db = (0.0,) * self.m
         self._k = self._kernels()
         # every single-state kernel compiled or loaded here (the batch kernels on first use)
-        self._kf: Any = self._k.get("forward") if self._k is not None else None
+        # (no forward kernel where the solve is numeric: dependent rows or a large model)
+        self._kf: Any = None if self._numeric or self._k is None else self._k.get("forward")
         if self._k is not None:  # the other single-state kernels too: a first-use compile
             for name in compiled.FUNCTIONS:  # must not land inside a timed or wall-bounded
-                self._k.get(name)  # call (simulate's max_wall_s, a benchmark loop)
+                if name in self._k.sizes:  # call (simulate's max_wall_s, a benchmark loop)
+                    self._k.get(name)
         self._nlam = self.n + self.m
         self._pack()
 
     def _kernels(self) -> Any:
         """The numba kernels of this model's code (None on the pure-Python backend)."""
-        if compiled.backend() != "numba" or self.numeric_kkt:
-            # a numeric-KKT model has no forward kernel, and numba's compile of its long
-            # straight-line M, A code costs more than the run (docs/scaling.md)
+        if compiled.backend() != "numba" or codegen.numeric_kkt(self.n, self.m):
+            # numba's compile of a large model's long straight-line M, A code costs more than
+            # the run (docs/scaling.md); a small model with dependent rows keeps its kernels
+            # for M, A, residuals and energy (its forward is the numeric solve either way)
             return None
         path = self._scalar["__cache_path__"]
         try:
@@ -323,7 +326,14 @@ class NumericModel:
         """The bare compiled forward: u', lambda and the pivot ratio written into `out`
         (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
         status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
-        checked in the kernel). q, u: float64 vectors. The compiled backend only."""
+        checked in the kernel). q, u: float64 vectors. The compiled backend only, and a model
+        whose solve is unrolled (not numeric_kkt)."""
+        if self._kf is None:
+            raise ModelInputError(
+                f"{self.model.name}: forward_into needs the compiled unrolled forward; this model "
+                f"has {'no numba backend' if self._k is None else 'a numeric KKT solve'} "
+                f"(use forward or forward_raw)"
+            )
         return self._kf(q, u, t, self._pa, self._db0, out)
 
     def raw_function(self, name: str) -> Callable[..., Any]:

@@ -185,6 +185,7 @@ class Model:
         parts += [sp.srepr(self.gravity), sp.srepr(self.potential)]
         parts += [sp.srepr(x) for x in self.configuration_constraints + self.motion_constraints]
         parts += [p.name for p in self.parameters]
+        parts.append(f"redundant={self.redundant_constraints}")  # the code differs (codegen)
         return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:20]
 
     def validate(self) -> None:

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from crosscheck.engines.mujoco.mjcf_rigid import agreement
-from reference import codegen
+from reference import codegen, models
 from reference.mjcf import import_mjcf
 from reference.numeric import NumericModel
 
@@ -43,6 +43,15 @@ def test_five_cells_take_the_numeric_path_and_agree_with_mujoco(tmp_path):
     assert worst < TOL_MJCF, rows
 
 
-def test_one_cell_stays_unrolled(tmp_path):
+def test_dependent_rows_generate_no_unrolled_forward(tmp_path):
+    """One cell is small enough to unroll, but its rows are dependent: the numeric solve
+    answers every state, so no unrolled forward is generated (or compiled) for it."""
     _imp, nm = _model(1, tmp_path)
+    assert nm.n + nm.m <= codegen.UNROLL_KKT_MAX
+    assert nm.numeric_kkt and "def forward(" not in nm.source
+    assert (nm.rank, nm.m) == (2, 3)
+
+
+def test_independent_rows_stay_unrolled():
+    nm = NumericModel(models.get("slider_crank"))
     assert not nm.numeric_kkt and "def forward(" in nm.source
