@@ -26,6 +26,8 @@ class SingularSystemError(ModelInputError):
     """The KKT matrix is singular at a state (kinematic singularity, M not definite on
     null(A), or a coordinate singularity where the derived equations are not defined)."""
 
+    t_singular: float | None = None  # set by an integrator: the time the run reached the pose
+
 
 class OffManifoldError(ModelInputError):
     """A state violates the constraints by more than the stated tolerance."""

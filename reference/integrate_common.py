@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 import numpy as np
 import scipy.integrate as si
@@ -252,9 +253,25 @@ class _Problem:
         # smallest KKT pivot ratio seen in any RHS call (a cell the closures update)
         self.pmin = [math.inf]
 
-    def singular(self, t, q, piv):
+    def singular(self, t, q, piv) -> NoReturn:
         msg = self.nm._singular_message(q, piv)
-        raise SingularSystemError(f"at t = {t:.6g}: {msg}")
+        err = SingularSystemError(f"at t = {t:.6g}: {msg}")
+        err.t_singular = float(t)  # where the run stopped (crosscheck.trajectory_horizon)
+        raise err
+
+    def forward_failed(self, t, q, exc: Exception) -> NoReturn:
+        """A right side that raised: the model's own error keeps its words (an inconsistent
+        rank drop, a coordinate singularity), a bare arithmetic error is a singular pose."""
+        if isinstance(exc, ModelInputError):
+            msg = f"at t = {t:.6g}: {exc}"
+            try:
+                again = type(exc)(msg)
+            except TypeError:  # an error class whose constructor takes more than a message
+                again = ModelInputError(msg)
+            if isinstance(again, SingularSystemError):
+                again.t_singular = float(t)
+            raise again from None
+        self.singular(t, q, -1.0)
 
     def qdot(self, q, u, t) -> list[float]:
         """q' = N(q, u, t); a parametrization singularity (3-1-3 angles at sin(theta2) = 0)

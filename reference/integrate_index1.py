@@ -30,8 +30,8 @@ class _Index1(_Problem):
                 q, u = yl[:nq], yl[nq : nq + n]
             try:
                 ud, lam, piv = fr(q, u, t, offset(q, u, t) if offset else None)
-            except (ZeroDivisionError, ValueError):
-                ud, lam, piv = None, None, -1.0
+            except (ZeroDivisionError, ValueError) as exc:
+                self.forward_failed(t, q, exc)
             if not piv > PMIN:
                 singular(t, q, piv)
             if piv < pmin[0]:

@@ -199,8 +199,8 @@ class _Nullspace(_Problem):
             u = self.u_of(q, yl[nqi : nqi + nui], t)
             try:
                 ud, lam, piv = fr(q, u, t)
-            except (ZeroDivisionError, ValueError):
-                ud, lam, piv = None, None, -1.0
+            except (ZeroDivisionError, ValueError) as exc:
+                self.forward_failed(t, q, exc)
             if not piv > PMIN:
                 self.singular(t, q, piv)
             if piv < pmin[0]:

@@ -90,11 +90,11 @@ def test_unknown_model_name_lists_user_models(capsys):
     assert "fourbar_connect" in capsys.readouterr().err
 
 
-@pytest.mark.slow  # three formulations of a 9-coordinate model derived cold: minutes
-def test_gripper_past_dead_centre_is_a_failed_record_not_an_abort(tmp_path, capsys):
-    """Issue 11: the ten-body gripper reaches a dead centre at t = 0.73 s, where its constraint
-    rows lose rank. The run must go on and write the reference's failed trajectory record
-    with the reason, and the engines' trajectory records say why they were not compared."""
+@pytest.mark.slow  # three formulations of a 9-coordinate model derived cold: a minute or two
+def test_gripper_compared_up_to_its_dead_centre(tmp_path, capsys):
+    """Issue 11: the ten-body gripper reaches a dead centre at t = 0.72 s, where its constraint
+    rows lose rank and the motion past it is not unique. The trajectories are compared up to
+    just before it, and a skipped record says where and why the requested second was cut."""
     code = main(
         [
             "run",
@@ -111,16 +111,17 @@ def test_gripper_past_dead_centre_is_a_failed_record_not_an_abort(tmp_path, caps
             str(tmp_path),
         ]
     )
-    assert code == 1, capsys.readouterr().err  # 1: a failed record, not a crash
+    assert code == 0, capsys.readouterr().err
     records = json.loads((tmp_path / "results.json").read_text())["records"]
-    traj = {
-        r["engine"]: r
-        for r in records
-        if r["check"] == "trajectory" and r["quantity"] == "state_error"
-    }
-    ref = traj["reference"]
-    assert ref["passed"] is False and ref["failure"] is True
-    assert "SingularSystemError: at t = 0.72" in ref["reason"], ref["reason"]
-    assert traj["mujoco"]["skipped"] and "its run failed" in traj["mujoco"]["reason"]
+    traj = [r for r in records if r["check"] == "trajectory"]
+    (horizon,) = [r for r in traj if r["quantity"] == "horizon"]
+    assert horizon["skipped"] and horizon["t_requested"] == 1.0
+    assert "singular pose at t = 0.72" in horizon["reason"], horizon["reason"]
+    assert 0.7 <= horizon["t_end"] < 0.72
+    compared = [r for r in traj if r["quantity"] == "state_error"]
+    assert {r["engine"] for r in compared} == {"reference", "mujoco"}
+    assert all(r["t_end"] == horizon["t_end"] for r in traj)
+    ref = next(r for r in compared if r["engine"] == "reference")
+    assert ref["passed"] is True
     instantaneous = [r for r in records if r["check"] != "trajectory"]
     assert instantaneous and all(r["passed"] is not False for r in instantaneous)
