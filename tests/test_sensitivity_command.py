@@ -34,6 +34,18 @@ def test_unused_parameter_is_named():
     assert rows["m"].caught_at is not None
 
 
+@pytest.mark.parametrize("engine", ["exudyn", "opensim"])
+def test_parameter_in_the_model_but_unseen_is_not_called_unused(engine):
+    """Exudyn's and OpenSim's pendulum_xy hold L as the rod's length (their fingerprint
+    changes with it), but at states the reference made consistent no acceleration-level figure
+    depends on it: the reason says so and names the run whose trajectory drift measures it,
+    instead of claiming the engine's model does not contain L."""
+    rows = {t.parameter: t for t in engine_thresholds("pendulum_xy", engine)}
+    assert rows["L"].caught_at is None
+    assert rows["L"].reason.startswith("no instantaneous check sees it"), rows["L"]
+    assert f"--perturb {engine}:L=" in rows["L"].reason
+
+
 def test_command_writes_json(tmp_path, capsys):
     assert (
         main(["sensitivity", "pendulum_angle", "--engines", "pinocchio", "--out", str(tmp_path)])
