@@ -111,7 +111,12 @@ REF_ENERGY = C.Tolerance(
 
 def ref_energy(t_end: float) -> C.Tolerance:
     """REF_ENERGY with the run's own horizon in its reason."""
-    return C.Tolerance(REF_ENERGY.value, f"over this run's {t_end:g} s: {REF_ENERGY.reason}")
+    return C.Tolerance(
+        REF_ENERGY.value,
+        f"DOP853 at rtol 1e-12 over this run's {t_end:g} s: energy error well below 1e-9 "
+        "relative (measured over 5-10 s; projection does not conserve energy exactly, "
+        "docs/numerics.md)",
+    )
 
 
 def projected_drift(q) -> C.Tolerance:
