@@ -1,8 +1,11 @@
 """`crosscheck bench`: forward-dynamics speed (and, with the numerics, work-precision).
 
 Forward records time one evaluation of the accelerations and multipliers at a state:
-- reference `single` (the checked public call), `single-raw` (the unchecked path integrators
-  use), `batched` (10^4 states in one call);
+- reference paths, each record's `call` field naming the exact call (PATHS): `single` (the
+  checked public call), `single-raw` (the unchecked call integrators use, fresh arrays out),
+  `single-raw-out` (the same call writing into the caller's preallocated array, as
+  Pinocchio's timed call writes into its own data), `single-into` (the bare kernel call),
+  `batched` (10^4 states in one call);
 - `baseline`: the plain route a user would write first, sympy lambdify of M, f, A, b (numpy)
   plus np.linalg.solve of the KKT matrix, single state and batched (np.linalg.solve on a stack);
 - each engine's constrained forward call at the same state, timed through the adapter's
@@ -28,6 +31,21 @@ from .provenance import meta
 from .timing import per_call_seconds
 
 BATCH = 10_000
+
+# what each reference path times (bench.json `forward_paths`, and each record's `call`)
+PATHS = {
+    "single": "NumericModel.forward(q, u): the checked public call (sizes, finiteness, pivot "
+    "test; a bad state raises); returns a Forward record of fresh arrays",
+    "single-raw": "NumericModel.forward_raw(q, u, t): the unchecked call the integrators use "
+    "(sizes checked, no raise on a singular KKT matrix, NaN in -> NaN out); returns fresh "
+    "(u', lambda) arrays and the pivot ratio",
+    "single-raw-out": "NumericModel.forward_raw(q, u, t, out=buf): the same raw call writing "
+    "u' | lambda | pivot ratio into the caller's preallocated float64 array (the counterpart of "
+    "Pinocchio's timed call, which returns its preallocated data.ddq)",
+    "single-into": "NumericModel.forward_into(q, u, t, buf): the compiled kernel alone (numba's "
+    "dispatch and the out size check), output into a preallocated array, status returned",
+    "batched": "NumericModel.forward_batch(Q, U): 10^4 states in one call, per state",
+}
 
 
 def _states(nm, n):
@@ -104,6 +122,7 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
                 "engine": engine,
                 "formulation": nm.formulation,
                 "path": path,
+                "call": PATHS.get(path, path),
                 "batch": batch,
                 "us_per_state": t["median"] / batch * 1e6,
                 "us_per_state_min": t["min"] / batch * 1e6,
@@ -111,12 +130,13 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
         )
 
     rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
-    raw = nm.forward_raw
+    raw, buf = nm.forward_raw, np.empty(nm.n + nm.m + 1)
     # each backend's native inputs: float64 vectors for the kernels, lists for Python
     qr, ur = (q, u) if nm.backend == "numba" else (q.tolist(), u.tolist())
     rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
+    rec("single-raw-out", 1, per_call_seconds(lambda: raw(qr, ur, 0.0, out=buf)))
     if nm.backend == "numba":  # the kernel alone, output into a preallocated array
-        into, buf = nm.forward_into, np.empty(nm.n + nm.m + 1)
+        into = nm.forward_into
         rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
     reps = int(np.ceil(BATCH / Q.shape[0]))
     QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
@@ -190,6 +210,8 @@ def _ratios(name, recs) -> dict:
         e, loop = t[path], t.get(f"engine-loop:{eng}")
         out[f"checked_over_{eng}"] = t["single"] / e
         out[f"raw_over_{eng}"] = t["single-raw"] / e
+        if "single-raw-out" in t:
+            out[f"raw_out_over_{eng}"] = t["single-raw-out"] / e
         if "single-into" in t:
             out[f"into_over_{eng}"] = t["single-into"] / e
         if loop:
@@ -197,6 +219,10 @@ def _ratios(name, recs) -> dict:
         if get_engine(eng).capabilities.exact:
             met[f"checked <= 0.5 x {eng}"] = out[f"checked_over_{eng}"] <= 0.5
             met[f"raw <= 0.25 x {eng}"] = out[f"raw_over_{eng}"] <= 0.25
+            if "single-raw-out" in t:
+                met[f"raw into the caller's out <= 0.25 x {eng}"] = (
+                    out[f"raw_out_over_{eng}"] <= 0.25
+                )
             if "single-into" in t:
                 met[f"kernel into a preallocated output <= 0.25 x {eng}"] = (
                     out[f"into_over_{eng}"] <= 0.25
@@ -244,6 +270,7 @@ def cmd_bench(args) -> int:
     # per generated module: writing the numba source, importing it, and each kernel's first
     # call (a compile, or a load from numba's on-disk cache: from_cache says which)
     result["forward_ratios"] = forward_ratios(result["forward"])
+    result["forward_paths"] = dict(PATHS)
     from reference.codegen import cache_dir
 
     result["compiled"] = {
@@ -312,8 +339,12 @@ def _print_summary(result: dict, out: Path) -> None:
                 else r.get("failed") or f"skipped: {r.get('reason') or r.get('skipped')}"
             )
         )
+    print("\nreference paths")
+    for path, what in result.get("forward_paths", {}).items():
+        print(f"  {path:15s} {what}")
     print(
-        "\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20)"
+        "\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20;"
+        " raw = single-raw, raw_out = single-raw-out, into = single-into)"
     )
     for r in result["forward_ratios"]:
         print(
