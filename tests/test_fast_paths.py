@@ -195,3 +195,19 @@ def test_forward_record_keeps_the_dataclass_behaviour(nm):
     assert not np.shares_memory(a.accelerations, b.accelerations)  # fresh per call
     a.accelerations = np.zeros(nm.n)  # fields stay assignable
     assert not a.accelerations.any()
+
+
+def test_bench_names_every_reference_call_and_the_out_ratio(monkeypatch):
+    from crosscheck import bench
+    from crosscheck.engines.registry import get_engine
+
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
+    recs = bench._model_forward_records("pendulum_xy", True, [get_engine("pinocchio")])
+    by_path = {r["path"]: r for r in recs}
+    for path, call in bench.PATHS.items():
+        assert by_path[path]["call"] == call and by_path[path]["us_per_state"] > 0, path
+    (row,) = bench.forward_ratios(recs)
+    pin = by_path["engine:pinocchio"]["us_per_state"]
+    assert row["raw_out_over_pinocchio"] == by_path["single-raw-out"]["us_per_state"] / pin
+    assert row["raw_over_pinocchio"] == by_path["single-raw"]["us_per_state"] / pin
+    assert "raw into the caller's out <= 0.25 x pinocchio" in row["met"]
