@@ -28,7 +28,7 @@ from reference.formulations import derive
 from . import jsonio
 from .engines.base import EngineUnsupported
 from .provenance import meta
-from .timing import per_call_seconds
+from .timing import interleaved_seconds, per_call_seconds
 
 BATCH = 10_000
 
@@ -113,31 +113,38 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
     Q, U = _states(nm, 16 if quick else 64)
     q, u = Q[0], U[0]
     recs: list[dict] = []
+    # single-state calls (the reference's and each engine's) are timed together at the end,
+    # in interleaved rounds: their ratios are the targets, and back-to-back timings on this
+    # shared machine moved them 2x between paths of one run (docs/compiled.md)
+    pending: dict = {}
 
     def rec(path, batch, t):
         engine = "reference" if not path.startswith("engine") else path.split(":")[1]
-        recs.append(
-            {
-                "model": name,
-                "engine": engine,
-                "formulation": nm.formulation,
-                "path": path,
-                "call": PATHS.get(path, path),
-                "batch": batch,
-                "us_per_state": t["median"] / batch * 1e6,
-                "us_per_state_min": t["min"] / batch * 1e6,
-            }
-        )
+        r = {
+            "model": name,
+            "engine": engine,
+            "formulation": nm.formulation,
+            "path": path,
+            "call": PATHS.get(path, path),
+            "batch": batch,
+        }
+        recs.append(r)
+        if callable(t):
+            pending[path] = (r, t)
+        else:
+            r.update(
+                us_per_state=t["median"] / batch * 1e6, us_per_state_min=t["min"] / batch * 1e6
+            )
 
-    rec("single", 1, per_call_seconds(lambda: nm.forward(q, u)))
+    rec("single", 1, lambda: nm.forward(q, u))
     raw, buf = nm.forward_raw, np.empty(nm.n + nm.m + 1)
     # each backend's native inputs: float64 vectors for the kernels, lists for Python
     qr, ur = (q, u) if nm.backend == "numba" else (q.tolist(), u.tolist())
-    rec("single-raw", 1, per_call_seconds(lambda: raw(qr, ur, 0.0)))
-    rec("single-raw-out", 1, per_call_seconds(lambda: raw(qr, ur, 0.0, out=buf)))
+    rec("single-raw", 1, lambda: raw(qr, ur, 0.0))
+    rec("single-raw-out", 1, lambda: raw(qr, ur, 0.0, out=buf))
     if nm.backend == "numba":  # the kernel alone, output into a preallocated array
         into = nm.forward_into
-        rec("single-into", 1, per_call_seconds(lambda: into(q, u, 0.0, buf)))
+        rec("single-into", 1, lambda: into(q, u, 0.0, buf))
     reps = int(np.ceil(BATCH / Q.shape[0]))
     QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
     rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
@@ -146,7 +153,7 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
     ref = nm.forward(q, u)
     sol = b_single(q, u)
     assert np.allclose(sol[: nm.n], ref.accelerations, rtol=1e-9, atol=1e-9), name
-    rec("baseline-lambdify-solve", 1, per_call_seconds(lambda: b_single(q, u)))
+    rec("baseline-lambdify-solve", 1, lambda: b_single(q, u))
     rec(
         "baseline-lambdify-solve-batched",
         BATCH,
@@ -154,6 +161,15 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
     )
     for engine in engines:
         recs += _engine_forward_records(name, nm, engine, Q, U, rec)
+    timed = interleaved_seconds({path: fn for path, (_r, fn) in pending.items()})
+    for path, (r, _fn) in pending.items():
+        t = timed[path]
+        r.update(
+            us_per_state=t["median"] * 1e6,
+            us_per_state_min=t["min"] * 1e6,
+            timing=f"interleaved with this model's other single-state calls, {t['repeats']} "
+            f"rounds (median and min over rounds)",
+        )
     return recs
 
 
@@ -173,7 +189,7 @@ def _engine_forward_records(name, nm, engine, Q, U, rec) -> list[dict]:
         return [{**base, "skipped": True, "refusal": "EngineUnsupported", "reason": str(exc)}]
     except Exception as exc:  # anything else is a broken build: a failed check
         return [{**base, "failed": f"engine build: {type(exc).__name__}: {exc}"}]
-    rec(f"engine:{engine.name}", 1, per_call_seconds(em.timed_forward(Q[0], U[0])))
+    rec(f"engine:{engine.name}", 1, em.timed_forward(Q[0], U[0]))
     # the engine over the batch's states, one call each (a Python loop)
     calls = [em.timed_forward(Q[i], U[i]) for i in range(Q.shape[0])]
     seq = [calls[i % len(calls)] for i in range(BATCH)]
