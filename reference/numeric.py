@@ -319,16 +319,15 @@ class NumericModel(BatchedForward):
         if fast is None:
             return self._forward_raw_other(q, u, t, db, out)
         kf, nf, pa, db0, n, nl = fast
-        if out is None:
-            buf = _empty(nf)
-        elif type(out) is _ND and out.size == nf:  # the kernel does not check its output's
-            buf = out  # size: a shorter one would be written past its end (dtype, layout: numba)
-        else:
-            raise self._bad_out(out)
+        buf = _empty(nf) if out is None else out
         db = db0 if db is None else np.asarray(db, float)
         if type(q) is not _ND or type(u) is not _ND:
             q, u, t = self._arrays(q, u, t)
         try:
+            # the kernel does not check its output's size: it would write past the end of a
+            # shorter one (its type, dimensions, layout and writability: numba's dispatch)
+            if buf is out and len(out) != nf:
+                raise self._bad_out(out)
             st = kf(q, u, t, pa, db, buf)
         except TypeError:  # lists (the Python path's inputs), or a bad `out`
             if out is not None and self._out_ok(out) is False:
@@ -385,9 +384,9 @@ class NumericModel(BatchedForward):
         status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
         checked in the kernel). q, u: float64 vectors (numba's dispatch checks the types;
         anything else is a ModelInputError). The compiled backend only."""
-        if type(out) is not _ND or out.size != self._nf:  # the kernel would write past the
-            raise self._bad_out(out)  # end of a shorter one
         try:
+            if len(out) != self._nf:  # the kernel would write past the end of a shorter one
+                raise self._bad_out(out)
             return self._kf(q, u, t, self._pa, self._db0, out)
         except TypeError:
             if not self._out_ok(out):
