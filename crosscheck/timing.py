@@ -34,3 +34,24 @@ def per_call_seconds(fn, *, min_time: float = 0.02, repeats: int = 7) -> dict:
         "loops": n,
         "repeats": repeats,
     }
+
+
+def interleaved_seconds(calls: dict, *, rounds: int = 15, min_time: float = 0.02) -> dict:
+    """{name: {median, min, loops, repeats}} of each zero-argument call, the calls timed in
+    turn round after round (one loop of about `min_time` each per round): a change of load
+    lands on every call alike, so their ratios hold better than those of back-to-back runs."""
+    loops = {
+        k: per_call_seconds(fn, min_time=min_time, repeats=1)["loops"] for k, fn in calls.items()
+    }
+    samples: dict = {k: [] for k in calls}
+    for _ in range(rounds):
+        for k, fn in calls.items():
+            n = loops[k]
+            t0 = time.perf_counter()
+            for _ in range(n):
+                fn()
+            samples[k].append((time.perf_counter() - t0) / n)
+    return {
+        k: {"median": statistics.median(s), "min": min(s), "loops": loops[k], "repeats": rounds}
+        for k, s in samples.items()
+    }

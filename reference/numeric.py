@@ -20,6 +20,7 @@ from . import codegen, compiled, redundant
 from .constraints import check_independent
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
 from .formulations import derive
+from .numeric_batch import BatchedForward
 from .system import Model
 
 # A pivot of M or of the Schur complement S below this fraction of its original diagonal entry
@@ -28,6 +29,8 @@ from .system import Model
 PIVOT_RATIO_MIN = 1e-12
 
 _ND = np.ndarray
+_empty = np.empty
+_new = object.__new__  # a Forward built by slot stores: no dataclass __init__ call (hot path)
 
 # A consistent state satisfies its constraints to round-off of the expressions (entries of size
 # ~1 in SI): 1e-9 absolute (scaled by the state size) separates "consistent" from "off manifold"
@@ -81,7 +84,7 @@ class Forward:
     rank: int | None = None  # rank of A where the model allows dependent rows, else None
 
 
-class NumericModel:
+class NumericModel(BatchedForward):
     """Compiled numeric model for one formulation and one parameter set."""
 
     def __init__(self, model: Model, formulation: str | None = None, params: dict | None = None):
@@ -145,10 +148,14 @@ class NumericModel:
             return None
 
     def _pack(self) -> None:
-        """Parameters and Schur references as one array (the kernels' _pa), zero b offsets."""
+        """Parameters and Schur references as one array (the kernels' _pa), zero b offsets,
+        and `_fast`: what the compiled forward calls read, one attribute to unpack instead of
+        six (None where forward has no kernel: the Python backend or a numeric KKT solve)."""
         self._pa = np.array(self.p + self.sref, float)
         self._db0 = np.zeros(max(self.m, 1))
         self._nf = self.n + self.m + 1
+        kf = None if self._numeric else self._kf
+        self._fast = None if kf is None else (kf, self._nf, self._pa, self._db0, self.n, self._nlam)
 
     @property
     def backend(self) -> str:
@@ -261,20 +268,27 @@ class NumericModel:
     # ---- single state ------------------------------------------------------------------
     def forward(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
-        kf = None if self._numeric else self._kf  # dependent rows: the rank-revealing solve
-        if kf is not None:
-            out = np.empty(self._nf)
+        fast = self._fast
+        if fast is not None:  # the compiled kernel; dependent rows take the rank-revealing solve
+            kf, nf, pa, db0, n, nl = fast
+            out = _empty(nf)
             if type(q) is not _ND or type(u) is not _ND:  # lists: convert first (a failed
                 q, u, t = self._arrays(q, u, t)  # dispatch costs numba ~1 ms to explain)
             try:
-                st = kf(q, u, t, self._pa, self._db0, out)
+                st = kf(q, u, t, pa, db0, out)
             except TypeError:  # not float64 vectors and a float: convert, then call
                 q, u, t = self._arrays(q, u, t)
-                st = kf(q, u, t, self._pa, self._db0, out)
+                st = kf(q, u, t, pa, db0, out)
             if st:
                 self._fail(st, q, u, out)
-            n, nm = self.n, self._nlam
-            return Forward(out[:n], out[n:nm], float(out[nm]))
+            f = _new(Forward)
+            f.accelerations, f.multipliers, f.pivot_ratio, f.rank = (
+                out[:n],
+                out[n:nl],
+                out.item(nl),
+                None,
+            )
+            return f
         q, u, t = self._state(q, u, t)
         if self._numeric:
             ud, lam, piv = self.forward_raw(q, u, t)
@@ -294,47 +308,104 @@ class NumericModel:
             raise SingularSystemError(self._singular_message(q, piv))
         return Forward(np.array(ud, dtype=float), np.array(lam, dtype=float), float(piv))
 
-    def forward_raw(self, q: ArrayLike, u: ArrayLike, t: float, db: Any = None) -> Any:
+    def forward_raw(
+        self, q: ArrayLike, u: ArrayLike, t: float, db: Any = None, out: Any = None
+    ) -> Any:
         """Fast path for integrators: (u', lambda, pivot ratio) without raising on a singular
-        KKT matrix (the caller tests the ratio). Sizes are still checked (an unchecked compiled
-        read past an array's end would return garbage). `db` offsets the constraint rows'
-        right side: A u' = b + db (Baumgarte). Lists or float64 vectors in; vectors out on
-        the compiled backend, lists on the Python one."""
-        if self._numeric:
-            return self._forward_redundant(q, u, t, db)
-        if self._k is None:
-            return self._scalar["forward"](
-                q, u, t, self.p, self.sref, self._no_db if db is None else db
-            )
-        out = np.empty(self._nf)
-        db = self._db0 if db is None else np.asarray(db, float)
+        KKT matrix (the caller tests the ratio); NaN in, NaN out. Sizes are still checked (an
+        unchecked compiled read past an array's end would return garbage). `db` offsets the
+        constraint rows' right side: A u' = b + db (Baumgarte). Lists or float64 vectors in;
+        fresh vectors out on the compiled backend, lists on the Python one. With `out` (a
+        writable float64 vector of n + m + 1, as forward_into's): u' | lambda | the ratio are
+        written into it and `out` itself is returned, on either backend."""
+        fast = self._fast
+        if fast is None:
+            return self._forward_raw_other(q, u, t, db, out)
+        kf, nf, pa, db0, n, nl = fast
+        buf = _empty(nf) if out is None else out
+        db = db0 if db is None else np.asarray(db, float)
         if type(q) is not _ND or type(u) is not _ND:
             q, u, t = self._arrays(q, u, t)
         try:
-            st = self._kf(q, u, t, self._pa, db, out)
-        except TypeError:  # lists (the Python path's inputs): convert, then call
+            # the kernel does not check its output's size: it would write past the end of a
+            # shorter one (its type, dimensions, layout and writability: numba's dispatch)
+            if buf is out and len(out) != nf:
+                raise self._bad_out(out)
+            st = kf(q, u, t, pa, db, buf)
+        except TypeError:  # lists (the Python path's inputs), or a bad `out`
+            if out is not None and self._out_ok(out) is False:
+                raise self._bad_out(out) from None
             q, u, t = self._arrays(q, u, t)
-            st = self._kf(q, u, t, self._pa, db, out)
+            st = kf(q, u, t, pa, db, buf)
         if st and st != compiled.SINGULAR:
             if st != compiled.NOT_FINITE:
                 self._fail(st, q, u)
-            out[:] = np.nan  # as the Python path: NaN in, NaN out (the caller's ratio test)
-        n, nm = self.n, self._nlam
-        return out[:n], out[n:nm], float(out[nm])
+            buf[:] = np.nan  # as the Python path: NaN in, NaN out (the caller's ratio test)
+        if out is not None:
+            return out
+        return buf[:n], buf[n:nl], buf.item(nl)
+
+    def _forward_raw_other(self, q: Any, u: Any, t: float, db: Any, out: Any) -> Any:
+        """forward_raw off the kernel: the rank-revealing solve or the generated Python."""
+        if out is not None and not self._out_ok(out):
+            raise self._bad_out(out)
+        if self._numeric:
+            res = self._forward_redundant(q, u, t, db)
+        else:
+            res = self._scalar["forward"](
+                q, u, t, self.p, self.sref, self._no_db if db is None else db
+            )
+        if out is None:
+            return res
+        n, nl = self.n, self._nlam
+        out[:n], out[n:nl], out[nl] = res
+        return out
+
+    def _out_ok(self, out: Any) -> bool:
+        """A caller's output array the kernel can write: float64, C-contiguous, aligned,
+        writable, n + m + 1 long."""
+        return (
+            type(out) is _ND
+            and out.dtype == np.float64
+            and out.shape == (self._nf,)
+            and bool(out.flags.c_contiguous and out.flags.aligned and out.flags.writeable)
+        )
+
+    def _bad_out(self, out: Any) -> ModelInputError:
+        what = f"{type(out).__name__} {getattr(out, 'dtype', '')} of shape {np.shape(out)}" + (
+            "" if not isinstance(out, _ND) or out.flags.writeable else ", read-only"
+        )
+        return ModelInputError(
+            f"{self.model.name}: out must be a writable C-contiguous float64 vector of "
+            f"n + m + 1 = {self._nf} (u', lambda, pivot ratio), got {what}; allocate it with "
+            f"numpy.empty({self._nf})"
+        )
 
     def forward_into(self, q: ArrayLike, u: ArrayLike, t: float, out: np.ndarray) -> int:
         """The bare compiled forward: u', lambda and the pivot ratio written into `out`
         (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
         status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
-        checked in the kernel). q, u: float64 vectors. The compiled backend only, and a model
-        whose solve is unrolled (not numeric_kkt)."""
+        checked in the kernel). q, u: float64 vectors (numba's dispatch checks the types;
+        anything else is a ModelInputError). The compiled backend only, and a model whose
+        solve is unrolled (not numeric_kkt)."""
         if self._kf is None:
             raise ModelInputError(
                 f"{self.model.name}: forward_into needs the compiled unrolled forward; this model "
                 f"has {'no numba backend' if self._k is None else 'a numeric KKT solve'} "
                 f"(use forward or forward_raw)"
             )
-        return self._kf(q, u, t, self._pa, self._db0, out)
+        try:
+            if len(out) != self._nf:  # the kernel would write past the end of a shorter one
+                raise self._bad_out(out)
+            return self._kf(q, u, t, self._pa, self._db0, out)
+        except TypeError:
+            if not self._out_ok(out):
+                raise self._bad_out(out) from None
+            raise ModelInputError(
+                f"{self.model.name}: forward_into takes q, u as float64 vectors and t as a "
+                f"number (got {type(q).__name__}, {type(u).__name__}, {type(t).__name__}); "
+                f"convert them with numpy.asarray(x, float) or call forward_raw"
+            ) from None
 
     def raw_function(self, name: str) -> Callable[..., Any]:
         """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
@@ -518,80 +589,3 @@ class NumericModel:
             list(np.asarray(q, float)), [0.0] * self.n, t, self.p
         )
         return np.array(Aq, float).reshape(-1, self.nq)
-
-    # ---- batched -----------------------------------------------------------------------
-    def forward_batch(
-        self, Q: ArrayLike, U: ArrayLike, t: Any = 0.0
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """u' and lambda for N states at once: Q (N x nq), U (N x n). Returns (UD, LAM, piv)."""
-        Q = np.asarray(Q, dtype=float)
-        U = np.asarray(U, dtype=float)
-        if Q.ndim != 2 or Q.shape[1] != self.nq or U.shape != (Q.shape[0], self.n):
-            raise ModelInputError(
-                f"{self.model.name}: batched states must be (N, {self.nq}) and (N, {self.n}), "
-                f"got {Q.shape} and {U.shape}"
-            )
-        if not (np.isfinite(Q).all() and np.isfinite(U).all()):
-            raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
-        N = Q.shape[0]
-        if self._numeric:  # one rank-revealing numeric solve per state (reference.redundant)
-            UD, LAM, piv = self._forward_batch_redundant(Q, U, t)
-        elif self._k is not None:
-            UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
-        else:
-            UD, LAM, piv = self._forward_batch_python(Q, U, t)
-        bad = ~(piv > PIVOT_RATIO_MIN)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise SingularSystemError(
-                f"{bad.sum()} of {N} states are singular; first: index {i}. "
-                + self._singular_message(Q[i], float(piv[i]))
-            )
-        return UD, LAM, piv
-
-    def _forward_batch_redundant(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
-        rows = [self._forward_redundant(Q[i].tolist(), U[i].tolist(), t) for i in range(len(Q))]
-        UD = np.array([r[0] for r in rows], float).reshape(len(Q), self.n)
-        LAM = np.array([r[1] for r in rows], float).reshape(len(Q), self.m)
-        return UD, LAM, np.array([r[2] for r in rows], float)
-
-    def _forward_batch_python(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
-        N = Q.shape[0]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref, self._no_db)
-        UD = np.empty((N, self.n))
-        for i, c in enumerate(ud):
-            UD[:, i] = c
-        LAM = np.empty((N, self.m))
-        for i, c in enumerate(lam):
-            LAM[:, i] = c
-        return UD, LAM, np.broadcast_to(np.asarray(piv, float), (N,))
-
-    def _forward_batch_compiled(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
-        """The serial (or, with CROSSCHECK_THREADS > 1, prange) batch kernel. The parameters,
-        Schur references and t may be per-state arrays (crosscheck.sweep.reference_batch)."""
-        N = Q.shape[0]
-        T = np.ascontiguousarray(np.atleast_1d(np.asarray(t, float)))
-        cols = list(self.p) + list(self.sref)
-        if any(np.ndim(c) for c in cols):
-            P = np.empty((N, len(cols)))
-            for j, c in enumerate(cols):
-                P[:, j] = c
-        else:
-            P = self._pa[None]
-        out = np.empty((N, self._nf))
-        st = np.empty(N, np.int64)
-        name = "forward_batch" if compiled.threads() == 1 else "forward_batch_parallel"
-        if name != "forward_batch":
-            import numba
-
-            numba.set_num_threads(min(compiled.threads(), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]  # set at import, not in numba's stubs
-        self._k.get(name)(
-            np.ascontiguousarray(Q), np.ascontiguousarray(U), T, P, self._db0[None], out, st
-        )
-        bad = (st != compiled.OK) & (st != compiled.SINGULAR)
-        if bad.any():
-            i = int(np.argmax(bad))
-            self._fail(int(st[i]), Q[i], U[i])
-        n, nm = self.n, self.n + self.m
-        return out[:, :n], out[:, n:nm], out[:, nm]
