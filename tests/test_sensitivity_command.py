@@ -88,3 +88,24 @@ def test_command_writes_json(tmp_path, capsys):
     doc = json.loads((tmp_path / "sensitivity.json").read_text())
     assert {t["parameter"] for t in doc["thresholds"]} == {"m", "L", "g"}
     assert "pendulum_angle" in capsys.readouterr().out
+
+
+def test_report_marks_a_parameter_caught_by_a_trajectory(tmp_path):
+    """The report's table marks a threshold found by the trajectory comparison, and its cell's
+    title names the trajectory record and how the search ran."""
+    import html
+    from types import SimpleNamespace
+
+    from crosscheck import report_sensitivity
+
+    out = str(tmp_path)
+    args = ["sensitivity", "pendulum_xy", "--engines", "opensim", "--states", "1", "--out", out]
+    assert main(args) == 0
+    doc = json.loads((tmp_path / "sensitivity.json").read_text())
+    L = next(t for t in doc["thresholds"] if t["parameter"] == "L")
+    assert L["comparison"] == "trajectory" and "/trajectory/" in L["failing_check"]
+    c = SimpleNamespace(results_path=str(tmp_path / "results.json"))
+    page = report_sensitivity.html(c)
+    assert f"{L['caught_at']:.0e} (trajectory)" in page
+    assert html.escape(L["failing_check"], quote=True) in page
+    assert f"{L['caught_at']:.0e} (trajectory)" in "\n".join(report_sensitivity.md(c))
