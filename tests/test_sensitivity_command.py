@@ -17,7 +17,7 @@ ENGINES = ("pinocchio", "mujoco", "exudyn", "opensim")
 
 # Measured above the bar, kept visible (strict: the case fails the suite once it is caught at
 # 1e-8). Exudyn's pendulum_xy L is seen by the trajectory comparison only, and there by the
-# constraint drift alone: Exudyn's fixed-step run holds its own rod length to ~1e-14, so the
+# constraint drift alone: Exudyn's generalized-alpha run holds its own rod length to ~1e-14, so the
 # drift against the reference's length is rel L^2 = 0.64 rel, judged against INDEX1_DRIFT =
 # 1e-7 (the bound of an unstabilized adaptive run, not of this index-3 solver): 1e-7 is not
 # caught, 1e-6 is; the state and energy tolerances, sized by halving the 1 ms step (1.4e-4,
