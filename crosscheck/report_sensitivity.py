@@ -3,8 +3,9 @@ lies beside the report's results.json, as a table and a plot (issue 14).
 
 One row per model and parameter, one column per engine: the smallest relative change of that
 parameter in that engine's model that some check of the suite catches ("1e-11": a change of
-1e-11 is caught, by the record named in the cell's title). A parameter nothing catches up to
-10 % is shown in red with the reason. The plot draws the same thresholds on a log axis, the
+1e-11 is caught, by the record named in the cell's title; "(trajectory)" when only the
+trajectory comparison sees the parameter). A parameter nothing catches up to 10 % is shown in
+red with the reason. The plot draws the same thresholds on a log axis, the
 parameters not caught in red at the top.
 """
 
@@ -56,6 +57,13 @@ def table(doc: dict) -> tuple[list[str], list[list[dict]], list[str]]:
 
 def _caught(t: dict) -> bool:
     return t.get("caught_at") is not None
+
+
+def _caught_text(t: dict) -> str:
+    """The caught decade, marked when only the trajectory comparison caught it (a parameter
+    no instantaneous check sees); files without "comparison" are all instantaneous."""
+    via = t.get("comparison", "instantaneous")
+    return _fmt(t["caught_at"]) + ("" if via == "instantaneous" else f" ({via})")
 
 
 def plot_svg(doc: dict) -> str | None:
@@ -120,7 +128,9 @@ def html(c) -> str:
         f'<p class="sub"><code>{_e(doc["path"])}</code>: '
         f"<code>{_e(doc.get('command', 'crosscheck sensitivity'))}</code>; each cell is "
         "the smallest relative change of the parameter in that engine's model alone "
-        "that some check fails (decades 1e-13 .. 1e-1); red: nothing caught it.</p>"
+        "that some check fails (decades 1e-13 .. 1e-1); (trajectory): no instantaneous "
+        "check sees the parameter and a trajectory record caught it; red: nothing caught "
+        "it.</p>"
     )
     body, classes = [], []
     for label, row in zip(labels, rows, strict=False):
@@ -129,10 +139,8 @@ def html(c) -> str:
             if not t:
                 cells.append("—")
             elif _caught(t):
-                cells.append(
-                    f'<span title="{_e(t.get("failing_check", ""))}">'
-                    f"{_e(_fmt(t['caught_at']))}</span>"
-                )
+                title = "; ".join(x for x in (t.get("failing_check"), t.get("reason")) if x)
+                cells.append(f'<span title="{_e(title)}">{_e(_caught_text(t))}</span>')
             else:
                 missed = True
                 cells.append(
@@ -166,7 +174,8 @@ def md(c) -> list[str]:
     command = doc.get("command", "crosscheck sensitivity")
     out += [
         f"Smallest relative change of one parameter in one engine's model that the suite "
-        f"catches (`{command}`):",
+        f"catches (`{command}`); (trajectory): caught by a trajectory record, no "
+        "instantaneous check sees the parameter:",
         "",
     ]
     body = [
@@ -175,7 +184,7 @@ def md(c) -> list[str]:
             (
                 "—"
                 if not t
-                else _fmt(t["caught_at"])
+                else _caught_text(t)
                 if _caught(t)
                 else f"NOT CAUGHT: {t.get('reason', '')}"
             )

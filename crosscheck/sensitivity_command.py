@@ -4,7 +4,9 @@ that the suite catches, per parameter (see crosscheck/sensitivity.py for the sea
 Each evaluation builds the engine's model with one parameter changed by a relative amount and
 repeats the instantaneous comparison at the consistent states `crosscheck run` uses, at the
 model's generic parameter set (reference/generic.py). A parameter whose 10 % change moves no
-compared figure at all is reported as not used by the engine's model, with that reason.
+compared figure is searched with the trajectory comparison instead when it changes the engine's
+model (its fingerprint: exudyn's and OpenSim's pendulum_xy rod length, which only a run's drift
+sees), and is otherwise reported as not used by the engine's model, with that reason.
 """
 
 from __future__ import annotations
@@ -32,16 +34,20 @@ def _engine_figures(name, nm, states, adapter, perturb) -> tuple[str, dict[str, 
         for variant in adapter.variants(name)
         for r in engine_records(name, nm, states, adapter, params, variant)
     ]
-    failing = next(
+    figures = {f"{r['check']}/{r['quantity']}": r["error"] for r in recs if r["error"] is not None}
+    return _first_failing(recs, adapter.name), figures
+
+
+def _first_failing(recs, engine: str) -> str:
+    """ "model/engine/check/quantity" of the engine's first failing record, or ""."""
+    return next(
         (
             f"{r['model']}/{r['engine']}/{r['check']}/{r['quantity']}"
             for r in recs
-            if r["passed"] is False
+            if r["engine"] == engine and r["passed"] is False
         ),
         "",
     )
-    figures = {f"{r['check']}/{r['quantity']}": r["error"] for r in recs if r["error"] is not None}
-    return failing, figures
 
 
 def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Threshold]:
@@ -72,7 +78,7 @@ def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Th
             )
             for p in params
         ]
-    out = []
+    out, trajectory_base = [], {}
     for p in params:
         sign, k, moved, refused = _largest_change(name, nm, states, adapter, p)
         if moved is None:
@@ -90,42 +96,70 @@ def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Th
         def evaluate(rel, p=p, sign=sign):
             return _engine_figures(name, nm, states, adapter, {p: sign * rel})[0]
 
-        unused = "" if moved != base else _unmoved_reason(name, nm, adapter, engine, p, sign, k)
-        out.append(search(name, engine, p, evaluate, unused, largest=k))
+        if moved != base:
+            out.append(search(name, engine, p, evaluate, largest=k))
+        elif _changes_model(name, nm, adapter, p, sign * 10.0**k):
+            out.append(_trajectory_threshold(name, adapter, p, sign, k, trajectory_base))
+        else:
+            out.append(search(name, engine, p, evaluate, _unused_reason(sign * 10.0**k)))
     return out
 
 
-def _unmoved_reason(name, nm, adapter, engine, p, sign, k) -> str:
-    """Why a change of `p` that moves no instantaneous figure is not searched: the engine's
-    model does not contain it (its fingerprint is unchanged), or it does but the checks at
-    consistent states cannot see it (exudyn's and OpenSim's pendulum_xy rod length: the distance
-    constraint's length, on which the acceleration-level rows at a consistent state do not
-    depend; a run's trajectory drift catches it, 6.4e-4 against 1e-7 for a 1e-3 change with
-    `crosscheck run pendulum_xy --engines exudyn --perturb exudyn:L=1e-3`)."""
+def _changes_model(name, nm, adapter, p, rel) -> bool:
+    """A change `rel` of `p` alters the engine's model (its fingerprint) in some variant."""
     from .comparison import build
     from .perturb import perturbed
 
-    rel = sign * 10.0**k
     try:
-        changed = any(
+        return any(
             build(adapter, name, nm.params, v).fingerprint()
             != build(adapter, name, perturbed(name, nm.params, {p: rel}), v).fingerprint()
             for v in adapter.variants(name)
         )
     except NotImplementedError:  # no fingerprint: the figures are all there is to go by
-        changed = False
-    if not changed:
-        return (
-            f"not used by the engine's model: a {rel:.0e} change moves no compared figure "
-            "(the engine's coordinates or loads do not contain it)"
-        )
+        return False
+
+
+def _unused_reason(rel: float) -> str:
     return (
-        f"no instantaneous check sees it: a {rel:.0e} change alters the engine's model (its "
-        "fingerprint) but moves no compared figure at the consistent states (it enters only "
-        "where those checks do not look, e.g. a position-level constraint's length); the "
-        f"trajectory records measure it: crosscheck run {name} --engines {engine} "
-        f"--perturb {engine}:{p}={rel:.0e}"
+        f"not used by the engine's model: a {rel:.0e} change moves no compared figure "
+        "(the engine's coordinates or loads do not contain it)"
     )
+
+
+def _trajectory_threshold(name, adapter, p, sign, k, base: dict) -> Threshold:
+    """The threshold of a parameter in the engine's model that no instantaneous check sees
+    (exudyn's and OpenSim's pendulum_xy rod length: the distance constraint's length, on which
+    the acceleration-level rows at a consistent state do not depend): the decades are searched
+    with the trajectory comparison `crosscheck run` makes, at the textbook defaults and over
+    its T_END (a run costs ~0.4 s, so no shorter horizon is needed); "caught" means one of the
+    engine's trajectory records fails. `base` caches the unperturbed run's verdict per
+    model and engine (computed on first use)."""
+    from reference import NumericModel, models
+
+    from .perturb import perturbed
+    from .trajectory import T_END, trajectory_records
+
+    nm = NumericModel(models.get(name))  # the parameters of `crosscheck run`'s trajectories
+
+    def evaluate(rel: float) -> str:
+        params = perturbed(name, nm.params, {p: sign * rel})
+        recs, _ = trajectory_records(name, nm, [adapter], T_END, {adapter.name: params})
+        return _first_failing(recs, adapter.name)
+
+    how = (
+        f"no instantaneous check sees it (a change alters the engine's model, its fingerprint, "
+        f"but no compared figure at the consistent states), so the trajectory comparison of "
+        f"`crosscheck run {name} --engines {adapter.name} --perturb {adapter.name}:{p}=REL` "
+        f"was searched: {T_END:g} s from the model's initial state at its textbook defaults"
+    )
+    key = (name, adapter.name)
+    if key not in base:
+        base[key] = evaluate(0.0)
+    if base[key]:
+        reason = f"{how}; the unperturbed trajectory comparison already fails ({base[key]})"
+        return search(name, adapter.name, p, evaluate, reason, comparison="trajectory")
+    return search(name, adapter.name, p, evaluate, largest=k, comparison="trajectory", how=how)
 
 
 def _largest_change(name, nm, states, adapter, p):

@@ -38,3 +38,22 @@ def test_an_unused_parameter_is_not_searched():
         unused_reason="the engine's model has no L",
     )
     assert t.caught_at is None and t.reason == "the engine's model has no L"
+
+
+def test_a_trajectory_search_keeps_how_it_ran():
+    """A search by another comparison says which, and keeps how it ran as the reason, caught
+    or not (the horizon and parameter set of a trajectory search)."""
+    how = "the trajectory comparison over 5 s at the textbook defaults"
+    caught = search(
+        "m",
+        "e",
+        "L",
+        lambda rel: "m/e/trajectory/constraint_drift" if rel >= 1e-6 else "",
+        comparison="trajectory",
+        how=how,
+    )
+    assert caught.caught_at == pytest.approx(1e-6) and caught.reason == how
+    assert caught.comparison == "trajectory" and caught.to_json()["comparison"] == "trajectory"
+    missed = search("m", "e", "L", lambda rel: "", comparison="trajectory", how=how)
+    assert missed.caught_at is None
+    assert missed.reason == f"no trajectory check failed for a change of up to 1e-01: {how}"
