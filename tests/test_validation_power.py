@@ -108,13 +108,9 @@ def test_reference_drift_is_held_to_the_projection_guarantee():
     """The reference's drift records carry the projection's own bounds, so a run without
     stabilization fails them: the same model integrated without projection (index1) exceeds
     both, with projection it stays inside."""
-    from crosscheck.trajectory import (
-        REF_RTOL,
-        output_grid,
-        projected_drift,
-        projected_velocity_drift,
-    )
+    from crosscheck.trajectory import REF_RTOL, output_grid
     from crosscheck.trajectory_measures import residual_series
+    from crosscheck.trajectory_tolerances import projected_drift, projected_velocity_drift
     from reference import NumericModel
     from reference.integrate import simulate
 
