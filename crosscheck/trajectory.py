@@ -319,7 +319,7 @@ def _reference_horizon_run(name: str, nm: NumericModel, t_end: float):
     """_reference_run over t_end or, where a reference run reaches a singular pose first,
     over the horizon before the earliest such pose (trajectory_horizon), with a skipped
     record saying so. Each retry stops strictly earlier, so this ends."""
-    t_try, first = t_end, None
+    t_try, earliest = t_end, None
     while True:
         try:
             ctx, records, series = _reference_run(name, nm, t_try)
@@ -330,10 +330,10 @@ def _reference_horizon_run(name: str, nm: NumericModel, t_end: float):
             if t_sing is None or t_cut is None or t_cut >= t_try:
                 raise
             message = (str(exc.exc).splitlines() or [""])[0]
-            first = (t_sing, f"{exc.what}: {message}")
+            earliest = (t_sing, f"{exc.what}: {message}")
             t_try = t_cut
-    if first is not None:
-        reason = horizon_reason(t_try, t_end, first[0], first[1])
+    if earliest is not None:  # the last failure: each retry ends before the one before
+        reason = horizon_reason(t_try, t_end, *earliest)
         records.append(ctx.rec("reference", "horizon", None, None, reason, t_requested=t_end))
     return ctx, records, series
 
