@@ -338,6 +338,7 @@ def pinocchio_run(b: dict, pin, wall: float) -> dict:
             **setting,
             "wall_s": time.perf_counter() - t0,
             "nfev": guard.calls,
+            "t_reached": None,  # raised inside solve_ivp's rhs, which is not told t
             "stopped": f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:300]}",
         }
     finally:
