@@ -14,7 +14,10 @@ MuJoCo's own simulation (its default semi-implicit Euler, 1 ms) and the referenc
 projection (within a wall budget; it stops at a singular position when the rank test refuses
 one), each with its mechanical-energy drift and its largest loop-closure residual, measured
 with the reference's own energy and residual functions, and its largest error in B0's x
-against the exact parallelogram motion (a one-dof equation, exact_b0_x).
+against the exact parallelogram motion (a one-dof equation, exact_b0_x). And Pinocchio's 10 s
+as the suite runs its trajectories (DOP853 on its forward dynamics, no stabilization, the
+reference's rtol; within its own wall budget, or how it stopped), with the same figures.
+Rows of other N already in --out are kept.
 
     PYTHONPATH=$PWD python examples/a02/scaling.py                 # N = 1 2 5 10 20 40
     PYTHONPATH=$PWD python examples/a02/scaling.py --n 1,2 --out /tmp/s.json
@@ -50,6 +53,13 @@ TIMING_S = 0.3  # wall time over which one forward call is averaged, per engine
 T_END = 10.0  # the benchmark's horizon
 REFERENCE_RTOL = 1e-8  # DOP853 + projection; the suite's trajectory default
 EXACT_RTOL = 1e-12  # the one-dof parallelogram equation (exact_b0_x): 1e4 below the above
+# B0's x error above which a 10 s run is counted as off the parallelogram motion
+# (branch_figures): 80x the reference's worst (1.2e-5 m, N = 1, rtol 1e-8, scaling.json) and
+# 1/2000 of the 2 m a run off the branch or far behind reaches
+BRANCH_ERROR_M = 1e-3
+# Pinocchio's 10 s run (pinocchio_run): the reference's rtol, so the two integrations differ
+# in the constraint handling (projection or none), not in the error control
+PINOCCHIO_RTOL = REFERENCE_RTOL
 
 
 def per_call(fn, budget: float = TIMING_S) -> float:
@@ -66,6 +76,7 @@ def build(n: int, work: Path) -> dict:
     """Write and import the file, derive cold then warm; the import and the reference model."""
     from nfourbar import mjcf
 
+    from crosscheck.engines.pinocchio.user_file import UserFilePinModel
     from crosscheck.user_models import load_model_file, register_all
     from reference.numeric import NumericModel
 
@@ -84,6 +95,7 @@ def build(n: int, work: Path) -> dict:
         "path": path,
         "um": um,
         "nm": nm,
+        "pin": UserFilePinModel(um.name),  # the suite's user-file adapter
         "row": {
             "N": n,
             "links": 2 * n + 1,
@@ -136,12 +148,10 @@ def parallelogram_states(n: int, count: int, seed: int = 7):
 def engines_at_states(b: dict) -> dict:
     """Per engine: seconds per forward call and worst relative u' error against the reference."""
     from crosscheck.engines.mujoco.mjcf_rigid import rigid_forward
-    from crosscheck.engines.pinocchio.user_file import UserFilePinModel
     from reference.errors import SingularSystemError
     from reference.mjcf import rates_from_qvel
 
-    imp, nm = b["um"].mjcf, b["nm"]
-    pin = UserFilePinModel(b["um"].name)
+    imp, nm, pin = b["um"].mjcf, b["nm"], b["pin"]
     m = imp.mj
     err = {"pinocchio": 0.0, "mujoco_rigid": 0.0, "mujoco_soft": 0.0}
     cost: dict = {}
@@ -194,9 +204,24 @@ def exact_b0_x(n: int, times) -> np.ndarray:
     return -np.sin(sol.y[0])
 
 
-def b0_error(n: int, times, Q) -> float:
-    """Largest |B0_x - exact| over the output times (B0_x = -sin of crank 0's angle)."""
-    return float(np.max(np.abs(-np.sin(np.asarray(Q)[:, 0]) - exact_b0_x(n, times))))
+def b0_errors(n: int, times, Q) -> np.ndarray:
+    """|B0_x - exact| at the output times (B0_x = -sin of crank 0's angle)."""
+    return np.abs(-np.sin(np.asarray(Q)[:, 0]) - exact_b0_x(n, times))
+
+
+def branch_figures(times, Q, err) -> dict:
+    """Whether a run left the parallelogram motion or only lags it: its largest B0 error
+    `err`, the first output time at which that is over BRANCH_ERROR_M, and the largest spread
+    of the cranks' angles (all equal on the parallelogram motion, however late; wrapped to
+    (-pi, pi])."""
+    over = np.flatnonzero(err > BRANCH_ERROR_M)
+    cranks = np.asarray(Q)[:, 0::2]
+    spread = np.angle(np.exp(1j * (cranks - cranks[:, :1])))
+    return {
+        "B0_x_max_error_m": float(np.max(err)),
+        "B0_x_error_over_1mm_from_s": float(np.asarray(times)[over[0]]) if len(over) else None,
+        "max_crank_spread_rad": float(np.max(np.abs(spread))),
+    }
 
 
 def drift(nm, Q, U) -> dict:
@@ -206,6 +231,17 @@ def drift(nm, Q, U) -> dict:
         float(np.max(np.abs(nm.residuals(q, u)[0]), initial=0.0)) for q, u in zip(Q, U, strict=True)
     )
     return {"energy_drift_J": float(np.max(np.abs(E - E[0]))), "max_loop_residual_m": res}
+
+
+def run_figures(nm, times, Q, U, t_reached: float) -> dict:
+    """The figures of a 10 s run from its output states (reference coordinates: qpos, rates):
+    where it got to, B0's x there and its largest error, energy drift, loop residual."""
+    return {
+        "t_reached": t_reached,
+        "B0_x_end": float(-np.sin(np.asarray(Q)[-1][0])),
+        **branch_figures(times, Q, b0_errors(nm.n // 2, times, Q)),
+        **drift(nm, Q, U),
+    }
 
 
 def mujoco_run(b: dict) -> dict:
@@ -227,13 +263,7 @@ def mujoco_run(b: dict) -> dict:
             U.append(d.qvel.copy())
     wall = time.perf_counter() - t0
     times = np.arange(len(Q)) * every * m.opt.timestep
-    return {
-        "wall_s": wall,
-        "t_reached": float(d.time),
-        "B0_x_end": float(-np.sin(d.qpos[0])),
-        "B0_x_max_error_m": b0_error(len(imp.joints) // 2, times, Q),
-        **drift(nm, Q, U),
-    }
+    return {"wall_s": wall, **run_figures(nm, times, Q, U, float(d.time))}
 
 
 def reference_run(b: dict, wall: float) -> dict:
@@ -260,15 +290,74 @@ def reference_run(b: dict, wall: float) -> dict:
             "wall_s": time.perf_counter() - t0,
             "stopped": f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:300]}",
         }
-    Q, U = np.asarray(tr.q), np.asarray(tr.u)
     return {
         "wall_s": time.perf_counter() - t0,
-        "t_reached": float(tr.t[-1]),
-        "B0_x_end": float(-np.sin(Q[-1][0])),
         "nfev": int(tr.nfev),
-        "B0_x_max_error_m": b0_error(nm.n // 2, tr.t, Q),
-        **drift(nm, Q, U),
+        **run_figures(nm, tr.t, tr.q, tr.u, float(tr.t[-1])),
     }
+
+
+class WallBudget:
+    """`fn` that raises TimeoutError once `wall` seconds have passed since the first call:
+    solve_ivp has no wall bound, and a run that stalls at a singular pose must not hang."""
+
+    def __init__(self, fn, wall: float):
+        self.fn, self.wall, self.calls, self.t0 = fn, wall, 0, None
+
+    def __call__(self, *args, **kwargs):
+        self.t0 = self.t0 or time.perf_counter()
+        if time.perf_counter() - self.t0 > self.wall:
+            raise TimeoutError(f"wall budget of {self.wall} s spent after {self.calls} calls")
+        self.calls += 1
+        return self.fn(*args, **kwargs)
+
+
+def pinocchio_run(b: dict, pin, wall: float) -> dict:
+    """Pinocchio's 10 s as the suite runs its trajectories (UserFilePinModel.simulate: DOP853
+    on its forward dynamics, index 1, no stabilization) within `wall` seconds, or how it
+    stopped: a failed step (an underflow at a singular pose) is a finding, reported with the
+    last output time reached."""
+    nm = b["nm"]
+    setting = {
+        "integrator": "DOP853 (scipy solve_ivp), index 1, no constraint stabilization",
+        "rtol": PINOCCHIO_RTOL,
+        "atol": PINOCCHIO_RTOL,
+    }
+    pin.forward = guard = WallBudget(pin.forward, wall)  # simulate's rhs calls self.forward
+    t0 = time.perf_counter()
+    try:
+        tr = pin.simulate(
+            nm.model.initial_q,
+            nm.model.initial_u,
+            np.linspace(0, T_END, 401),
+            integrator="DOP853",
+            rtol=PINOCCHIO_RTOL,
+        )
+    except Exception as exc:  # the wall budget or an engine error: reported, not raised
+        return {
+            **setting,
+            "wall_s": time.perf_counter() - t0,
+            "nfev": guard.calls,
+            "t_reached": None,  # raised inside solve_ivp's rhs, which is not told t
+            "stopped": f"{type(exc).__name__}: {(str(exc).splitlines() or [''])[0][:300]}",
+        }
+    finally:
+        del pin.forward  # the class's method again
+    row = {**setting, "wall_s": tr.wall_s, "nfev": int(tr.steps)}
+    if tr.failure:  # solve_ivp stopped early: the figures cover the output times it reached
+        row["stopped"] = tr.failure
+    return {**row, **run_figures(nm, tr.t, tr.q, tr.u, float(tr.t[-1]))}
+
+
+def write_rows(path: Path, head: dict, rows: list[dict]) -> None:
+    """Write `rows` into the JSON at `path`, keeping its rows of other N (a run of some N
+    must not lose the others' figures, N = 40 alone costs 7 min); rows sorted by N. A kept
+    file keeps its header (its command measured the rows without their own "command")."""
+    old = json.loads(path.read_text()) if path.exists() else {**head, "rows": []}
+    fresh = {r["N"] for r in rows}
+    kept = [r for r in old["rows"] if r["N"] not in fresh]
+    out = {**old, "rows": sorted(kept + rows, key=lambda r: r["N"])}
+    path.write_text(json.dumps(out, indent=1) + "\n")
 
 
 def main(argv=None) -> int:
@@ -281,29 +370,39 @@ def main(argv=None) -> int:
         default=60.0,
         help="wall seconds for each reference 10 s run (default 60)",
     )
+    ap.add_argument(
+        "--pin-wall",
+        type=float,
+        default=300.0,
+        help="wall seconds for each Pinocchio 10 s run (default 300)",
+    )
     args = ap.parse_args(argv)
     from reference import codegen
 
-    out = {
+    command = "PYTHONPATH=$PWD python examples/a02/scaling.py " + " ".join(
+        argv if argv is not None else sys.argv[1:]
+    )
+    head = {
         "benchmark": "IFToMM A02 N-four-bar, 10 s",
-        "command": "PYTHONPATH=$PWD python "
-        "examples/a02/scaling.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": command,
         "unroll_kkt_max": codegen.UNROLL_KKT_MAX,
-        "rows": [],
     }
+    rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="a02_") as tmp:
         for n in (int(x) for x in args.n.split(",")):
             b = build(n, Path(tmp))
             row = {
                 **b["row"],
+                "command": command,
                 **engines_at_states(b),
                 "mujoco_10s": mujoco_run(b),
                 "reference_10s": reference_run(b, args.wall),
+                "pinocchio_10s": pinocchio_run(b, b["pin"], args.pin_wall),
             }
-            out["rows"].append(row)
+            rows.append(row)
             print(json.dumps(row), flush=True)
             # written after every N: the large ones take minutes, the small ones are kept
-            Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+            write_rows(Path(args.out), head, rows)
     return 0
 
 
