@@ -139,10 +139,10 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
     rec("single", 1, lambda: nm.forward(q, u))
     raw, buf = nm.forward_raw, np.empty(nm.n + nm.m + 1)
     # each backend's native inputs: float64 vectors for the kernels, lists for Python
-    qr, ur = (q, u) if nm.backend == "numba" else (q.tolist(), u.tolist())
+    qr, ur = (q, u) if nm.backend != "python" else (q.tolist(), u.tolist())
     rec("single-raw", 1, lambda: raw(qr, ur, 0.0))
     rec("single-raw-out", 1, lambda: raw(qr, ur, 0.0, out=buf))
-    if nm.backend == "numba" and not nm.numeric_kkt:  # the kernel alone, into an array
+    if nm.backend != "python" and not nm.numeric_kkt:  # the kernel alone, into an array
         into = nm.forward_into
         rec("single-into", 1, lambda: into(q, u, 0.0, buf))
     reps = int(np.ceil(BATCH / Q.shape[0]))
@@ -265,11 +265,14 @@ def cmd_bench(args) -> int:
     from .workprecision import work_precision_records
 
     t_start = time.perf_counter()
-    # the benchmark times the compiled kernels: compile them here if the cache is cold (the
-    # 'auto' default would time the Python path until a background worker has compiled them)
+    # the benchmark times the compiled kernels: build them here if the cache is cold (C where
+    # a compiler works; else numba, which the 'auto' default would leave to a background
+    # worker and time the Python path meanwhile)
     import os
 
-    os.environ.setdefault("CROSSCHECK_BACKEND", "numba")
+    from reference import cbuild
+
+    os.environ.setdefault("CROSSCHECK_BACKEND", "c" if cbuild.available() else "numba")
     # the same rules as `run`: bad names exit 2 up front
     names = resolve_models(args.models, getattr(args, "user_models", None))
     requested = resolve_engines(args.engines)  # unknown or unimportable: exit 2

@@ -85,7 +85,7 @@ def unconstrained(model):
 def _forward_loop(nm: NumericModel, Q, U):
     """A callable making the compiled forward call at every state (the backend's inputs)."""
     raw = nm.forward_raw
-    if nm.backend != "numba":
+    if nm.backend == "python":
         Q, U = Q.tolist(), U.tolist()
 
     def loop():

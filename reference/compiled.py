@@ -1,4 +1,5 @@
-"""Numba backend for the generated code of reference.codegen (issue 13).
+"""Numba backend for the generated code of reference.codegen (issue 13), and the choice of
+backend (the C one is reference.ckernels and reference.cbuild).
 
 The generated Python module (straight-line functions of lists, returning lists) is rewritten,
 with the `ast` module, into a numba module: every function becomes a kernel that reads its inputs
@@ -17,8 +18,8 @@ error_model="numpy" (no ValueError as in CPython), and Python's min() drops a Na
 its first argument, so the pivot ratio is reduced with _nmin, which propagates NaN, and the test
 is `not (piv > PIVOT_RATIO_MIN)`, which is true for NaN.
 
-Backend choice: CROSSCHECK_BACKEND=python forces the pure-Python path (the fallback and the
-cross-check of this one); without numba installed it is chosen automatically.
+Backend choice (`setting`, `backend`): C where a compiler works, else numba, else the
+pure-Python path, which stays the fallback and the cross-check of both.
 """
 
 from __future__ import annotations
@@ -48,20 +49,43 @@ def numba_available() -> bool:
 
 
 def setting() -> str:
-    """CROSSCHECK_BACKEND: 'auto' (unset: the kernels where numba's cache holds them, else the
-    Python path now and a compile in the background after the process ends), 'numba' (compile
-    here when needed) or 'python' (the fallback only). Without numba: always 'python'."""
+    """CROSSCHECK_BACKEND: 'auto' (unset: the C kernels where a C compiler works, built in the
+    process in about a second per model; else the numba kernels where numba's cache holds
+    them, else the Python path now and a numba compile in the background after the process
+    ends), 'c', 'numba' (compile here when needed) or 'python' (the fallback only)."""
     want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower() or "auto"
-    if want not in ("auto", "numba", "python"):
+    if want not in ("auto", "c", "numba", "python"):
         from .errors import ModelInputError
 
-        raise ModelInputError(f"CROSSCHECK_BACKEND={want!r}: valid values are auto, numba, python")
-    return want if numba_available() else "python"
+        raise ModelInputError(
+            f"CROSSCHECK_BACKEND={want!r}: valid values are auto, c, numba, python"
+        )
+    if want == "numba" and not numba_available():
+        return "python"
+    return want
 
 
 def backend() -> str:
-    """'numba' where the setting allows it, else 'python' (what a model will use once warm)."""
-    return "python" if setting() == "python" else "numba"
+    """The compiled backend models get: 'c', 'numba' or 'python' (the setting, resolved
+    against what this machine has). CROSSCHECK_BACKEND=c without a working C compiler is an
+    error naming the way out; 'auto' then takes numba."""
+    want = setting()
+    if want in ("auto", "c"):
+        from . import cbuild
+
+        if cbuild.available():
+            return "c"
+        if want == "c":
+            from .errors import ModelInputError
+
+            raise ModelInputError(
+                f"CROSSCHECK_BACKEND=c: no working C compiler ({' '.join(cbuild.compiler())}) "
+                f"or no Python headers; install gcc and python3-dev, point CROSSCHECK_CC at a "
+                f"compiler, or use CROSSCHECK_BACKEND=auto"
+            )
+    if want == "python" or not numba_available():
+        return "python"
+    return "numba"
 
 
 def threads() -> int:

@@ -234,9 +234,9 @@ class _Problem:
         self.mc = f["mc"]
         self.work = energy
         self.fr = nm.forward_raw
-        # compiled kernels on the numba backend (arrays in and out), the generated Python on
-        # the fallback (lists): every call below works with either
-        self.arrays = nm.backend == "numba"
+        # compiled kernels on the C or numba backend (arrays in and out), the generated Python
+        # on the fallback (lists): every call below works with either
+        self.arrays = nm.backend != "python"
         self.kin = nm.raw_function("kinematics")
         self.res = nm.raw_function("residuals")
         self.pjac = nm.raw_function("position_jacobian")

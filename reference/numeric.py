@@ -124,24 +124,28 @@ class NumericModel(BatchedForward):
         self._pack()
 
     def _kernels(self) -> Any:
-        """The numba kernels of this model's code (None on the pure-Python backend)."""
-        if compiled.backend() != "numba" or codegen.numeric_kkt(self.n, self.m):
+        """The compiled kernels of this model's code: C (reference.cbuild), else numba, else
+        None (the pure-Python path). A model the C printer cannot translate, or a compiler
+        that rejects it, takes numba; the reason is in bench.json's `compiled`."""
+        which = compiled.backend()
+        if which == "python" or codegen.numeric_kkt(self.n, self.m):
             # numba's compile of a large model's long straight-line M, A code costs more than
             # the run (docs/scaling.md); a small model with dependent rows keeps its kernels
             # for M, A, residuals and energy (its forward is the numeric solve either way)
             return None
         path = self._scalar["__cache_path__"]
+        args = (self.source, path.stem, path.parent, self.nq, self.n, len(self.p), self.m)
+        if which == "c":
+            from . import cbuild, ckernels
+
+            try:
+                return cbuild.load_kernels(*args, PIVOT_RATIO_MIN)
+            except (cbuild.BuildError, ckernels.UnsupportedExpression, RecursionError) as exc:
+                compiled.TIMINGS.setdefault(path.stem, {})["c_error"] = str(exc)
+                if not compiled.numba_available():
+                    return None
         try:
-            return compiled.load_kernels(
-                self.source,
-                path.stem,
-                path.parent,
-                self.nq,
-                self.n,
-                len(self.p),
-                self.m,
-                PIVOT_RATIO_MIN,
-            )
+            return compiled.load_kernels(*args, PIVOT_RATIO_MIN)
         except RecursionError:
             # expressions nested deeper than Python's ast printer goes (a large user model):
             # this model stays on the pure-Python path, the same numbers, only slower
@@ -149,17 +153,30 @@ class NumericModel(BatchedForward):
 
     def _pack(self) -> None:
         """Parameters and Schur references as one array (the kernels' _pa), zero b offsets,
-        and `_fast`: what the compiled forward calls read, one attribute to unpack instead of
-        six (None where forward has no kernel: the Python backend or a numeric KKT solve)."""
+        `_fast`: what the compiled forward calls read, one attribute to unpack instead of
+        six (None where forward has no kernel: the Python backend or a numeric KKT solve),
+        and on the C backend `_cforward`/`_craw`: the checked and raw calls bound to these
+        parameters, one C call each (reference/ckernel_runtime.h; any state they cannot take
+        on their fast path goes to `_forward_checked`/`_forward_raw_checked` unchanged)."""
         self._pa = np.array(self.p + self.sref, float)
         self._db0 = np.zeros(max(self.m, 1))
         self._nf = self.n + self.m + 1
         kf = None if self._numeric else self._kf
         self._fast = None if kf is None else (kf, self._nf, self._pa, self._db0, self.n, self._nlam)
+        bind = getattr(self._k, "bind", None) if kf is not None else None
+        self._cforward = (
+            None if bind is None else bind(self._pa, self._db0, Forward, self._forward_checked)
+        )
+        self._craw = (
+            None if bind is None else bind(self._pa, self._db0, None, self._forward_raw_checked)
+        )
 
     @property
     def backend(self) -> str:
-        return "numba" if self._k is not None else "python"
+        """'c', 'numba' or 'python': what this model's calls run."""
+        if self._k is None:
+            return "python"
+        return "c" if hasattr(self._k, "bind") else "numba"
 
     def with_params(self, params: dict | None) -> NumericModel:
         """The same compiled model with other parameter values, without reading and compiling
@@ -268,6 +285,14 @@ class NumericModel(BatchedForward):
     # ---- single state ------------------------------------------------------------------
     def forward(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
         """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
+        cf = self._cforward
+        if cf is not None:  # one C call; any state it cannot take goes to _forward_checked
+            return cf(q, u, t)  # type: ignore[no-any-return]
+        return self._forward_checked(q, u, t)
+
+    def _forward_checked(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
+        """forward through the kernel-signature call or the Python path: every conversion,
+        check and error message."""
         fast = self._fast
         if fast is not None:  # the compiled kernel; dependent rows take the rank-revealing solve
             kf, nf, pa, db0, n, nl = fast
@@ -318,6 +343,20 @@ class NumericModel(BatchedForward):
         fresh vectors out on the compiled backend, lists on the Python one. With `out` (a
         writable float64 vector of n + m + 1, as forward_into's): u' | lambda | the ratio are
         written into it and `out` itself is returned, on either backend."""
+        cr = self._craw
+        if cr is not None:  # one C call; anything it cannot take goes to _forward_raw_checked
+            return cr(q, u, t, db, out)
+        return self._forward_raw_checked(q, u, t, db, out)
+
+    def _forward_raw_checked(
+        self, q: ArrayLike, u: ArrayLike, t: float, db: Any = None, out: Any = None
+    ) -> Any:
+        """forward_raw through the kernel-signature call or the Python path."""
+        if db is not None and len(db) < self.m:  # a kernel would read past its end
+            raise ModelInputError(
+                f"{self.model.name}: db offsets the {self.m} constraint rows' right side; "
+                f"got {len(db)} values"
+            )
         fast = self._fast
         if fast is None:
             return self._forward_raw_other(q, u, t, db, out)
@@ -391,7 +430,7 @@ class NumericModel(BatchedForward):
         if self._kf is None:
             raise ModelInputError(
                 f"{self.model.name}: forward_into needs the compiled unrolled forward; this model "
-                f"has {'no numba backend' if self._k is None else 'a numeric KKT solve'} "
+                f"has {'no compiled backend' if self._k is None else 'a numeric KKT solve'} "
                 f"(use forward or forward_raw)"
             )
         try:

@@ -1,7 +1,8 @@
 """Batched forward dynamics of NumericModel (a mixin): N states in one call.
 
-The compiled path runs the serial (or prange) batch kernel of reference.compiled; the Python
-path the generated vectorized code; models with dependent rows one numeric solve per state.
+The compiled path runs the serial (or threaded) batch kernel of reference.cbuild or
+reference.compiled; the Python path the generated vectorized code; models with dependent rows
+one numeric solve per state.
 """
 
 from __future__ import annotations
@@ -100,7 +101,9 @@ class BatchedForward:
         out = np.empty((N, self._nf))
         st = np.empty(N, np.int64)
         name = "forward_batch" if compiled.threads() == 1 else "forward_batch_parallel"
-        if name != "forward_batch":
+        if hasattr(self._k, "set_threads"):  # the C loop: OpenMP threads, set per call
+            self._k.set_threads(compiled.threads())
+        elif name != "forward_batch":
             import numba
 
             numba.set_num_threads(min(compiled.threads(), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]  # set at import, not in numba's stubs

@@ -1,11 +1,12 @@
-"""The numba backend against the pure-Python path it replaces (issue 13).
+"""The compiled backends (C and numba) against the pure-Python path they replace (issue 13).
 
-Both run the same generated straight-line code (reference.compiled rewrites the module that
-reference.codegen writes), so they must agree to the last bit. Measured: bit-identical on every
-output of forward, matrices, residuals, energy and kinematics at 16 consistent states of
-pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and knife_edge (docs/compiled.md).
-EQUAL_REL leaves room for one reason they could part: an integer power x**k, which CPython
-computes with libm's pow and numba by repeated multiplication (k - 1 roundings instead of one).
+All run the same generated straight-line code (reference.ckernels prints it as C,
+reference.compiled rewrites it for numba), so they must agree to the last bit. Measured: bit-
+identical on every output of forward, matrices, residuals, energy and kinematics at 16
+consistent states of pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and
+knife_edge (docs/compiled.md). EQUAL_REL leaves room for one reason they could part: an integer
+power x**k, which CPython computes with libm's pow and numba by repeated multiplication (k - 1
+roundings instead of one).
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ import numpy as np
 import pytest
 
 from crosscheck.run import consistent_states
-from reference import NumericModel, compiled, models
+from reference import NumericModel, cbuild, compiled, models
 from reference.errors import ModelInputError, SingularSystemError
 
-pytestmark = pytest.mark.skipif(not compiled.numba_available(), reason="numba not installed")
+NEEDS_NUMBA = pytest.mark.skipif(not compiled.numba_available(), reason="numba not installed")
+NEEDS_CC = pytest.mark.skipif(not cbuild.available(), reason="no working C compiler")
+BACKENDS = [pytest.param("c", marks=NEEDS_CC), pytest.param("numba", marks=NEEDS_NUMBA)]
 
 # a few ulps of the largest entry: what repeated multiplication can add to libm's pow
 EQUAL_REL = 1e-14
@@ -27,12 +30,12 @@ EQUAL_REL = 1e-14
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
 
 
-def _pair(monkeypatch, name, params=None):
-    monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
+def _pair(monkeypatch, name, backend, params=None):
+    monkeypatch.setenv("CROSSCHECK_BACKEND", backend)
     fast = NumericModel(models.get(name), params=params)
     monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
     slow = NumericModel(models.get(name), params=params)
-    assert (fast.backend, slow.backend) == ("numba", "python")
+    assert (fast.backend, slow.backend) == (backend, "python")
     return fast, slow
 
 
@@ -45,9 +48,10 @@ def _same(x, y, what):
     assert float(np.max(np.abs(x - y))) <= EQUAL_REL * scale, what
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("name", MODELS)
-def test_compiled_equals_fallback(monkeypatch, name):
-    fast, slow = _pair(monkeypatch, name)
+def test_compiled_equals_fallback(monkeypatch, name, backend):
+    fast, slow = _pair(monkeypatch, name, backend)
     for q, u in consistent_states(slow, 8):
         a, b = fast.forward(q, u), slow.forward(q, u)
         _same(a.accelerations, b.accelerations, "u'")
@@ -70,9 +74,10 @@ def test_compiled_equals_fallback(monkeypatch, name):
         _same(raw[1], ref[1], "raw lambda with a b offset")
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("name", ("slider_crank", "top_cartesian"))
-def test_compiled_batch_equals_single_and_fallback_batch(monkeypatch, name):
-    fast, slow = _pair(monkeypatch, name)
+def test_compiled_batch_equals_single_and_fallback_batch(monkeypatch, name, backend):
+    fast, slow = _pair(monkeypatch, name, backend)
     states = consistent_states(slow, 8)
     Q = np.array([q for q, _ in states])
     U = np.array([u for _, u in states])
@@ -86,10 +91,11 @@ def test_compiled_batch_equals_single_and_fallback_batch(monkeypatch, name):
         _same(LAM[i], one.multipliers, "batch row vs single")
 
 
-def test_singular_and_bad_states_raise_the_same_errors(monkeypatch):
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_singular_and_bad_states_raise_the_same_errors(monkeypatch, backend):
     """Slider-crank with l1 = l2 at theta1 = pi/2 on the branch theta2 = -theta1: A vanishes."""
     equal = {"l1": 0.3, "l2": 0.3, "r2": 0.15, "I_G2": 2.0 * 0.09 / 12}
-    fast, slow = _pair(monkeypatch, "slider_crank", equal)
+    fast, slow = _pair(monkeypatch, "slider_crank", backend, equal)
     q, u = [math.pi / 2, -math.pi / 2], [8.0, -8.0]
     for nm in (fast, slow):
         with pytest.raises(SingularSystemError, match="singular at q"):
@@ -112,6 +118,7 @@ def test_singular_and_bad_states_raise_the_same_errors(monkeypatch):
         assert msgs[0] == msgs[1]
 
 
+@NEEDS_NUMBA
 def test_kernel_module_is_written_once(monkeypatch):
     """numba's cache keys on the module file: loading the same code again must not rewrite it."""
     monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
@@ -134,11 +141,14 @@ def test_backend_setting(monkeypatch):
         NumericModel(models.get("pendulum_angle"))
 
 
+@NEEDS_NUMBA
 def test_auto_setting_uses_the_python_path_until_a_worker_has_compiled(monkeypatch, tmp_path):
-    """'auto' on a cold numba cache: the Python path now (no compile in the process), and the
-    background worker's compile makes the next model use the kernels, with the same answer."""
+    """'auto' without a C compiler, on a cold numba cache: the Python path now (no compile in
+    the process), and the background worker's compile makes the next model use the kernels,
+    with the same answer."""
     monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("CROSSCHECK_BACKEND", raising=False)
+    monkeypatch.setenv("CROSSCHECK_CC", str(tmp_path / "no-such-cc"))
     monkeypatch.setenv("CROSSCHECK_BACKGROUND_COMPILE", "0")
     cold = NumericModel(models.get("pendulum_xy"))
     assert cold.backend == "python"

@@ -1,0 +1,184 @@
+"""Build and load the C kernels of reference.ckernels (issue 13): one CPython extension per
+derivation cache entry, compiled by the system's C compiler into the cache directory.
+
+The built file is named by a digest of everything that decides its machine code (the C text,
+the runtime header, the compiler and its flags, Python's and numpy's versions), so a change to
+any of them builds a new file and two checkouts never overwrite each other's. It is written
+to a temporary name and renamed into place, so processes that build the same module at once
+each get a complete file.
+
+The compiler is CROSSCHECK_CC, else CC, else `cc`. Where none works the models fall back to
+numba (or the Python path); bench.json's `compiled` says which backend ran and why.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import sysconfig
+import time
+from functools import cache
+from pathlib import Path
+
+from .ckernels import MODULE_NAME, RUNTIME, c_source
+from .compiled import TIMINGS, Kernels
+
+# -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
+# -fno-math-errno: sqrt compiles to the instruction (the result is the same; only errno,
+#   which nothing reads, is not set). -ffp-contract=off: no fused multiply-add, so every
+#   operation rounds as the Python path's does. No -ffast-math: it would drop NaN tests.
+CFLAGS = (
+    "-O2",
+    "-fPIC",
+    "-shared",
+    "-fno-math-errno",
+    "-ffp-contract=off",
+    "-fopenmp",
+    "-Wno-unknown-pragmas",
+)
+
+
+class BuildError(RuntimeError):
+    """The C compiler is missing or rejected a module."""
+
+
+def compiler() -> list[str]:
+    """The compiler command (CROSSCHECK_CC, CC or cc), split like a shell would."""
+    cmd = os.environ.get("CROSSCHECK_CC") or os.environ.get("CC") or "cc"
+    return shlex.split(cmd)
+
+
+@cache
+def _compiler_identity(cmd: tuple[str, ...]) -> str:
+    """The compiler's own version line (part of the built file's digest), or '' if absent."""
+    if not cmd or shutil.which(cmd[0]) is None:
+        return ""
+    try:
+        r = subprocess.run([*cmd, "--version"], capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return r.stdout.splitlines()[0] if r.returncode == 0 and r.stdout else ""
+
+
+def available() -> bool:
+    """True when a C compiler answers and Python's and numpy's headers are installed."""
+    include = Path(sysconfig.get_paths()["include"]) / "Python.h"
+    return bool(_compiler_identity(tuple(compiler()))) and include.exists()
+
+
+def _include_dirs() -> list[str]:
+    import numpy as np
+
+    return [sysconfig.get_paths()["include"], np.get_include(), str(RUNTIME.parent)]
+
+
+def _digest(text: str, cmd: list[str]) -> str:
+    import numpy as np
+
+    h = hashlib.sha256()
+    for part in (
+        text,
+        RUNTIME.read_text(),
+        " ".join(cmd),
+        _compiler_identity(tuple(compiler())),
+        sys.version,
+        np.__version__,
+        sysconfig.get_config_var("EXT_SUFFIX") or "",
+    ):
+        h.update(part.encode())
+        h.update(b"\0")
+    return h.hexdigest()[:16]
+
+
+def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
+    """The extension of C module `text` in `directory`, built unless present: (path, module
+    name, build seconds; 0 when it was there)."""
+    flags = [*CFLAGS, *(f"-I{d}" for d in _include_dirs())]
+    digest = _digest(text, flags)
+    modname = f"_crosscheck_c_{digest}"
+    suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
+    target = directory / f"{stem}_c_{digest}{suffix}"
+    if target.exists():
+        return target, modname, 0.0
+    src = directory / f"{stem}_c_{digest}.c"
+    src.write_text(text.replace(MODULE_NAME, modname))
+    tmp = target.with_name(f"{target.name}.{os.getpid()}.tmp")
+    t0 = time.perf_counter()
+    try:
+        r = subprocess.run(
+            [*compiler(), *flags, str(src), "-o", str(tmp), "-lm"],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+    except (OSError, subprocess.SubprocessError) as exc:
+        raise BuildError(f"{stem}: the C compiler could not run ({exc})") from None
+    if r.returncode != 0:
+        tmp.unlink(missing_ok=True)
+        lines = r.stderr.strip().splitlines() or ["no message"]
+        first = next((ln for ln in lines if "error" in ln), lines[0])
+        raise BuildError(f"{stem}: the C compiler rejected the module ({first}; source {src})")
+    os.replace(tmp, target)
+    return target, modname, time.perf_counter() - t0
+
+
+def _import(path: Path, modname: str):
+    mod = sys.modules.get(modname)
+    if mod is None:
+        spec = importlib.util.spec_from_file_location(modname, path)
+        if spec is None or spec.loader is None:
+            raise BuildError(f"cannot load the C kernel module {path}")
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        sys.modules[modname] = mod
+    return mod
+
+
+class CKernels(Kernels):
+    """The C module's kernels behind reference.compiled.Kernels' interface. The prange name
+    (`<F>_batch_parallel`) is the same OpenMP loop: its threads are set per call."""
+
+    def _compile(self, kname: str):
+        return getattr(self.module, kname.replace("_batch_parallel", "_batch"))
+
+    def bind(self, pa, db, forward_type, slow):
+        """The forward call bound to parameters `pa` and offsets `db` (ckernel_runtime.h)."""
+        return self.module.bind("forward", pa, db, forward_type, slow)
+
+    def set_threads(self, k: int) -> None:
+        self.module.set_threads(k)
+
+
+_LOADED: dict[tuple, CKernels] = {}
+
+
+def load_kernels(
+    src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int, pmin: float
+) -> CKernels:
+    """The C kernels of generated module `src`, built if needed, once per process. Raises
+    BuildError (compiler missing or failing) or ckernels.UnsupportedExpression."""
+    key = (stem, str(directory), hashlib.sha256(src.encode()).hexdigest(), pmin)
+    hit = _LOADED.get(key)
+    if hit is None:
+        t0 = time.perf_counter()
+        text, sizes = c_source(src, nq, n, npar, m, pmin)
+        t1 = time.perf_counter()
+        path, modname, build_s = build(text, stem, directory)
+        t2 = time.perf_counter()
+        mod = _import(path, modname)
+        TIMINGS.setdefault(stem, {}).update(
+            {
+                "backend": "c",
+                "c_source_s": t1 - t0,
+                "c_build_s": build_s,
+                "built": build_s > 0,
+                "import_s": time.perf_counter() - t2,
+            }
+        )
+        hit = _LOADED[key] = CKernels(mod, sizes, stem, nq, n, npar, m)
+    return hit

@@ -1,0 +1,184 @@
+"""C source of the generated code (issue 13): the same expressions as reference.codegen's
+Python module, printed as C functions that a C compiler builds into a CPython extension.
+
+Why C beside numba: a call into a numba kernel costs about 0.6 us before any arithmetic (its
+dispatch and argument unboxing), a CPython METH_FASTCALL function about 0.25 us, and gcc builds
+a model's straight-line code in about a second where numba's type inference takes 10-20 s
+(docs/compiled.md, "The C backend"). The expressions are printed from the same ast the Python
+path runs, operation for operation and in the same order (every binary operation
+parenthesized, no -ffast-math, no FMA contraction), with libm's sin, cos, sqrt and pow as
+CPython calls them, so the results equal the Python path's (tests/test_compiled.py).
+
+Each generated function F becomes `static int F_body(qa, ua, t, pa, db, out)`: inputs read
+from double arrays by index (pa = the parameters, then the Schur references), outputs written
+group after group into `out`, a status returned (reference.compiled's codes). The Python-facing
+wrappers, argument checks and batch loops are the hand-written runtime,
+reference/ckernel_runtime.h, which the generated file includes after its bodies.
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+from pathlib import Path
+
+from .compiled import NOT_DEFINED, OK, SINGULAR
+
+RUNTIME = Path(__file__).with_name("ckernel_runtime.h")
+
+_BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+_FUNCTIONS = {"sin", "cos", "tan", "sqrt", "exp", "log", "atan2", "asin", "acos", "atan"}
+_CONSTANTS = {"pi": repr(math.pi)}
+
+
+class UnsupportedExpression(ValueError):
+    """The generated code holds a construct this printer does not translate (the model then
+    stays on the numba or Python backend, which run the same expressions)."""
+
+
+class _Printer:
+    """C text of one generated function's expressions; names map to C locals."""
+
+    def __init__(self, npar: int):
+        self.npar = npar
+
+    def expr(self, e: ast.expr) -> str:
+        if isinstance(e, ast.BinOp):
+            a, b = self.expr(e.left), self.expr(e.right)
+            if isinstance(e.op, ast.Pow):  # CPython's float ** computes libm's pow as well
+                return f"pow({a}, {b})"
+            op = _BINOPS.get(type(e.op))
+            if op is None:
+                raise UnsupportedExpression(f"operator {type(e.op).__name__}")
+            return f"({a} {op} {b})"
+        if isinstance(e, ast.UnaryOp):
+            if isinstance(e.op, ast.USub):
+                return f"(-{self.expr(e.operand)})"
+            if isinstance(e.op, ast.UAdd):
+                return self.expr(e.operand)
+            raise UnsupportedExpression(f"unary {type(e.op).__name__}")
+        if isinstance(e, ast.Constant):
+            if isinstance(e.value, bool) or not isinstance(e.value, int | float):
+                raise UnsupportedExpression(f"constant {e.value!r}")
+            # a double literal: 1/2 is 0.5 in Python and must not become C's integer division
+            return f"({float(e.value)!r})"
+        if isinstance(e, ast.Name):
+            return _CONSTANTS.get(e.id, e.id)
+        if isinstance(e, ast.Subscript) and isinstance(e.value, ast.Name):
+            k = e.slice.value if isinstance(e.slice, ast.Constant) else None
+            if e.value.id == "_sref" and isinstance(k, int):
+                return f"pa[{self.npar + k}]"  # the Schur references travel after the parameters
+            if e.value.id == "_db" and isinstance(k, int):
+                return f"db[{k}]"
+            raise UnsupportedExpression(f"subscript {ast.unparse(e)}")
+        if isinstance(e, ast.Call) and isinstance(e.func, ast.Name):
+            args = [self.expr(a) for a in e.args]
+            if e.func.id == "_min":  # the pivot ratio: a NaN-propagating minimum
+                code = args[0]
+                for a in args[1:]:
+                    code = f"nmin({code}, {a})"
+                return code
+            if e.func.id in _FUNCTIONS and not e.keywords:
+                return f"{e.func.id}({', '.join(args)})"
+            raise UnsupportedExpression(f"function {e.func.id}")
+        raise UnsupportedExpression(type(e).__name__)
+
+
+def _groups(ret: ast.Return) -> tuple[list[list[ast.expr]], ast.expr | None]:
+    """The returned list groups of a generated function, and forward's pivot expression."""
+    elts = ret.value.elts if isinstance(ret.value, ast.Tuple) else [ret.value]
+    groups = [e.elts for e in elts if isinstance(e, ast.List)]
+    rest = [e for e in elts if not isinstance(e, ast.List)]
+    return groups, (rest[0] if rest else None)
+
+
+def _body(fn: ast.FunctionDef, dims: tuple[int, int, int], pmin: float) -> tuple[list, list]:
+    """Lines of `static int <name>_body(...)` and the function's output group sizes."""
+    nq, n, npar = dims
+    pr = _Printer(npar)
+    lines = [
+        f"static int {fn.name}_body(const double *restrict qa, const double *restrict ua, "
+        "double _t, const double *restrict pa, const double *restrict db, "
+        "double *restrict out)",
+        "{",
+        "    (void)qa; (void)ua; (void)_t; (void)pa; (void)db;",
+    ]
+    lines += [f"    const double _q{i} = qa[{i}];" for i in range(nq)]
+    lines += [f"    const double _u{i} = ua[{i}];" for i in range(n)]
+    lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
+    declared: set[str] = set()
+    ret = None
+    for st in fn.body:
+        if isinstance(st, ast.Return):
+            ret = st
+        elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Tuple):
+            continue  # the unpacking of _q, _u, _p: loaded above by index
+        elif (
+            isinstance(st, ast.Assign)
+            and len(st.targets) == 1
+            and isinstance(st.targets[0], ast.Name)
+        ):
+            name = st.targets[0].id
+            decl = "" if name in declared else "double "
+            declared.add(name)
+            lines.append(f"    {decl}{name} = {pr.expr(st.value)};")
+        else:
+            raise UnsupportedExpression(f"statement {type(st).__name__} in {fn.name}")
+    if ret is None:
+        raise UnsupportedExpression(f"generated function {fn.name} has no return statement")
+    groups, piv = _groups(ret)
+    k = 0
+    for g in groups:
+        for e in g:
+            lines.append(f"    out[{k}] = {pr.expr(e)};")
+            k += 1
+    # one test per output: a NaN or infinity from finite inputs is a division by zero in the
+    # derived expressions (a coordinate singularity), never a number handed on silently
+    lines.append("    int fin = 1;")
+    lines.append(f"    for (int j = 0; j < {k}; ++j) fin &= isfinite(out[j]) != 0;")
+    if fn.name == "forward":
+        lines.append(f"    const double piv = {pr.expr(piv) if piv is not None else '1.0'};")
+        lines.append(f"    out[{k}] = piv;")
+        # `piv > pmin` is false for NaN: a NaN pivot ratio is singular, as on the other paths
+        lines.append(f"    return piv > {pmin!r} ? (fin ? {OK} : {NOT_DEFINED}) : {SINGULAR};")
+    else:
+        lines.append(f"    return fin ? {OK} : {NOT_DEFINED};")
+    lines.append("}")
+    return lines, [len(g) for g in groups]
+
+
+MODULE_NAME = "@MODULE@"  # replaced by the built module's name (reference.cbuild)
+
+
+def c_source(src: str, nq: int, n: int, npar: int, m: int, pmin: float) -> tuple[str, dict]:
+    """The C module for a generated Python module, and each function's output group sizes.
+    Raises UnsupportedExpression (or RecursionError for expressions nested too deep) where
+    the printer cannot translate the code."""
+    tree = ast.parse(src)
+    out = [
+        "/* generated by reference.ckernels from reference.codegen's module: do not edit */",
+        "#define PY_SSIZE_T_CLEAN",
+        "#include <Python.h>",
+        "#include <math.h>",
+        f"#define NQ {nq}",
+        f"#define NU {n}",
+        f"#define NP {npar}",
+        f"#define NM {m}",
+        f"#define MODULE_NAME {MODULE_NAME}",
+        "static inline double nmin(double a, double b)",
+        "{",
+        "    if (a != a || b != b) return a + b; /* NaN */",
+        "    return a < b ? a : b;",
+        "}",
+    ]
+    sizes = {}
+    for fn in tree.body:
+        if isinstance(fn, ast.FunctionDef):
+            lines, sizes[fn.name] = _body(fn, (nq, n, npar), pmin)
+            out += ["", *lines]
+    out += ["", "#define KERNEL_BODIES \\"]
+    for name, gs in sizes.items():
+        total = sum(gs) + (1 if name == "forward" else 0)
+        out.append(f'    KERNEL("{name}", {name}_body, {total}, {int(name == "forward")}) \\')
+    out += ["", '#include "ckernel_runtime.h"', ""]
+    return "\n".join(out), sizes
