@@ -25,7 +25,7 @@ import time
 from functools import cache
 from pathlib import Path
 
-from .ckernels import MODULE_NAME, RUNTIME, c_source
+from .ckernels import LANES, MODULE_NAME, RUNTIME, c_source
 from .compiled import TIMINGS, Kernels
 
 # -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
@@ -84,6 +84,7 @@ def _digest(text: str, cmd: list[str]) -> str:
     for part in (
         text,
         RUNTIME.read_text(),
+        LANES.read_text(),
         " ".join(cmd),
         _compiler_identity(tuple(compiler())),
         sys.version,

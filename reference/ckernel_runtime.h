@@ -24,7 +24,7 @@
 #include <stddef.h>
 #include <string.h>
 
-enum { ST_OK = 0, ST_BAD_Q = 1, ST_BAD_U = 2, ST_NOT_FINITE = 3, ST_SINGULAR = 4 };
+enum { ST_OK = 0, ST_BAD_Q = 1, ST_BAD_U = 2, ST_NOT_FINITE = 3, ST_SINGULAR = 4, ST_NOT_DEFINED = 5 };
 
 typedef int (*body_fn)(const double *, const double *, double, const double *, const double *,
                        double *);
@@ -132,6 +132,32 @@ static PyObject *call_single(PyObject *self, PyObject *const *args, Py_ssize_t n
     return PyLong_FromLong(st);
 }
 
+#ifdef HAS_FORWARD4
+/* Four states of a batch whose checks passed, on forward_body4 (one vector lane per state):
+   gather, compute, scatter, and judge each lane as the scalar kernel judges its state.
+   Compiled for AVX2 and for the baseline x86-64; the loader picks the clone the CPU runs. */
+__attribute__((target_clones("avx2", "default"))) static void
+forward_block(const double *Q, const double *U, const double *T, Py_ssize_t nT, const double *pa,
+              const double *db, double *OUT, Py_ssize_t sOUT, int64_t *ST, Py_ssize_t i)
+{
+    vd qv[NQ > 0 ? NQ : 1], uv[NU > 0 ? NU : 1], out[FORWARD_NOUT], tv;
+    for (int k = 0; k < NQ; ++k)
+        for (int j = 0; j < LANES; ++j) qv[k][j] = Q[(i + j) * NQ + k];
+    for (int k = 0; k < NU; ++k)
+        for (int j = 0; j < LANES; ++j) uv[k][j] = U[(i + j) * NU + k];
+    for (int j = 0; j < LANES; ++j) tv[j] = T[nT > 1 ? i + j : 0];
+    forward_body4(qv, uv, tv, pa, db, out);
+    for (int j = 0; j < LANES; ++j) {
+        double *o = OUT + (i + j) * sOUT;
+        int fin = 1;
+        for (int k = 0; k < FORWARD_NOUT; ++k) o[k] = out[k][j];
+        for (int k = 0; k < FORWARD_NOUT - 1; ++k) fin &= isfinite(o[k]) != 0;
+        const double piv = o[FORWARD_NOUT - 1];
+        ST[i + j] = piv > PIVOT_MIN ? (fin ? ST_OK : ST_NOT_DEFINED) : ST_SINGULAR;
+    }
+}
+#endif
+
 /* F_batch(Q, U, T, P, DB, OUT, ST): state i reads row i of Q, U and OUT, and row i of T, P,
    DB where those have one row per state (else their one row); ST[i] = its status. */
 static PyObject *call_batch(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
@@ -161,16 +187,35 @@ static PyObject *call_batch(PyObject *self, PyObject *const *args, Py_ssize_t na
     const Py_ssize_t sDB = PyArray_DIM((PyArrayObject *)args[4], 1);
     const Py_ssize_t sOUT = PyArray_DIM((PyArrayObject *)args[5], 1);
     const int nth = batch_threads;
+#ifdef HAS_FORWARD4
+    /* blocks of four on the vector body where the parameters are shared by every state */
+    const int four = k->is_forward && nP == 1 && nDB == 1;
+#else
+    const int four = 0;
+#endif
+    const Py_ssize_t nblocks = (N + LANES - 1) / LANES;
     Py_BEGIN_ALLOW_THREADS
 #pragma omp parallel for schedule(static) num_threads(nth) if (nth > 1)
-    for (Py_ssize_t i = 0; i < N; ++i) {
-        const double *q = Q + i * NQ, *u = U + i * NU;
-        const double t = T[nT > 1 ? i : 0];
-        int st = check_state(q, NQ, u, NU, t);
-        if (st == ST_OK)
-            st = k->body(q, u, t, P + (nP > 1 ? i : 0) * sP, DB + (nDB > 1 ? i : 0) * sDB,
-                         OUT + i * sOUT);
-        ST[i] = st;
+    for (Py_ssize_t blk = 0; blk < nblocks; ++blk) {
+        const Py_ssize_t i0 = blk * LANES, i1 = i0 + LANES < N ? i0 + LANES : N;
+        int st[LANES], all_ok = four && i1 - i0 == LANES;
+        for (Py_ssize_t i = i0; i < i1; ++i) {
+            st[i - i0] = check_state(Q + i * NQ, NQ, U + i * NU, NU, T[nT > 1 ? i : 0]);
+            all_ok = all_ok && st[i - i0] == ST_OK;
+        }
+#ifdef HAS_FORWARD4
+        if (all_ok) {
+            forward_block(Q, U, T, nT, P, DB, OUT, sOUT, ST, i0);
+            continue;
+        }
+#endif
+        for (Py_ssize_t i = i0; i < i1; ++i) {
+            if (st[i - i0] == ST_OK)
+                st[i - i0] = k->body(Q + i * NQ, U + i * NU, T[nT > 1 ? i : 0],
+                                     P + (nP > 1 ? i : 0) * sP, DB + (nDB > 1 ? i : 0) * sDB,
+                                     OUT + i * sOUT);
+            ST[i] = st[i - i0];
+        }
     }
     Py_END_ALLOW_THREADS
     return PyLong_FromLong(0);

@@ -13,7 +13,9 @@ Each generated function F becomes `static int F_body(qa, ua, t, pa, db, out)`: i
 from double arrays by index (pa = the parameters, then the Schur references), outputs written
 group after group into `out`, a status returned (reference.compiled's codes). The Python-facing
 wrappers, argument checks and batch loops are the hand-written runtime,
-reference/ckernel_runtime.h, which the generated file includes after its bodies.
+reference/ckernel_runtime.h, which the generated file includes after its bodies. forward also
+gets `forward_body4`, the same expressions on four states at once (one SIMD lane per state),
+which the batch loop runs on blocks of four.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from pathlib import Path
 from .compiled import NOT_DEFINED, OK, SINGULAR
 
 RUNTIME = Path(__file__).with_name("ckernel_runtime.h")
+LANES = Path(__file__).with_name("ckernel_lanes.h")
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
 _FUNCTIONS = {"sin", "cos", "tan", "sqrt", "exp", "log", "atan2", "asin", "acos", "atan"}
@@ -82,6 +85,103 @@ class _Printer:
                 return f"{e.func.id}({', '.join(args)})"
             raise UnsupportedExpression(f"function {e.func.id}")
         raise UnsupportedExpression(type(e).__name__)
+
+
+class _LanePrinter(_Printer):
+    """The same expressions on four states at once (GCC vector extensions, one lane per
+    state): every +, -, *, / is the same IEEE operation per lane, so each lane's result equals
+    the scalar kernel's. Expressions of the parameters alone stay scalars; a scalar meets a
+    vector by GCC's broadcast. Functions run per lane (ckernel_lanes.h); x**2 is x*x, as gcc
+    compiles the scalar kernel's pow(x, 2.0)."""
+
+    def __init__(self, npar: int, lanes: set[str]):
+        super().__init__(npar)
+        self.lanes = lanes  # names holding one value per state
+
+    def lane(self, e: ast.expr) -> tuple[str, bool]:
+        """C text of `e` and whether it is a vector (depends on the state)."""
+        if isinstance(e, ast.BinOp):
+            (a, va), (b, vb) = self.lane(e.left), self.lane(e.right)
+            if isinstance(e.op, ast.Pow):
+                if not (va or vb):
+                    return f"pow({a}, {b})", False
+                if isinstance(e.right, ast.Constant) and e.right.value == 2:
+                    return f"v_sq({a})", True
+                return f"v_pow({_splat(a, va)}, {_splat(b, vb)})", True
+            op = _BINOPS.get(type(e.op))
+            if op is None:
+                raise UnsupportedExpression(f"operator {type(e.op).__name__}")
+            return f"({a} {op} {b})", va or vb
+        if isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub | ast.UAdd):
+            a, va = self.lane(e.operand)
+            return (f"(-{a})" if isinstance(e.op, ast.USub) else a), va
+        if isinstance(e, ast.Name):
+            return self.expr(e), e.id in self.lanes
+        if isinstance(e, ast.Call) and isinstance(e.func, ast.Name):
+            args = [self.lane(a) for a in e.args]
+            if not any(v for _, v in args):
+                return self.expr(e), False
+            if e.func.id == "_min":
+                code = _splat(*args[0])
+                for a, va in args[1:]:
+                    code = f"v_nmin({code}, {_splat(a, va)})"
+                return code, True
+            if e.func.id in _FUNCTIONS and not e.keywords:
+                return f"v_{e.func.id}({', '.join(_splat(a, v) for a, v in args)})", True
+            raise UnsupportedExpression(f"function {e.func.id}")
+        return self.expr(e), False  # constants, parameters, Schur references, b offsets
+
+
+def _splat(code: str, vector: bool) -> str:
+    return code if vector else f"splat({code})"
+
+
+def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
+    """`forward_body4`: forward on four states (q, u, t vectors; parameters shared), outputs
+    and the pivot ratio into `out` as vectors; the runtime gathers, scatters and judges."""
+    nq, n, npar = dims
+    lanes = {f"_q{i}" for i in range(nq)} | {f"_u{i}" for i in range(n)} | {"_t"}
+    pr = _LanePrinter(npar, lanes)
+    lines = [
+        "static inline __attribute__((always_inline)) void forward_body4("
+        "const vd *restrict qv, const vd *restrict uv, vd _t, const double *restrict pa, "
+        "const double *restrict db, vd *restrict out)",
+        "{",
+        "    (void)qv; (void)uv; (void)_t; (void)pa; (void)db;",
+    ]
+    lines += [f"    const vd _q{i} = qv[{i}];" for i in range(nq)]
+    lines += [f"    const vd _u{i} = uv[{i}];" for i in range(n)]
+    lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
+    declared: dict[str, bool] = {}
+    ret = None
+    for st in fn.body:
+        if isinstance(st, ast.Return):
+            ret = st
+        elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Tuple):
+            continue
+        elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Name):
+            name = st.targets[0].id
+            code, vec = pr.lane(st.value)
+            if name in declared:
+                if declared[name] != vec:  # a name changing kind: keep the scalar batch loop
+                    raise UnsupportedExpression(f"{name} reassigned across kinds")
+                lines.append(f"    {name} = {code};")
+            else:
+                declared[name] = vec
+                lines.append(f"    {'vd' if vec else 'double'} {name} = {code};")
+            if vec:
+                lanes.add(name)
+        else:
+            raise UnsupportedExpression(f"statement {type(st).__name__} in {fn.name}")
+    groups, piv = _groups(ret) if ret is not None else ([], None)
+    k = 0
+    for g in groups:
+        for e in g:
+            lines.append(f"    out[{k}] = {_splat(*pr.lane(e))};")
+            k += 1
+    lines.append(f"    out[{k}] = {_splat(*pr.lane(piv)) if piv is not None else 'splat(1.0)'};")
+    lines.append("}")
+    return lines
 
 
 def _groups(ret: ast.Return) -> tuple[list[list[ast.expr]], ast.expr | None]:
@@ -165,17 +265,21 @@ def c_source(src: str, nq: int, n: int, npar: int, m: int, pmin: float) -> tuple
         f"#define NP {npar}",
         f"#define NM {m}",
         f"#define MODULE_NAME {MODULE_NAME}",
-        "static inline double nmin(double a, double b)",
-        "{",
-        "    if (a != a || b != b) return a + b; /* NaN */",
-        "    return a < b ? a : b;",
-        "}",
+        f"#define PIVOT_MIN {pmin!r}",
+        '#include "ckernel_lanes.h"',
     ]
     sizes = {}
     for fn in tree.body:
         if isinstance(fn, ast.FunctionDef):
             lines, sizes[fn.name] = _body(fn, (nq, n, npar), pmin)
             out += ["", *lines]
+            if fn.name == "forward":
+                try:
+                    lane = _lane_body(fn, (nq, n, npar))
+                    nout = sum(sizes["forward"]) + 1
+                    out += ["", "#define HAS_FORWARD4 1", f"#define FORWARD_NOUT {nout}", *lane]
+                except UnsupportedExpression:
+                    pass  # the batch runs the scalar kernel state by state
     out += ["", "#define KERNEL_BODIES \\"]
     for name, gs in sizes.items():
         total = sum(gs) + (1 if name == "forward" else 0)
