@@ -106,7 +106,9 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
     target = directory / f"{stem}_c_{digest}{suffix}"
     if target.exists():
         return target, modname, 0.0
-    src = directory / f"{stem}_c_{digest}.c"
+    # this process's own source and object names: another process building the same module
+    # at once must not truncate the file this compiler is reading
+    src = directory / f"{stem}_c_{digest}.{os.getpid()}.c"
     src.write_text(text.replace(MODULE_NAME, modname))
     tmp = target.with_name(f"{target.name}.{os.getpid()}.tmp")
     t0 = time.perf_counter()
@@ -118,13 +120,16 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
             timeout=600,
         )
     except (OSError, subprocess.SubprocessError) as exc:
+        src.unlink(missing_ok=True)
         raise BuildError(f"{stem}: the C compiler could not run ({exc})") from None
     if r.returncode != 0:
         tmp.unlink(missing_ok=True)
+        src = src.replace(directory / f"{stem}_c_{digest}.c")
         lines = r.stderr.strip().splitlines() or ["no message"]
         first = next((ln for ln in lines if "error" in ln), lines[0])
         raise BuildError(f"{stem}: the C compiler rejected the module ({first}; source {src})")
     os.replace(tmp, target)
+    os.replace(src, directory / f"{stem}_c_{digest}.c")  # kept beside the module to read
     return target, modname, time.perf_counter() - t0
 
 

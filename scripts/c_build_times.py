@@ -1,0 +1,46 @@
+"""How long the C compiler takes to build every built-in model's kernels (docs/compiled.md,
+"The C backend"): each model and formulation's generated module is printed as C and built into
+a fresh temporary directory, one at a time (the derivation itself comes from the cache).
+
+    PYTHONPATH=$PWD python scripts/c_build_times.py
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import time
+from pathlib import Path
+
+os.environ["CROSSCHECK_BACKEND"] = "python"  # derive (or read) only; the builds are timed here
+
+from reference import cbuild, codegen, models
+from reference.ckernels import c_source
+from reference.numeric import PIVOT_RATIO_MIN, NumericModel
+
+
+def main() -> None:
+    rows, seen = [], set()
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in models.names():
+            model = models.get(name)
+            for formulation in model.formulations:
+                nm = NumericModel(model, formulation)
+                stem = nm._scalar["__cache_path__"].stem
+                if stem in seen or codegen.numeric_kkt(nm.n, nm.m):
+                    continue
+                seen.add(stem)
+                t0 = time.perf_counter()
+                text, _sizes = c_source(nm.source, nm.nq, nm.n, len(nm.p), nm.m, PIVOT_RATIO_MIN)
+                t1 = time.perf_counter()
+                _path, _mod, build_s = cbuild.build(text, stem, Path(tmp))
+                rows.append((f"{name}/{formulation}", t1 - t0, build_s, text.count("\n")))
+    for label, src_s, build_s, lines in sorted(rows, key=lambda r: -r[2]):
+        print(f"{label:40s} print {src_s:6.3f} s  build {build_s:6.2f} s  {lines:6d} lines of C")
+    total = sum(r[2] for r in rows)
+    worst = max(r[2] for r in rows)
+    print(f"{len(rows)} modules: build {total:.1f} s in all, {worst:.2f} s at most")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,154 @@
+"""The C backend's own behaviour (reference.ckernels, reference.cbuild; issue 13): its choice
+and refusal, its build cache, its fallback when the printer cannot translate a model, the
+bound calls' lifetime and parameters, and the four-lane batch against the scalar kernel.
+Equality with the Python path is tests/test_compiled.py's, bad inputs tests/test_fast_paths.py's
+(both run on this backend too)."""
+
+from __future__ import annotations
+
+import gc
+import math
+import os
+import subprocess
+import sys
+import weakref
+
+import numpy as np
+import pytest
+
+from crosscheck.run import consistent_states
+from reference import NumericModel, cbuild, ckernels, compiled, models
+from reference.errors import ModelInputError, SingularSystemError
+
+pytestmark = pytest.mark.skipif(not cbuild.available(), reason="no working C compiler")
+
+
+@pytest.fixture
+def c_backend(monkeypatch):
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "c")
+
+
+def test_auto_prefers_c_and_c_without_a_compiler_names_the_fix(monkeypatch, tmp_path):
+    monkeypatch.delenv("CROSSCHECK_BACKEND", raising=False)
+    assert NumericModel(models.get("pendulum_xy")).backend == "c"
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "c")
+    monkeypatch.setenv("CROSSCHECK_CC", str(tmp_path / "no-such-cc"))
+    with pytest.raises(ModelInputError, match=r"no working C compiler.*CROSSCHECK_CC"):
+        NumericModel(models.get("pendulum_xy"))
+
+
+def test_a_built_module_is_loaded_not_rebuilt(c_backend, monkeypatch, tmp_path):
+    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+    first = NumericModel(models.get("slider_crank"))
+    stem = first._scalar["__cache_path__"].stem
+    assert compiled.TIMINGS[stem]["built"] is True
+    (so,) = tmp_path.glob(f"{stem}_c_*.so")
+    before = so.stat().st_mtime_ns
+    cbuild._LOADED.clear()  # as a new process would
+    again = NumericModel(models.get("slider_crank"))
+    assert compiled.TIMINGS[stem]["built"] is False and so.stat().st_mtime_ns == before
+    q, u = first.model.initial_q, first.model.initial_u
+    assert np.array_equal(first.forward(q, u).accelerations, again.forward(q, u).accelerations)
+
+
+def test_two_processes_building_the_same_module_at_once_both_get_it(tmp_path):
+    """Each process compiles its own source and object file and renames the object into
+    place: neither reads a file the other is writing."""
+    code = (
+        "import numpy as np\n"
+        "from reference import NumericModel, models\n"
+        "nm = NumericModel(models.get('slider_crank'))\n"
+        "assert nm.backend == 'c', nm.backend\n"
+        "print(nm.forward(np.array(nm.model.initial_q), np.array(nm.model.initial_u)))\n"
+    )
+    env = {**os.environ, "CROSSCHECK_CACHE_DIR": str(tmp_path), "CROSSCHECK_BACKEND": "c"}
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
+    procs = [
+        subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
+    outs = [p.communicate(timeout=600)[0] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0] and outs[0] == outs[1]
+    assert len(list(tmp_path.glob("*_c_*.so"))) == 1
+    assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob("*_c_*.*.c"))
+
+
+def test_a_model_the_printer_cannot_translate_takes_another_backend(
+    c_backend, monkeypatch, tmp_path
+):
+    """Fault injection: a printer without sqrt refuses every model's forward (its Cholesky)."""
+    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(ckernels, "_FUNCTIONS", ckernels._FUNCTIONS - {"sqrt"})
+    cbuild._LOADED.clear()
+    nm = NumericModel(models.get("pendulum_xy"))
+    stem = nm._scalar["__cache_path__"].stem
+    assert nm.backend != "c"
+    assert "function sqrt" in compiled.TIMINGS[stem]["c_error"]
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
+    ref = NumericModel(models.get("pendulum_xy"))
+    q, u = nm.model.initial_q, nm.model.initial_u
+    assert np.array_equal(nm.forward(q, u).accelerations, ref.forward(q, u).accelerations)
+
+
+def test_bound_calls_do_not_keep_their_model_alive(c_backend):
+    nm = NumericModel(models.get("pendulum_xy"))
+    nm.forward(np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float))
+    ref = weakref.ref(nm)
+    del nm
+    gc.collect()
+    assert ref() is None
+
+
+def test_with_params_rebinds_the_c_calls(c_backend, monkeypatch):
+    nm = NumericModel(models.get("slider_crank"))
+    heavy = nm.with_params({"m3": 5.0})
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
+    ref = NumericModel(models.get("slider_crank"), params={"m3": 5.0})
+    q, u = np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float)
+    assert np.array_equal(heavy.forward(q, u).multipliers, ref.forward(q, u).multipliers)
+    assert not np.array_equal(nm.forward(q, u).multipliers, ref.forward(q, u).multipliers)
+    _ud, lam, _piv = heavy.forward_raw(q, u, 0.0)
+    assert np.array_equal(lam, ref.forward(q, u).multipliers)
+
+
+def test_bound_raw_call_takes_keywords_and_number_types(c_backend):
+    nm = NumericModel(models.get("slider_crank"))
+    q, u = np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float)
+    base = nm.forward_raw(q, u, 0.5)
+    out = np.empty(nm._nf)
+    assert nm._craw(q, u, 0.5, out=out) is out and np.array_equal(out[: nm.n], base[0])
+    for t in (np.float64(0.5), 0.5, np.float32(0.5)):
+        assert np.array_equal(nm.forward_raw(q, u, t)[1], base[1])
+    shifted = nm._craw(q, u, 0.5, db=np.full(nm.m, 0.1))  # Baumgarte: the Python path
+    assert not np.array_equal(shifted[0], base[0])
+    with pytest.raises(ModelInputError, match="db offsets"):
+        nm.forward_raw(q, u, 0.5, db=np.zeros(nm.m - 1))
+
+
+def test_four_lane_batch_equals_the_scalar_kernel_and_judges_each_lane(c_backend):
+    """Slider-crank with l1 = l2: theta1 = pi/2 on the branch theta2 = -theta1 is singular.
+    Ten states: two blocks of four on the vector body (one holding the singular state) and a
+    tail of two on the scalar kernel; per-state parameters take the scalar kernel throughout."""
+    equal = {"l1": 0.3, "l2": 0.3, "r2": 0.15, "I_G2": 2.0 * 0.09 / 12}
+    nm = NumericModel(models.get("slider_crank"), params=equal)
+    states = consistent_states(nm, 10)
+    Q = np.array([q for q, _ in states], float)
+    U = np.array([u for _, u in states], float)
+    UD, LAM, piv = nm.forward_batch(Q, U, 0.25)
+    for i in range(len(Q)):
+        one = nm.forward(Q[i], U[i], 0.25)
+        assert np.array_equal(UD[i], one.accelerations) and np.array_equal(LAM[i], one.multipliers)
+        assert piv[i] == one.pivot_ratio
+    Q[5], U[5] = [math.pi / 2, -math.pi / 2], [8.0, -8.0]
+    with pytest.raises(SingularSystemError, match="1 of 10 states are singular; first: index 5"):
+        nm.forward_batch(Q, U, 0.25)
+    kf = nm._k.get("forward_batch")
+    N = len(Q)
+    out1, out2 = np.empty((N, nm._nf)), np.empty((N, nm._nf))
+    st1, st2 = np.empty(N, np.int64), np.empty(N, np.int64)
+    T, DB = np.array([0.25]), nm._db0[None]
+    kf(Q, U, T, nm._pa[None], DB, out1, st1)  # shared parameters: blocks of four
+    kf(Q, U, T, np.tile(nm._pa, (N, 1)), DB, out2, st2)  # one row per state: scalar
+    assert st1.tolist() == st2.tolist() and st1[5] == compiled.SINGULAR
+    assert np.array_equal(out1, out2, equal_nan=True)
