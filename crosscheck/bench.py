@@ -35,15 +35,17 @@ BATCH = 10_000
 # what each reference path times (bench.json `forward_paths`, and each record's `call`)
 PATHS = {
     "single": "NumericModel.forward(q, u): the checked public call (sizes, finiteness, pivot "
-    "test; a bad state raises); returns a Forward record of fresh arrays",
+    "test; a bad state raises); returns a Forward record of fresh arrays (on the C backend one "
+    "C call builds it)",
     "single-raw": "NumericModel.forward_raw(q, u, t): the unchecked call the integrators use "
     "(sizes checked, no raise on a singular KKT matrix, NaN in -> NaN out); returns fresh "
     "(u', lambda) arrays and the pivot ratio",
     "single-raw-out": "NumericModel.forward_raw(q, u, t, out=buf): the same raw call writing "
     "u' | lambda | pivot ratio into the caller's preallocated float64 array (the counterpart of "
     "Pinocchio's timed call, which returns its preallocated data.ddq)",
-    "single-into": "NumericModel.forward_into(q, u, t, buf): the compiled kernel alone (numba's "
-    "dispatch and the out size check), output into a preallocated array, status returned",
+    "single-into": "NumericModel.forward_into(q, u, t, buf): the compiled kernel alone (its "
+    "argument checks: C's or numba's dispatch, and the out size check), output into a "
+    "preallocated array, status returned",
     "batched": "NumericModel.forward_batch(Q, U): 10^4 states in one call, per state",
 }
 
@@ -286,8 +288,10 @@ def cmd_bench(args) -> int:
     result = {"meta": meta(sys.argv[1:]), "forward": forward_records(names, args.quick, engines)}
     from reference import compiled
 
-    # per generated module: writing the numba source, importing it, and each kernel's first
-    # call (a compile, or a load from numba's on-disk cache: from_cache says which)
+    # per generated module: on the C backend printing the C source, building it (c_build_s,
+    # 0 when the cache held it) and importing it, and c_error where the printer or compiler
+    # refused it; on numba writing the source, importing it, and each kernel's first call (a
+    # compile, or a load from numba's on-disk cache: from_cache says which)
     result["forward_ratios"] = forward_ratios(result["forward"])
     result["forward_paths"] = dict(PATHS)
     from reference.codegen import cache_dir

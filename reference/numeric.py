@@ -366,8 +366,9 @@ class NumericModel(BatchedForward):
         if type(q) is not _ND or type(u) is not _ND:
             q, u, t = self._arrays(q, u, t)
         try:
-            # the kernel does not check its output's size: it would write past the end of a
-            # shorter one (its type, dimensions, layout and writability: numba's dispatch)
+            # numba's kernel does not check its output's size: it would write past the end of
+            # a shorter one (its type, dimensions, layout and writability: numba's dispatch;
+            # the C kernel checks all of these and raises TypeError)
             if buf is out and len(out) != nf:
                 raise self._bad_out(out)
             st = kf(q, u, t, pa, db, buf)
@@ -424,9 +425,9 @@ class NumericModel(BatchedForward):
         """The bare compiled forward: u', lambda and the pivot ratio written into `out`
         (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
         status returned (reference.compiled: 0 ok, 4 singular; sizes and finiteness are
-        checked in the kernel). q, u: float64 vectors (numba's dispatch checks the types;
-        anything else is a ModelInputError). The compiled backend only, and a model whose
-        solve is unrolled (not numeric_kkt)."""
+        checked in the kernel). q, u: float64 vectors (the kernel's argument checks, C's or
+        numba's dispatch, look at the types; anything else is a ModelInputError). The
+        compiled backend only, and a model whose solve is unrolled (not numeric_kkt)."""
         if self._kf is None:
             raise ModelInputError(
                 f"{self.model.name}: forward_into needs the compiled unrolled forward; this model "
