@@ -45,4 +45,14 @@ LANEWISE2(v_atan2, atan2)
 LANEWISE2(v_pow, pow)
 LANEWISE2(v_nmin, nmin)
 
+INLINE void v_sincos(vd x, vd *s, vd *c)
+{
+    for (int j = 0; j < LANES; ++j) {
+        double sj, cj;
+        __builtin_sincos(x[j], &sj, &cj);
+        (*s)[j] = sj;
+        (*c)[j] = cj;
+    }
+}
+
 #endif

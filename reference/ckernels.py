@@ -132,6 +132,34 @@ class _LanePrinter(_Printer):
         return self.expr(e), False  # constants, parameters, Schur references, b offsets
 
 
+def _sincos_pairs(fn: ast.FunctionDef) -> dict[str, tuple[str, str]]:
+    """Names assigned exactly sin(x) and cos(x) of the same state-dependent x, each assigned
+    once: name -> (sin name, cos name). gcc fuses such a pair into one sincos call in the
+    scalar kernel, not across the vector body's per-lane loops, so the printer pairs them
+    (glibc's sincos returns sin's and cos's values)."""
+    seen: dict[str, dict[str, str]] = {}
+    count: dict[str, int] = {}
+    for st in fn.body:
+        if isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Name):
+            name = st.targets[0].id
+            count[name] = count.get(name, 0) + 1
+            v = st.value
+            if (
+                isinstance(v, ast.Call)
+                and isinstance(v.func, ast.Name)
+                and v.func.id in ("sin", "cos")
+                and len(v.args) == 1
+                and isinstance(v.args[0], ast.Name)
+            ):
+                seen.setdefault(v.args[0].id, {}).setdefault(v.func.id, name)
+    pairs = {}
+    for both in seen.values():
+        if len(both) == 2 and count[both["sin"]] == count[both["cos"]] == 1:
+            pair = (both["sin"], both["cos"])
+            pairs[pair[0]] = pairs[pair[1]] = pair
+    return pairs
+
+
 def _splat(code: str, vector: bool) -> str:
     return code if vector else f"splat({code})"
 
@@ -153,6 +181,7 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
     lines += [f"    const vd _u{i} = uv[{i}];" for i in range(n)]
     lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
     declared: dict[str, bool] = {}
+    pairs = _sincos_pairs(fn)
     ret = None
     for st in fn.body:
         if isinstance(st, ast.Return):
@@ -161,6 +190,18 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
             continue
         elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Name):
             name = st.targets[0].id
+            pair = pairs.get(name)
+            if pair is not None:  # sin and cos of one angle: one sincos per lane
+                if pair[0] not in declared:  # at the first of the two
+                    arg, vec = pr.lane(st.value.args[0])  # type: ignore[attr-defined]
+                    # (either assignment's argument: _sincos_pairs matched them by name)
+                    if not vec:
+                        raise UnsupportedExpression("sincos of a parameter")
+                    lines.append(f"    vd {pair[0]}, {pair[1]};")
+                    lines.append(f"    v_sincos({arg}, &{pair[0]}, &{pair[1]});")
+                    declared.update({pair[0]: True, pair[1]: True})
+                    lanes.update(pair)
+                continue
             code, vec = pr.lane(st.value)
             if name in declared:
                 if declared[name] != vec:  # a name changing kind: keep the scalar batch loop

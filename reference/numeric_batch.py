@@ -48,12 +48,16 @@ class BatchedForward:
                 f"{self.model.name}: batched states must be (N, {self.nq}) and (N, {self.n}), "
                 f"got {Q.shape} and {U.shape}"
             )
-        if not (np.isfinite(Q).all() and np.isfinite(U).all()):
-            raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
         N = Q.shape[0]
+        compiled_path = self._k is not None and not self._numeric
+        # the C batch tests each state's finiteness itself (status NOT_FINITE); numba's
+        # inlined batch loop and the Python path do not
+        kernel_checks = compiled_path and hasattr(self._k, "bind")
+        if not kernel_checks and not (np.isfinite(Q).all() and np.isfinite(U).all()):
+            raise self._not_finite_batch()
         if self._numeric:  # one rank-revealing numeric solve per state (reference.redundant)
             UD, LAM, piv = self._forward_batch_redundant(Q, U, t)
-        elif self._k is not None:
+        elif compiled_path:
             UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
         else:
             UD, LAM, piv = self._forward_batch_python(Q, U, t)
@@ -67,6 +71,9 @@ class BatchedForward:
                 + self._singular_message(Q[i], float(piv[i]))
             )
         return UD, LAM, piv
+
+    def _not_finite_batch(self) -> ModelInputError:
+        return ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
 
     def _forward_batch_redundant(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
         rows = [self._forward_redundant(Q[i].tolist(), U[i].tolist(), t) for i in range(len(Q))]
@@ -112,6 +119,8 @@ class BatchedForward:
         )
         bad = (st != compiled.OK) & (st != compiled.SINGULAR)
         if bad.any():
+            if (st == compiled.NOT_FINITE).any() or not np.isfinite(T).all():
+                raise self._not_finite_batch()
             i = int(np.argmax(bad))
             self._fail(int(st[i]), Q[i], U[i])
         n, nm = self.n, self.n + self.m

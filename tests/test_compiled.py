@@ -103,6 +103,12 @@ def test_singular_and_bad_states_raise_the_same_errors(monkeypatch, backend):
         with pytest.raises(SingularSystemError, match="1 of 2 states are singular"):
             nm.forward_batch(np.array([[0.5, -0.5], q]), np.array([[1.0, -1.0], u]))
         assert not nm.forward_raw(q, u, 0.0)[2] > 1e-12  # raw: the caller tests the ratio
+        Q, U = np.array([[0.5, -0.5], q, [0.4, -0.4]]), np.array([[1.0, -1.0], u, [0.0, 0.0]])
+        for bad in (Q, U):  # a NaN anywhere outranks the singular state before it
+            bad[2, 1] = math.nan
+            with pytest.raises(ModelInputError, match="batched states contain NaN or infinity"):
+                nm.forward_batch(Q, U)
+            bad[2, 1] = 0.0
     for bad, match in (
         ([[0.1], [0.0, 0.0]], "expected 2 coordinates"),
         ([[0.1, 0.2], [0.0]], "expected 2 speeds"),
