@@ -251,6 +251,24 @@ def _target_engine(exact: bool) -> str | None:
     return None
 
 
+# Where the reference's single-state forward call spends its time, per backend (the record's
+# explanation; measured in docs/compiled.md)
+FORWARD_COST = {
+    "c": "the generated KKT solve compiled to C: one METH_FASTCALL-style call per state "
+    "(argument checks in C, about 0.1-0.2 us) plus the straight-line arithmetic; the checked "
+    "call adds the output arrays and the Forward record, built in the same C call "
+    "(docs/compiled.md)",
+    "numba": "the generated KKT solve compiled by numba: its cost is about 0.6 us of crossing "
+    "from Python into the kernel (numba's dispatch ~0.25 us, the compiled entry's unboxing of "
+    "the arrays ~0.4 us) plus the straight-line arithmetic; the checked call adds a fresh "
+    "output array, two views and the Forward record (docs/compiled.md)",
+    "python": "the generated forward is straight-line Python on floats: its cost is the "
+    "interpreter's ~20-40 ns per arithmetic operation times the operation count of the "
+    "generated KKT solve; the checked call adds state validation and numpy conversion of the "
+    "outputs",
+}
+
+
 def forward_pair(name: str, engine: str | None = None, rounds: int = 3) -> dict:
     """Reference forward (checked and raw) and Pinocchio's engine call timed back to back, in
     interleaved rounds (medians), at the model's initial state: a ratio from the same moment of
@@ -312,23 +330,7 @@ def forward_pair(name: str, engine: str | None = None, rounds: int = 3) -> dict:
             "ns_per_operation": out["reference_raw_us"] * 1e3 / max(ops, 1),
             "validation_overhead_us": out["reference_us"] - out["reference_raw_us"],
             "backend": nm.backend,
-            "explanation": (
-                "the generated KKT solve compiled to C: one METH_FASTCALL-style call per "
-                "state (argument checks in C, about 0.1-0.2 us) plus the straight-line "
-                "arithmetic; the checked call adds the output arrays and the Forward record, "
-                "built in the same C call (docs/compiled.md)"
-                if nm.backend == "c"
-                else "the generated KKT solve compiled by numba: its cost is about 0.6 us of "
-                "crossing from Python into the kernel (numba's dispatch ~0.25 us, the compiled "
-                "entry's unboxing of the arrays ~0.4 us) plus the straight-line arithmetic; "
-                "the checked call adds a fresh output array, two views and the Forward record "
-                "(docs/compiled.md)"
-                if nm.backend == "numba"
-                else "the generated forward is straight-line Python on floats: its cost is "
-                "the interpreter's ~20-40 ns per arithmetic operation times the operation "
-                "count of the generated KKT solve; the checked call adds state validation "
-                "and numpy conversion of the outputs"
-            )
+            "explanation": FORWARD_COST[nm.backend]
             + ". Pinocchio's call is C++ whose cost grows with the tree, not with the "
             "expression size.",
         }

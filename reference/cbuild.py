@@ -14,7 +14,6 @@ numba (or the Python path); bench.json's `compiled` says which backend ran and w
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import shlex
 import shutil
@@ -26,7 +25,7 @@ from functools import cache
 from pathlib import Path
 
 from .ckernels import LANES, MODULE_NAME, RUNTIME, c_source
-from .compiled import TIMINGS, Kernels
+from .compiled import TIMINGS, Kernels, import_file
 
 # -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
 # -fno-math-errno: sqrt compiles to the instruction (the result is the same; only errno,
@@ -133,18 +132,6 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
     return target, modname, time.perf_counter() - t0
 
 
-def _import(path: Path, modname: str):
-    mod = sys.modules.get(modname)
-    if mod is None:
-        spec = importlib.util.spec_from_file_location(modname, path)
-        if spec is None or spec.loader is None:
-            raise BuildError(f"cannot load the C kernel module {path}")
-        mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
-        sys.modules[modname] = mod
-    return mod
-
-
 class CKernels(Kernels):
     """The C module's kernels behind reference.compiled.Kernels' interface. The prange name
     (`<F>_batch_parallel`) is the same OpenMP loop: its threads are set per call."""
@@ -176,7 +163,10 @@ def load_kernels(
         t1 = time.perf_counter()
         path, modname, build_s = build(text, stem, directory)
         t2 = time.perf_counter()
-        mod = _import(path, modname)
+        try:
+            mod = import_file(path, modname)
+        except ImportError as exc:  # a damaged or foreign file under the digest's name
+            raise BuildError(f"{stem}: cannot load {path} ({exc})") from None
         TIMINGS.setdefault(stem, {}).update(
             {
                 "backend": "c",

@@ -24,7 +24,7 @@ import ast
 import math
 from pathlib import Path
 
-from .compiled import NOT_DEFINED, OK, SINGULAR
+from .compiled import NOT_DEFINED, OK, SINGULAR, output_groups
 
 RUNTIME = Path(__file__).with_name("ckernel_runtime.h")
 LANES = Path(__file__).with_name("ckernel_lanes.h")
@@ -170,16 +170,13 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
     nq, n, npar = dims
     lanes = {f"_q{i}" for i in range(nq)} | {f"_u{i}" for i in range(n)} | {"_t"}
     pr = _LanePrinter(npar, lanes)
-    lines = [
+    lines = _prologue(
         "static inline __attribute__((always_inline)) void forward_body4("
-        "const vd *restrict qv, const vd *restrict uv, vd _t, const double *restrict pa, "
+        "const vd *restrict qa, const vd *restrict ua, vd _t, const double *restrict pa, "
         "const double *restrict db, vd *restrict out)",
-        "{",
-        "    (void)qv; (void)uv; (void)_t; (void)pa; (void)db;",
-    ]
-    lines += [f"    const vd _q{i} = qv[{i}];" for i in range(nq)]
-    lines += [f"    const vd _u{i} = uv[{i}];" for i in range(n)]
-    lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
+        "vd",
+        dims,
+    )
     declared: dict[str, bool] = {}
     pairs = _sincos_pairs(fn)
     ret = None
@@ -214,7 +211,7 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
                 lanes.add(name)
         else:
             raise UnsupportedExpression(f"statement {type(st).__name__} in {fn.name}")
-    groups, piv = _groups(ret) if ret is not None else ([], None)
+    groups, piv = output_groups(ret) if ret is not None else ([], None)
     k = 0
     for g in groups:
         for e in g:
@@ -225,28 +222,27 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
     return lines
 
 
-def _groups(ret: ast.Return) -> tuple[list[list[ast.expr]], ast.expr | None]:
-    """The returned list groups of a generated function, and forward's pivot expression."""
-    elts = ret.value.elts if isinstance(ret.value, ast.Tuple) else [ret.value]
-    groups = [e.elts for e in elts if isinstance(e, ast.List)]
-    rest = [e for e in elts if not isinstance(e, ast.List)]
-    return groups, (rest[0] if rest else None)
+def _prologue(signature: str, state_type: str, dims: tuple[int, int, int]) -> list[str]:
+    """A body's signature and its loads: q and u by index (of type `state_type`: one state's
+    doubles or one vector lane per state), the parameters as doubles."""
+    nq, n, npar = dims
+    lines = [signature, "{", "    (void)qa; (void)ua; (void)_t; (void)pa; (void)db;"]
+    lines += [f"    const {state_type} _q{i} = qa[{i}];" for i in range(nq)]
+    lines += [f"    const {state_type} _u{i} = ua[{i}];" for i in range(n)]
+    lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
+    return lines
 
 
 def _body(fn: ast.FunctionDef, dims: tuple[int, int, int], pmin: float) -> tuple[list, list]:
     """Lines of `static int <name>_body(...)` and the function's output group sizes."""
-    nq, n, npar = dims
-    pr = _Printer(npar)
-    lines = [
+    pr = _Printer(dims[2])
+    lines = _prologue(
         f"static int {fn.name}_body(const double *restrict qa, const double *restrict ua, "
         "double _t, const double *restrict pa, const double *restrict db, "
         "double *restrict out)",
-        "{",
-        "    (void)qa; (void)ua; (void)_t; (void)pa; (void)db;",
-    ]
-    lines += [f"    const double _q{i} = qa[{i}];" for i in range(nq)]
-    lines += [f"    const double _u{i} = ua[{i}];" for i in range(n)]
-    lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
+        "double",
+        dims,
+    )
     declared: set[str] = set()
     ret = None
     for st in fn.body:
@@ -267,7 +263,7 @@ def _body(fn: ast.FunctionDef, dims: tuple[int, int, int], pmin: float) -> tuple
             raise UnsupportedExpression(f"statement {type(st).__name__} in {fn.name}")
     if ret is None:
         raise UnsupportedExpression(f"generated function {fn.name} has no return statement")
-    groups, piv = _groups(ret)
+    groups, piv = output_groups(ret)
     k = 0
     for g in groups:
         for e in g:

@@ -100,7 +100,7 @@ def threads() -> int:
 
 
 # ---- source transformation -----------------------------------------------------------------
-def _groups(ret: ast.Return) -> tuple[list[list[ast.expr]], ast.expr | None]:
+def output_groups(ret: ast.Return) -> tuple[list[list[ast.expr]], ast.expr | None]:
     """The returned list groups of a generated function, and forward's pivot expression."""
     elts = ret.value.elts if isinstance(ret.value, ast.Tuple) else [ret.value]
     groups = [e.elts for e in elts if isinstance(e, ast.List)]
@@ -154,7 +154,7 @@ def _kernel(
             lines.append("    " + ast.unparse(st))
     if ret is None:
         raise ValueError(f"generated function {fn.name} has no return statement")
-    groups, piv = _groups(ret)
+    groups, piv = output_groups(ret)
     k = 0
     for g in groups:
         for e in g:
@@ -490,8 +490,9 @@ def worker_times(stem: str, directory: Path) -> dict | None:
     return json.loads(f.read_text()) if f.exists() else None
 
 
-def _import(path: Path, text: str):
-    modname = f"_crosscheck_numba_{path.stem.replace('-', '_')}_{_digest(text)[:12]}"
+def import_file(path: Path, modname: str):
+    """The module in file `path` (Python source or a built extension) under `modname`, once
+    per process."""
     mod = sys.modules.get(modname)
     if mod is None:
         spec = importlib.util.spec_from_file_location(modname, path)
@@ -499,8 +500,17 @@ def _import(path: Path, text: str):
             raise ImportError(f"cannot load the kernel module {path}")
         mod = importlib.util.module_from_spec(spec)
         sys.modules[modname] = mod
-        spec.loader.exec_module(mod)
+        try:
+            spec.loader.exec_module(mod)
+        except BaseException:
+            del sys.modules[modname]
+            raise
     return mod
+
+
+def _import(path: Path, text: str):
+    stem = path.stem.replace("-", "_")
+    return import_file(path, f"_crosscheck_numba_{stem}_{_digest(text)[:12]}")
 
 
 def _load(text, sizes, path, written, stem, dims) -> Kernels:
