@@ -301,8 +301,7 @@ class _Run:
         prob = self.prob
         if not prob.mc:
             return
-        q = prob.full(t, y)[0]
-        A = prob.pjac(q, prob.zeros_u, t, prob.p)[0]
+        A = prob.constraint_jacobian(t, y)
         if self.nm.redundant:  # dependent rows: det(A A^T) is 0 with a round-off sign
             A = self._independent_rows(A)
         last = self.A_last

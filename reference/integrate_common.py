@@ -13,11 +13,13 @@ import numpy as np
 import scipy.integrate as si
 
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
+from .integrate_rk import LeanDOP853
 from .numeric import MANIFOLD_TOL, NumericModel
 
 METHODS = ("index1", "baumgarte", "projection", "nullspace")
 INTEGRATORS = {
-    "DOP853": si.DOP853,
+    # scipy's DOP853 with a leaner step (integrate_rk: same tableau, control and steps)
+    "DOP853": LeanDOP853,
     "RK45": si.RK45,
     "RK23": si.RK23,
     "Radau": si.Radau,
@@ -167,6 +169,11 @@ def _min_norm_correction(
 
         Jm = np.array(J, float).reshape(rows, cols)
         return (np.linalg.lstsq(Jm, -np.asarray(r, float), rcond=RANK_RTOL)[0]).tolist()
+    if rows == 1 and isinstance(J, np.ndarray):  # a kernel's output: no Python loop
+        jj = float(J.dot(J))
+        if jj == 0.0:
+            raise np.linalg.LinAlgError("zero constraint row")
+        return (-float(r[0]) / jj) * J
     if rows == 1:
         jj = sum(v * v for v in J)
         if jj == 0.0:
@@ -242,7 +249,8 @@ class _Problem:
         self.pjac = nm.raw_function("position_jacobian")
         self.mat = nm.raw_function("matrices")
         self.en = nm.raw_function("energy")
-        self.zeros_u = [0.0] * self.n
+        # u = 0 for the position-only calls (f(q, t), df/dq): in the kernels' own input type
+        self.zeros_u = np.zeros(self.n) if self.arrays else [0.0] * self.n
         self.stats = {
             "projections": 0,
             "projection_iterations": 0,
@@ -288,7 +296,7 @@ class _Problem:
     def power(self, q, u, t, lam) -> float:
         """Power of the applied loads plus that of rheonomic constraints (-lambda . a0)."""
         P = self.en(q, u, t, self.p)[0][2]
-        if self.rheonomic and lam:
+        if self.rheonomic and len(lam):
             a0 = self.res(q, self.zeros_u, t, self.p)[1]
             P -= sum(l * a for l, a in zip(lam, a0, strict=False))
         return P
@@ -319,6 +327,10 @@ class _Problem:
 
     def initial(self, q, u, t0):
         return self.y0(q, u)
+
+    def constraint_jacobian(self, t, y):
+        """The position Jacobian df/dq at the state y (flat, row-major)."""
+        return self.pjac(self.full(t, y)[0], self.zeros_u, t, self.p)[0]
 
     def dense_state(self, t, y):
         """A state interpolated by the solver's dense output, as it is recorded."""

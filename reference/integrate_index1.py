@@ -21,6 +21,11 @@ class _Index1(_Problem):
         PMIN = PIVOT_RATIO_MIN
         pmin = self.pmin
         size = nq + n + (1 if work else 0)
+        nl = n + self.m
+        # u' | lambda | ratio written into one buffer the RHS reuses (forward_raw's `out`):
+        # no fresh vectors per call; fun's own result stays fresh (the solver keeps it)
+        buf = np.empty(nl + 1)
+        ud, lam = buf[:n], buf[n:nl]
 
         def fun(t, y):
             if arrays:  # views of y straight into the compiled kernel
@@ -29,9 +34,10 @@ class _Index1(_Problem):
                 yl = y.tolist()
                 q, u = yl[:nq], yl[nq : nq + n]
             try:
-                ud, lam, piv = fr(q, u, t, offset(q, u, t) if offset else None)
+                fr(q, u, t, offset(q, u, t) if offset else None, buf)
             except (ZeroDivisionError, ValueError) as exc:
                 self.forward_failed(t, q, exc)
+            piv = buf.item(nl)
             if not piv > PMIN:
                 singular(t, q, piv)
             if piv < pmin[0]:

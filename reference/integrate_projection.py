@@ -22,6 +22,7 @@ class _Projection(_Index1):
     def __init__(self, nm, energy, refresh=True):
         super().__init__(nm, energy)
         self.refresh = refresh
+        self.jac = (None, None)  # (the last projected state, the position Jacobian there)
         if not self.rates and self.mc:
             raise ModelInputError(
                 f"{nm.model.name}: position projection needs speeds equal to the coordinate "
@@ -47,20 +48,19 @@ class _Projection(_Index1):
     def settings(self):
         return {"metric": "euclidean", "refresh": self.refresh}
 
-    def project_q(self, q, t):
-        """Gauss-Newton with minimum-norm steps on f(q, t) = 0 (in place on the list q)."""
+    def project_q(self, q, u, t):
+        """Gauss-Newton with minimum-norm steps on f(q, t) = 0: (q, the velocity residual
+        A u + a0 at the final q). The residuals function returns both groups, so the check
+        that ends the iteration also gives project_u its residual (f does not depend on u)."""
         mc, nq, p, res, pjac = self.mc, self.nq, self.p, self.res, self.pjac
-        if not mc:
+        arrays, zu = self.arrays, self.zeros_u
+        if not self.m:  # no rows: nothing to project, no residual to evaluate
             return q, None
-        zu = self.zeros_u
-        tol = PROJECTION_TOL * (1.0 + max(abs(v) for v in q))
-        J = None
+        tol = PROJECTION_TOL * (1.0 + _max_abs(q, arrays))
         for it in range(PROJECTION_MAX_ITER + 1):
-            pos = res(q, zu, t, p)[0]
-            err = max(abs(v) for v in pos)
-            if err <= tol:
-                break
-            if it == PROJECTION_MAX_ITER:
+            pos, vel = res(q, u, t, p)
+            err = _max_abs(pos, arrays) if mc else 0.0
+            if err <= tol or it == PROJECTION_MAX_ITER:
                 break
             J = pjac(q, zu, t, p)[0]
             try:
@@ -70,7 +70,7 @@ class _Projection(_Index1):
                     f"{self.nm.model.name}: projection at t = {t:.6g}: the constraint "
                     f"Jacobian is rank deficient at q = {np.round(q, 6).tolist()}"
                 ) from None
-            q = [a + b for a, b in zip(q, dq, strict=False)]
+            q = q + dq if arrays else [a + b for a, b in zip(q, dq, strict=False)]
             self.stats["projection_iterations"] += 1
         if err > PROJECTION_FAIL:
             raise IntegrationError(
@@ -78,24 +78,42 @@ class _Projection(_Index1):
                 f"(|f| = {err:.2e} after {PROJECTION_MAX_ITER} Gauss-Newton steps): the step "
                 f"left the manifold too far; tighten rtol/atol"
             )
-        return q, J
+        return q, vel
 
-    def project_u(self, q, u, t):
+    def project_u(self, q, u, t, vel):
+        """u - A^T (A A^T)^-1 (A u + a0), and A where it is the position Jacobian (None else)."""
         if not self.m:
-            return u
-        vel = self.res(q, u, t, self.p)[1]
+            return u, None
+        A = None
         if self.mc == self.m and self.rates:
             A = self.pjac(q, self.zeros_u, t, self.p)[0]  # A = df/dq when u = q'
+            du = _min_norm_correction(A, self.m, self.n, vel, self.nm.redundant)
         else:
-            A = self.mat(q, u, t, self.p)[2]
-        du = _min_norm_correction(A, self.m, self.n, vel, self.nm.redundant)
-        return [a + b for a, b in zip(u, du, strict=False)]
+            Au = self.mat(q, u, t, self.p)[2]
+            du = _min_norm_correction(Au, self.m, self.n, vel, self.nm.redundant)
+        return (u + du if self.arrays else [a + b for a, b in zip(u, du, strict=False)]), A
 
     def project(self, t, y):
-        q, u, W = self.full(t, y)
-        q, _ = self.project_q(q, t)
-        u = self.project_u(q, u, t)
-        return np.array(q + u + ([W] if self.work else []), float)
+        """The projected state (a fresh vector); self.jac = (it, A at its q) where known."""
+        nq, n = self.nq, self.n
+        if self.arrays:  # the kernels take the vectors as they are: no lists in between
+            q, u = y[:nq], y[nq : nq + n]
+        else:
+            yl = y.tolist()
+            q, u = yl[:nq], yl[nq : nq + n]
+        q, vel = self.project_q(q, u, t)
+        u, A = self.project_u(q, u, t, vel)
+        out = np.empty(len(y))
+        out[:nq], out[nq : nq + n] = q, u
+        if self.work:
+            out[nq + n] = y[nq + n]
+        self.jac = (out, A)
+        return out
+
+    def constraint_jacobian(self, t, y):
+        # project_u's A at this very state: the rank monitor need not evaluate it again
+        hit, A = self.jac
+        return A if hit is y and A is not None else super().constraint_jacobian(t, y)
 
     def after_step(self, solver):
         solver.y = self.project(solver.t, solver.y)
@@ -103,3 +121,8 @@ class _Projection(_Index1):
         if self.refresh:
             solver.f = solver.fun(solver.t, solver.y)
         return False
+
+
+def _max_abs(v, arrays: bool) -> float:
+    """max |v_i| of a short kernel output (a list on the Python backend)."""
+    return max(map(abs, v.tolist() if arrays else v), default=0.0)
