@@ -169,11 +169,6 @@ def _min_norm_correction(
 
         Jm = np.array(J, float).reshape(rows, cols)
         return (np.linalg.lstsq(Jm, -np.asarray(r, float), rcond=RANK_RTOL)[0]).tolist()
-    if rows == 1 and isinstance(J, np.ndarray):  # a kernel's output: no Python loop
-        jj = float(J.dot(J))
-        if jj == 0.0:
-            raise np.linalg.LinAlgError("zero constraint row")
-        return (-float(r[0]) / jj) * J
     if rows == 1:
         jj = sum(v * v for v in J)
         if jj == 0.0:

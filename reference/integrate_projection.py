@@ -23,6 +23,7 @@ class _Projection(_Index1):
         super().__init__(nm, energy)
         self.refresh = refresh
         self.jac = (None, None)  # (the last projected state, the position Jacobian there)
+        self.vec = np.array if self.arrays else list  # a kernel input from a list of floats
         if not self.rates and self.mc:
             raise ModelInputError(
                 f"{nm.model.name}: position projection needs speeds equal to the coordinate "
@@ -49,28 +50,29 @@ class _Projection(_Index1):
         return {"metric": "euclidean", "refresh": self.refresh}
 
     def project_q(self, q, u, t):
-        """Gauss-Newton with minimum-norm steps on f(q, t) = 0: (q, the velocity residual
-        A u + a0 at the final q). The residuals function returns both groups, so the check
-        that ends the iteration also gives project_u its residual (f does not depend on u)."""
-        mc, nq, p, res, pjac = self.mc, self.nq, self.p, self.res, self.pjac
-        arrays, zu = self.arrays, self.zeros_u
-        if not self.m:  # no rows: nothing to project, no residual to evaluate
-            return q, None
-        tol = PROJECTION_TOL * (1.0 + _max_abs(q, arrays))
+        """Gauss-Newton with minimum-norm steps on f(q, t) = 0: (q, its kernel input, the
+        velocity residual A u + a0 at the final q). The residuals function returns both groups,
+        so the check that ends the iteration also gives project_u its residual (f does not
+        depend on u). Arithmetic on lists of floats (a few entries: numpy's per-call cost is
+        larger than the work), the kernels called with their own input type (`vec`)."""
+        mc, nq, p, res, pjac, vec = self.mc, self.nq, self.p, self.res, self.pjac, self.vec
+        zu, qk, uk = self.zeros_u, vec(q), vec(u)
+        tol = PROJECTION_TOL * (1.0 + max(map(abs, q), default=0.0))
         for it in range(PROJECTION_MAX_ITER + 1):
-            pos, vel = res(q, u, t, p)
-            err = _max_abs(pos, arrays) if mc else 0.0
+            pos, vel = res(qk, uk, t, p)
+            err = max(map(abs, _floats(pos)), default=0.0)
             if err <= tol or it == PROJECTION_MAX_ITER:
                 break
-            J = pjac(q, zu, t, p)[0]
+            J = _floats(pjac(qk, zu, t, p)[0])
             try:
-                dq = _min_norm_correction(J, mc, nq, pos, self.nm.redundant)
+                dq = _min_norm_correction(J, mc, nq, _floats(pos), self.nm.redundant)
             except np.linalg.LinAlgError:
                 raise SingularSystemError(
                     f"{self.nm.model.name}: projection at t = {t:.6g}: the constraint "
                     f"Jacobian is rank deficient at q = {np.round(q, 6).tolist()}"
                 ) from None
-            q = q + dq if arrays else [a + b for a, b in zip(q, dq, strict=False)]
+            q = [a + b for a, b in zip(q, dq, strict=False)]
+            qk = vec(q)
             self.stats["projection_iterations"] += 1
         if err > PROJECTION_FAIL:
             raise IntegrationError(
@@ -78,35 +80,28 @@ class _Projection(_Index1):
                 f"(|f| = {err:.2e} after {PROJECTION_MAX_ITER} Gauss-Newton steps): the step "
                 f"left the manifold too far; tighten rtol/atol"
             )
-        return q, vel
+        return q, qk, _floats(vel)
 
-    def project_u(self, q, u, t, vel):
+    def project_u(self, qk, u, t, vel):
         """u - A^T (A A^T)^-1 (A u + a0), and A where it is the position Jacobian (None else)."""
-        if not self.m:
-            return u, None
         A = None
         if self.mc == self.m and self.rates:
-            A = self.pjac(q, self.zeros_u, t, self.p)[0]  # A = df/dq when u = q'
-            du = _min_norm_correction(A, self.m, self.n, vel, self.nm.redundant)
+            A = self.pjac(qk, self.zeros_u, t, self.p)[0]  # A = df/dq when u = q'
+            Al = A
         else:
-            Au = self.mat(q, u, t, self.p)[2]
-            du = _min_norm_correction(Au, self.m, self.n, vel, self.nm.redundant)
-        return (u + du if self.arrays else [a + b for a, b in zip(u, du, strict=False)]), A
+            Al = self.mat(qk, self.vec(u), t, self.p)[2]
+        du = _min_norm_correction(_floats(Al), self.m, self.n, vel, self.nm.redundant)
+        return [a + b for a, b in zip(u, du, strict=False)], A
 
     def project(self, t, y):
         """The projected state (a fresh vector); self.jac = (it, A at its q) where known."""
+        if not self.m:  # no rows: nothing to project
+            return y.copy()
         nq, n = self.nq, self.n
-        if self.arrays:  # the kernels take the vectors as they are: no lists in between
-            q, u = y[:nq], y[nq : nq + n]
-        else:
-            yl = y.tolist()
-            q, u = yl[:nq], yl[nq : nq + n]
-        q, vel = self.project_q(q, u, t)
-        u, A = self.project_u(q, u, t, vel)
-        out = np.empty(len(y))
-        out[:nq], out[nq : nq + n] = q, u
-        if self.work:
-            out[nq + n] = y[nq + n]
+        yl = y.tolist()
+        q, qk, vel = self.project_q(yl[:nq], yl[nq : nq + n], t)
+        u, A = self.project_u(qk, yl[nq : nq + n], t, vel)
+        out = np.array(q + u + yl[nq + n :], float)
         self.jac = (out, A)
         return out
 
@@ -123,6 +118,6 @@ class _Projection(_Index1):
         return False
 
 
-def _max_abs(v, arrays: bool) -> float:
-    """max |v_i| of a short kernel output (a list on the Python backend)."""
-    return max(map(abs, v.tolist() if arrays else v), default=0.0)
+def _floats(v):
+    """A kernel output as a list of floats (it is one already on the Python backend)."""
+    return v.tolist() if type(v) is np.ndarray else v
