@@ -306,8 +306,8 @@ class _Run:
             A = self._independent_rows(A)
         last = self.A_last
         if last is not None:
-            if len(A) == prob.nq:  # one row: the determinant is the dot product (no numpy)
-                d = sum(a * b for a, b in zip(A, last, strict=True))
+            if len(A) == prob.nq:  # one row: the determinant is the dot product
+                d = float(np.dot(A, last))
             else:
                 Ak = np.asarray(A, float).reshape(-1, prob.nq)
                 d = np.linalg.det(Ak @ np.asarray(last, float).reshape(-1, prob.nq).T)

@@ -157,6 +157,12 @@ class Trajectory:
         }
 
 
+def _floats(v):
+    """A kernel output as a list of floats (it is one already on the Python backend): the
+    integrators' arithmetic on a few entries is cheaper on floats than numpy's per-call cost."""
+    return v.tolist() if type(v) is np.ndarray else v
+
+
 # ---- small dense linear algebra ------------------------------------------------------------
 def _min_norm_correction(
     J: list[float], rows: int, cols: int, r: list[float], redundant: bool = False
@@ -325,7 +331,8 @@ class _Problem:
 
     def constraint_jacobian(self, t, y):
         """The position Jacobian df/dq at the state y (flat, row-major)."""
-        return self.pjac(self.full(t, y)[0], self.zeros_u, t, self.p)[0]
+        q = self.full(t, y)[0]
+        return self.pjac(np.array(q) if self.arrays else q, self.zeros_u, t, self.p)[0]
 
     def dense_state(self, t, y):
         """A state interpolated by the solver's dense output, as it is recorded."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ModelInputError
-from .integrate_common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _Problem
+from .integrate_common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _floats, _Problem
 from .numeric import PIVOT_RATIO_MIN
 
 
@@ -62,7 +62,7 @@ class _Baumgarte(_Index1):
         def offset(q, u, t):
             # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only
             pos, vel = self.res(q, u, t, self.p)
-            mc = self.mc
+            pos, vel, mc = _floats(pos), _floats(vel), self.mc
             return [-two_a * v - (b2 * pos[j] if j < mc else 0.0) for j, v in enumerate(vel)]
 
         super().__init__(nm, energy, offset)

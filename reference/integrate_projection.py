@@ -11,6 +11,7 @@ from .integrate_common import (
     PROJECTION_MAX_ITER,
     PROJECTION_TOL,
     IntegrationError,
+    _floats,
     _min_norm_correction,
 )
 from .integrate_index1 import _Index1
@@ -116,8 +117,3 @@ class _Projection(_Index1):
         if self.refresh:
             solver.f = solver.fun(solver.t, solver.y)
         return False
-
-
-def _floats(v):
-    """A kernel output as a list of floats (it is one already on the Python backend)."""
-    return v.tolist() if type(v) is np.ndarray else v

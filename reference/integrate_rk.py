@@ -6,8 +6,8 @@ after a rejection), its initial step and its dense output, so a run takes the sa
 scipy's DOP853 up to the round-off of the stage sums. What it drops is the Python around them:
 scipy's rk_step calls the right side through two wrappers (nfev counting, np.asarray) and forms
 each stage as np.dot(K[:s].T, a[:s]) * h (slice, transpose, slice, product, scaling); here each
-stage is one row-vector product a_s . K[:s] on a view made once, and the right side is called
-directly. Measured (docs/compiled.md "Work-precision"): scipy's stepping cost ~10 us per
+stage is one row-vector product (h a_s) . K[:s] on views made once, and the right side is
+called directly. Measured (docs/compiled.md "Work-precision"): scipy's stepping cost ~10 us per
 right-side call on the slider-crank, as much as the right side itself.
 """
 
@@ -27,10 +27,13 @@ class LeanDOP853(si.DOP853):
         super().__init__(fun, t0, y0, t_bound, **options)
         self._rhs = fun  # the caller's right side: float64 vectors of len(y) out
         ns = self.n_stages
-        # per stage: its row of A, its c, and the view K[:s] it combines (K is fixed storage;
-        # ndarray.dot on a ready view costs half of `a @ K[:s]` on arrays this small)
+        # per stage: its c, its row of h A (a view into _hA, which each step fills with h times
+        # the tableau in one product) and the view K[:s] it combines: ndarray.dot on ready
+        # views, no slicing and no scaling per stage (numpy's per-call cost dominates here)
         K = self.K
-        self._stages = [(self.A[s, :s].copy(), float(self.C[s]), K[:s]) for s in range(1, ns)]
+        self._A = np.ascontiguousarray(self.A[1:ns, : ns - 1])
+        self._hA = np.empty_like(self._A)
+        self._stages = [(float(self.C[s]), self._hA[s - 1, :s], K[:s]) for s in range(1, ns)]
         self._b, self._Kb = np.ascontiguousarray(self.B), K[:-1]
         self._e53 = np.vstack([self.E5, self.E3])  # both error estimators in one product
 
@@ -38,8 +41,9 @@ class LeanDOP853(si.DOP853):
         """The 12 stages and the new state: (y_new, f_new), K filled as scipy's rk_step."""
         K, rhs = self.K, self._rhs
         K[0] = self.f
-        for s, (a, c, Ks) in enumerate(self._stages, start=1):
-            K[s] = rhs(t + c * h, y + h * a.dot(Ks))
+        np.multiply(self._A, h, out=self._hA)
+        for s, (c, ha, Ks) in enumerate(self._stages, start=1):
+            K[s] = rhs(t + c * h, y + ha.dot(Ks))
         y_new = y + h * self._b.dot(self._Kb)
         f_new = np.asarray(rhs(t + h, y_new), dtype=float)
         K[-1] = f_new
