@@ -23,11 +23,12 @@ class _Index1(_Problem):
         size = nq + n + (1 if work else 0)
         nl = n + self.m
         # u' | lambda | ratio written into one buffer the RHS reuses (forward_raw's `out`):
-        # no fresh vectors per call; fun's own result stays fresh (the solver keeps it)
+        # no fresh vectors per call; fun's own result stays fresh (the solver keeps it), and
+        # fun.into(t, y, out) writes y' into a row the caller owns
         buf = np.empty(nl + 1)
         ud, lam = buf[:n], buf[n:nl]
 
-        def fun(t, y):
+        def fun_into(t, y, out):
             if arrays:  # views of y straight into the compiled kernel
                 q, u = y[:nq], y[nq : nq + n]
             else:  # the Python path is fastest on lists of floats
@@ -42,13 +43,17 @@ class _Index1(_Problem):
                 singular(t, q, piv)
             if piv < pmin[0]:
                 pmin[0] = piv
-            out = np.empty(size)
             out[:nq] = u if rates else self.qdot(q, u, t)
             out[nq : nq + n] = ud
             if work:
                 out[nq + n] = self.power(q, u, t, lam)
             return out
 
+        def fun(t, y):
+            return fun_into(t, y, np.empty(size))
+
+        # the stepper's stages write straight into its stage array (integrate_rk)
+        fun.into = fun_into
         self.fun = fun
 
 

@@ -33,7 +33,10 @@ class LeanDOP853(si.DOP853):
         K = self.K
         self._A = np.ascontiguousarray(self.A[1:ns, : ns - 1])
         self._hA = np.empty_like(self._A)
-        self._stages = [(float(self.C[s]), self._hA[s - 1, :s], K[:s]) for s in range(1, ns)]
+        self._stages = [(float(self.C[s]), self._hA[s - 1, :s], K[:s], K[s]) for s in range(1, ns)]
+        # a right side with `into(t, y, out)` fills each stage's row of K itself (no fresh
+        # vector and no copy per stage); any other is called and its result copied in
+        self._into = getattr(fun, "into", None)
         self._b, self._Kb = np.ascontiguousarray(self.B), K[:-1]
         self._e53 = np.vstack([self.E5, self.E3])  # both error estimators in one product
 
@@ -42,8 +45,13 @@ class LeanDOP853(si.DOP853):
         K, rhs = self.K, self._rhs
         K[0] = self.f
         np.multiply(self._A, h, out=self._hA)
-        for s, (c, ha, Ks) in enumerate(self._stages, start=1):
-            K[s] = rhs(t + c * h, y + ha.dot(Ks))
+        into = self._into
+        if into is not None:
+            for c, ha, Ks, Kr in self._stages:
+                into(t + c * h, y + ha.dot(Ks), Kr)
+        else:
+            for c, ha, Ks, Kr in self._stages:
+                Kr[:] = rhs(t + c * h, y + ha.dot(Ks))
         y_new = y + h * self._b.dot(self._Kb)
         f_new = np.asarray(rhs(t + h, y_new), dtype=float)
         K[-1] = f_new
