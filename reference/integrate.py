@@ -301,14 +301,13 @@ class _Run:
         prob = self.prob
         if not prob.mc:
             return
-        q = prob.full(t, y)[0]
-        A = prob.pjac(q, prob.zeros_u, t, prob.p)[0]
+        A = prob.constraint_jacobian(t, y)
         if self.nm.redundant:  # dependent rows: det(A A^T) is 0 with a round-off sign
             A = self._independent_rows(A)
         last = self.A_last
         if last is not None:
-            if len(A) == prob.nq:  # one row: the determinant is the dot product (no numpy)
-                d = sum(a * b for a, b in zip(A, last, strict=True))
+            if len(A) == prob.nq:  # one row: the determinant is the dot product
+                d = float(np.dot(A, last))
             else:
                 Ak = np.asarray(A, float).reshape(-1, prob.nq)
                 d = np.linalg.det(Ak @ np.asarray(last, float).reshape(-1, prob.nq).T)

@@ -13,11 +13,13 @@ import numpy as np
 import scipy.integrate as si
 
 from .errors import ModelInputError, OffManifoldError, SingularSystemError
+from .integrate_rk import LeanDOP853
 from .numeric import MANIFOLD_TOL, NumericModel
 
 METHODS = ("index1", "baumgarte", "projection", "nullspace")
 INTEGRATORS = {
-    "DOP853": si.DOP853,
+    # scipy's DOP853 with a leaner step (integrate_rk: same tableau, control and steps)
+    "DOP853": LeanDOP853,
     "RK45": si.RK45,
     "RK23": si.RK23,
     "Radau": si.Radau,
@@ -155,6 +157,12 @@ class Trajectory:
         }
 
 
+def _floats(v):
+    """A kernel output as a list of floats (it is one already on the Python backend): the
+    integrators' arithmetic on a few entries is cheaper on floats than numpy's per-call cost."""
+    return v.tolist() if type(v) is np.ndarray else v
+
+
 # ---- small dense linear algebra ------------------------------------------------------------
 def _min_norm_correction(
     J: list[float], rows: int, cols: int, r: list[float], redundant: bool = False
@@ -242,7 +250,8 @@ class _Problem:
         self.pjac = nm.raw_function("position_jacobian")
         self.mat = nm.raw_function("matrices")
         self.en = nm.raw_function("energy")
-        self.zeros_u = [0.0] * self.n
+        # u = 0 for the position-only calls (f(q, t), df/dq): in the kernels' own input type
+        self.zeros_u = np.zeros(self.n) if self.arrays else [0.0] * self.n
         self.stats = {
             "projections": 0,
             "projection_iterations": 0,
@@ -288,7 +297,7 @@ class _Problem:
     def power(self, q, u, t, lam) -> float:
         """Power of the applied loads plus that of rheonomic constraints (-lambda . a0)."""
         P = self.en(q, u, t, self.p)[0][2]
-        if self.rheonomic and lam:
+        if self.rheonomic and len(lam):
             a0 = self.res(q, self.zeros_u, t, self.p)[1]
             P -= sum(l * a for l, a in zip(lam, a0, strict=False))
         return P
@@ -319,6 +328,11 @@ class _Problem:
 
     def initial(self, q, u, t0):
         return self.y0(q, u)
+
+    def constraint_jacobian(self, t, y):
+        """The position Jacobian df/dq at the state y (flat, row-major)."""
+        q = self.full(t, y)[0]
+        return self.pjac(np.array(q) if self.arrays else q, self.zeros_u, t, self.p)[0]
 
     def dense_state(self, t, y):
         """A state interpolated by the solver's dense output, as it is recorded."""

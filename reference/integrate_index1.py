@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ModelInputError
-from .integrate_common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _Problem
+from .integrate_common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _floats, _Problem
 from .numeric import PIVOT_RATIO_MIN
 
 
@@ -21,28 +21,39 @@ class _Index1(_Problem):
         PMIN = PIVOT_RATIO_MIN
         pmin = self.pmin
         size = nq + n + (1 if work else 0)
+        nl = n + self.m
+        # u' | lambda | ratio written into one buffer the RHS reuses (forward_raw's `out`):
+        # no fresh vectors per call; fun's own result stays fresh (the solver keeps it), and
+        # fun.into(t, y, out) writes y' into a row the caller owns
+        buf = np.empty(nl + 1)
+        ud, lam = buf[:n], buf[n:nl]
 
-        def fun(t, y):
+        def fun_into(t, y, out):
             if arrays:  # views of y straight into the compiled kernel
                 q, u = y[:nq], y[nq : nq + n]
             else:  # the Python path is fastest on lists of floats
                 yl = y.tolist()
                 q, u = yl[:nq], yl[nq : nq + n]
             try:
-                ud, lam, piv = fr(q, u, t, offset(q, u, t) if offset else None)
+                fr(q, u, t, offset(q, u, t) if offset else None, buf)
             except (ZeroDivisionError, ValueError) as exc:
                 self.forward_failed(t, q, exc)
+            piv = buf.item(nl)
             if not piv > PMIN:
                 singular(t, q, piv)
             if piv < pmin[0]:
                 pmin[0] = piv
-            out = np.empty(size)
             out[:nq] = u if rates else self.qdot(q, u, t)
             out[nq : nq + n] = ud
             if work:
                 out[nq + n] = self.power(q, u, t, lam)
             return out
 
+        def fun(t, y):
+            return fun_into(t, y, np.empty(size))
+
+        # the stepper's stages write straight into its stage array (integrate_rk)
+        fun.into = fun_into
         self.fun = fun
 
 
@@ -56,7 +67,7 @@ class _Baumgarte(_Index1):
         def offset(q, u, t):
             # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only
             pos, vel = self.res(q, u, t, self.p)
-            mc = self.mc
+            pos, vel, mc = _floats(pos), _floats(vel), self.mc
             return [-two_a * v - (b2 * pos[j] if j < mc else 0.0) for j, v in enumerate(vel)]
 
         super().__init__(nm, energy, offset)
