@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reference import NumericModel, models
+from reference import NumericModel, cbuild, models
 from reference.generic import generic_parameters
 
 from . import compare as C
@@ -164,8 +164,14 @@ def run(
     perturb = perturb or {}
     adapters = [get_engine(e) for e in engine_names]
     records, series = [], []
-    for name in model_names:
+    model_names = list(model_names)
+    for k, name in enumerate(model_names):
         model = models.get(name)
+        # the C builds of the next model start now (its derivation here, its compiles on the
+        # other core while this model is checked; reference/cbuild.py): on a cold cache
+        # only the first model waits for its compiler
+        for ahead in model_names[k : k + 2] if k == 0 else model_names[k + 1 : k + 2]:
+            cbuild.prebuild_model(models.get(ahead))
         nm = NumericModel(model)
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)

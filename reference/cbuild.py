@@ -20,11 +20,13 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+import threading
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from functools import cache
 from pathlib import Path
 
-from .ckernels import LANES, MODULE_NAME, RUNTIME, c_source
+from .ckernels import LANES, MODULE_NAME, RUNTIME, UnsupportedExpression, c_source
 from .compiled import TIMINGS, Kernels, import_file
 
 # -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
@@ -95,19 +97,20 @@ def _digest(text: str, cmd: list[str]) -> str:
     return h.hexdigest()[:16]
 
 
-def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
-    """The extension of C module `text` in `directory`, built unless present: (path, module
-    name, build seconds; 0 when it was there)."""
+def _target(text: str, stem: str, directory: Path) -> tuple[Path, str, list[str]]:
+    """Where module `text` is built, its module name and the compiler's flags."""
     flags = [*CFLAGS, *(f"-I{d}" for d in _include_dirs())]
     digest = _digest(text, flags)
-    modname = f"_crosscheck_c_{digest}"
     suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
-    target = directory / f"{stem}_c_{digest}{suffix}"
-    if target.exists():
-        return target, modname, 0.0
+    return directory / f"{stem}_c_{digest}{suffix}", f"_crosscheck_c_{digest}", flags
+
+
+def _compile(text: str, stem: str, target: Path, modname: str, flags: list[str]) -> float:
+    """Run the compiler into `target`; the seconds it took."""
     # this process's own source and object names: another process building the same module
     # at once must not truncate the file this compiler is reading
-    src = directory / f"{stem}_c_{digest}.{os.getpid()}.c"
+    kept = target.with_name(target.name.split(".", 1)[0] + ".c")  # <stem>_c_<digest>.c
+    src = kept.with_suffix(f".{os.getpid()}.c")
     src.write_text(text.replace(MODULE_NAME, modname))
     tmp = target.with_name(f"{target.name}.{os.getpid()}.tmp")
     t0 = time.perf_counter()
@@ -121,15 +124,72 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
     except (OSError, subprocess.SubprocessError) as exc:
         src.unlink(missing_ok=True)
         raise BuildError(f"{stem}: the C compiler could not run ({exc})") from None
+    os.replace(src, kept)  # kept beside the module to read
     if r.returncode != 0:
         tmp.unlink(missing_ok=True)
-        src = src.replace(directory / f"{stem}_c_{digest}.c")
         lines = r.stderr.strip().splitlines() or ["no message"]
         first = next((ln for ln in lines if "error" in ln), lines[0])
-        raise BuildError(f"{stem}: the C compiler rejected the module ({first}; source {src})")
+        raise BuildError(f"{stem}: the C compiler rejected the module ({first}; source {kept})")
     os.replace(tmp, target)
-    os.replace(src, directory / f"{stem}_c_{digest}.c")  # kept beside the module to read
-    return target, modname, time.perf_counter() - t0
+    return time.perf_counter() - t0
+
+
+# Builds started ahead of their first use (prebuild), by target: one worker thread, so the
+# compiler runs on the second core while this process derives or checks something else.
+_IN_FLIGHT: dict[Path, Future] = {}
+_POOL: list[ThreadPoolExecutor] = []
+_LOCK = threading.Lock()
+
+
+def prebuild(text: str, stem: str, directory: Path) -> None:
+    """Start building module `text` in the background unless it is built or building."""
+    target, modname, flags = _target(text, stem, directory)
+    with _LOCK:
+        if target.exists() or target in _IN_FLIGHT:
+            return
+        if not _POOL:
+            _POOL.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cbuild"))
+        _IN_FLIGHT[target] = _POOL[0].submit(_compile, text, stem, target, modname, flags)
+
+
+def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
+    """The extension of C module `text` in `directory`, built unless present (or waited for,
+    if a prebuild is compiling it): (path, module name, build seconds; 0 when it was there)."""
+    target, modname, flags = _target(text, stem, directory)
+    with _LOCK:
+        pending = _IN_FLIGHT.pop(target, None)
+    if pending is not None:
+        return target, modname, pending.result()  # its BuildError, if any, raised here
+    if target.exists():
+        return target, modname, 0.0
+    return target, modname, _compile(text, stem, target, modname, flags)
+
+
+def prebuild_model(model) -> None:
+    """Start the C builds of every formulation of `model`, deriving what the cache lacks, so
+    that each compiles while the next is derived and the first is checked (crosscheck run
+    calls this before it builds the model's NumericModels). Does nothing off the C backend;
+    a module the printer refuses is left to NumericModel, which records why."""
+    from . import codegen, compiled
+    from .formulations import derive
+    from .numeric import PIVOT_RATIO_MIN, resolve_parameters
+
+    if compiled.backend() != "c":
+        return
+    for f in model.formulations:
+        scalar, _batched, src = codegen.load_compiled(
+            lambda f=f: derive(model, f), model, f, resolve_parameters(model)
+        )
+        n, m = len(model.speeds), scalar["META"]["m"]
+        if codegen.numeric_kkt(n, m):
+            continue
+        try:
+            text, _sizes = c_source(
+                src, len(model.coordinates), n, len(model.parameters), m, PIVOT_RATIO_MIN
+            )
+        except (UnsupportedExpression, RecursionError):
+            continue
+        prebuild(text, scalar["__cache_path__"].stem, codegen.cache_dir())
 
 
 class CKernels(Kernels):

@@ -74,6 +74,45 @@ def test_two_processes_building_the_same_module_at_once_both_get_it(tmp_path):
     assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob("*_c_*.*.c"))
 
 
+def test_prebuild_compiles_ahead_and_each_model_takes_its_module(c_backend, monkeypatch, tmp_path):
+    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+    cbuild._LOADED.clear()
+    model = models.get("slider_crank")
+    cbuild.prebuild_model(model)
+    built = [NumericModel(model, f) for f in model.formulations]
+    assert all(nm.backend == "c" for nm in built)
+    assert len(list(tmp_path.glob("*_c_*.so"))) == len({nm.source for nm in built})
+    assert not list(tmp_path.glob("*.tmp"))
+    assert not [t for t in cbuild._IN_FLIGHT if t.parent == tmp_path]  # each one taken
+    q, u = np.array(model.initial_q, float), np.array(model.initial_u, float)
+    a, b = built[0].forward(q, u), built[-1].forward(q, u)
+    assert np.allclose(a.accelerations, b.accelerations, rtol=1e-11, atol=1e-11)
+
+
+def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_another_backend(
+    c_backend, monkeypatch, tmp_path
+):
+    """Fault injection: a 'compiler' that answers --version and rejects every module."""
+    cc = tmp_path / "broken-cc"
+    cc.write_text(
+        '#!/bin/sh\nif [ "$1" = --version ]; then echo broken-cc 1.0; exit 0; fi\n'
+        'echo "error: refusing on purpose" >&2; exit 1\n'
+    )
+    cc.chmod(0o755)
+    monkeypatch.setenv("CROSSCHECK_CC", str(cc))
+    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path / "cache"))
+    cbuild._LOADED.clear()
+    model = models.get("pendulum_xy")
+    cbuild.prebuild_model(model)
+    for f in model.formulations:  # each takes (and so ends) its own failed build
+        nm = NumericModel(model, f)
+        stem = nm._scalar["__cache_path__"].stem
+        assert nm.backend != "c"
+        assert (
+            "rejected the module (error: refusing on purpose" in compiled.TIMINGS[stem]["c_error"]
+        )
+
+
 def test_a_model_the_printer_cannot_translate_takes_another_backend(
     c_backend, monkeypatch, tmp_path
 ):
