@@ -188,12 +188,15 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
         elif isinstance(st, ast.Assign) and isinstance(st.targets[0], ast.Name):
             name = st.targets[0].id
             pair = pairs.get(name)
+            if pair is not None and pair[0] not in declared:  # the first of the two
+                arg, vec = pr.lane(st.value.args[0])  # type: ignore[attr-defined]
+                # (either assignment's argument: _sincos_pairs matched them by name)
+                if not vec:  # of a parameter: two plain scalar calls, as any other
+                    pairs.pop(pair[0])
+                    pairs.pop(pair[1])
+                    pair = None
             if pair is not None:  # sin and cos of one angle: one sincos per lane
-                if pair[0] not in declared:  # at the first of the two
-                    arg, vec = pr.lane(st.value.args[0])  # type: ignore[attr-defined]
-                    # (either assignment's argument: _sincos_pairs matched them by name)
-                    if not vec:
-                        raise UnsupportedExpression("sincos of a parameter")
+                if pair[0] not in declared:
                     lines.append(f"    vd {pair[0]}, {pair[1]};")
                     lines.append(f"    v_sincos({arg}, &{pair[0]}, &{pair[1]});")
                     declared.update({pair[0]: True, pair[1]: True})

@@ -191,3 +191,19 @@ def test_four_lane_batch_equals_the_scalar_kernel_and_judges_each_lane(c_backend
     kf(Q, U, T, np.tile(nm._pa, (N, 1)), DB, out2, st2)  # one row per state: scalar
     assert st1.tolist() == st2.tolist() and st1[5] == compiled.SINGULAR
     assert np.array_equal(out1, out2, equal_nan=True)
+
+
+def test_the_four_lane_printer_pairs_sin_and_cos_of_a_state_not_of_a_parameter():
+    """A sin/cos pair of a coordinate becomes one sincos per lane; of a parameter, two scalar
+    calls (a vector sincos of a scalar would not compile, and the batch would lose its lanes)."""
+    src = (
+        "META = {'n': 1, 'm': 0}\n"
+        "def forward(_q, _u, _t, _p, _sref, _db=None):\n"
+        "    _q0, = _q\n    _u0, = _u\n    _p0, = _p\n"
+        "    _a = sin(_p0)\n    _b = cos(_p0)\n    _c = cos(_q0)\n    _d = sin(_q0)\n"
+        "    return [_a*_d + _b*_c*_u0], [], 1.0\n"
+    )
+    text, sizes = ckernels.c_source(src, 1, 1, 1, 0, 1e-12)
+    lanes = text[text.index("forward_body4") :]
+    assert "double _a = sin(_p0);" in lanes and "double _b = cos(_p0);" in lanes
+    assert "v_sincos(_q0, &_d, &_c);" in lanes and sizes == {"forward": [1, 0]}
