@@ -26,7 +26,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from functools import cache
 from pathlib import Path
 
-from .ckernels import LANES, MODULE_NAME, RUNTIME, UnsupportedExpression, c_source
+from .ckernels import HEADERS, MODULE_NAME, RUNTIME, UnsupportedExpression, c_source
 from .compiled import TIMINGS, Kernels, import_file
 
 # -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
@@ -84,8 +84,7 @@ def _digest(text: str, cmd: list[str]) -> str:
     h = hashlib.sha256()
     for part in (
         text,
-        RUNTIME.read_text(),
-        LANES.read_text(),
+        *(h.read_text() for h in HEADERS),
         " ".join(cmd),
         _compiler_identity(tuple(compiler())),
         sys.version,
@@ -205,6 +204,10 @@ class CKernels(Kernels):
 
     def set_threads(self, k: int) -> None:
         self.module.set_threads(k)
+
+    def stepper(self):
+        """The module's whole-run DOP853 stepper (ckernel_stepper.h; integrate_compiled)."""
+        return self.module.step
 
 
 _LOADED: dict[tuple, CKernels] = {}

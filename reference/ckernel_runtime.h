@@ -13,6 +13,8 @@
      bind(name, pa, db, forward_type, slow)      the checked (forward_type given) or raw
                                                  (forward_type None) forward call, with its
                                                  parameters copied in (see Bound below)
+     step(...)                                   a whole DOP853 run on the forward kernel,
+                                                 projected or not (ckernel_stepper.h)
 
    Arrays must be ndarrays of native float64, C-contiguous and aligned (out writable), of the
    right size; anything else is a TypeError, as numba's dispatch raises it, and the caller
@@ -397,9 +399,12 @@ static PyObject *bind(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     return (PyObject *)b;
 }
 
+#include "ckernel_stepper.h"
+
 static PyMethodDef module_methods[] = {
     {"set_threads", set_threads, METH_O, "threads of the batch loops (1: serial)"},
     {"bind", (PyCFunction)(void (*)(void))bind, METH_FASTCALL, "a bound forward call"},
+    {"step", (PyCFunction)(void (*)(void))step, METH_FASTCALL, "a whole DOP853 run"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -28,6 +28,9 @@ from .compiled import NOT_DEFINED, OK, SINGULAR, output_groups
 
 RUNTIME = Path(__file__).with_name("ckernel_runtime.h")
 LANES = Path(__file__).with_name("ckernel_lanes.h")
+STEPPER = Path(__file__).with_name("ckernel_stepper.h")
+# every header a module includes: each is part of the built file's digest (reference.cbuild)
+HEADERS = (RUNTIME, LANES, STEPPER)
 
 _BINOPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
 _FUNCTIONS = {"sin", "cos", "tan", "sqrt", "exp", "log", "atan2", "asin", "acos", "atan"}

@@ -80,6 +80,7 @@ import time
 
 import numpy as np
 
+from . import integrate_compiled as stepping
 from .errors import ModelInputError
 from .integrate_common import (  # noqa: F401 - re-exported
     BAUMGARTE_ALPHA,
@@ -146,6 +147,7 @@ def simulate(
     max_correction: float = math.inf,
     first_step: float | None = None,
     max_step: float = math.inf,
+    stepper: str | None = None,
 ) -> Trajectory:
     """Integrate from (q0, u0) at t0 to t_end with one of METHODS (see the module docstring).
 
@@ -153,10 +155,14 @@ def simulate(
     impossible or moves it by more than `max_correction`). `energy`: "auto" | "work" | "none".
     `alpha`, `beta`: Baumgarte gains [1/s]. `refresh`: projection recomputes solver.f after
     projecting (False reuses the unprojected derivative: one RHS call less per step, measured
-    in the benchmark). Raises SingularSystemError (KKT pivots collapse), IntegrationError
-    (step-size underflow, projection/Newton failure), IntegrationTimeout (bounds exceeded).
+    in the benchmark). `stepper`: "auto" (the C stepper where the run qualifies,
+    integrate_compiled), "c" (an error where it does not) or "python"; default
+    CROSSCHECK_STEPPER, else "auto". Raises SingularSystemError (KKT pivots collapse),
+    IntegrationError (step-size underflow, projection/Newton failure), IntegrationTimeout
+    (bounds exceeded).
     """
     _check_arguments(method, integrator, energy, t0, t_end)
+    stepper = stepping.setting(stepper)
     bookkeeping = energy == "work" or (energy == "auto" and not nm.model.energy_conserved)
     t_start = time.perf_counter()
     q, u, corr = consistent_initial_state(nm, q0, u0, t0, max_correction)
@@ -181,6 +187,7 @@ def simulate(
         (max_steps, max_wall_s, t_start),
         (integrator, method),
     )
+    run.stepper = stepper
     if te is None:
         run.record(t0, list(q), list(u), 0.0 if bookkeeping else None)
     run.integrate(prob.initial(q, u, t0), t0, t_end)
@@ -222,6 +229,7 @@ class _Run:
         self.nfev = self.nsteps = 0
         self.A_last, self.rank_crossings = None, []  # the rank-loss monitor (_orientation)
         self.rows = None  # the independent rows it watches, where rows may be dependent
+        self.stepper = "python"  # or "auto" / "c": the compiled stepper (integrate_compiled)
 
     def record(self, t, qq, uu, W):
         self.T.append(t)
@@ -240,6 +248,9 @@ class _Run:
         prob = self.prob
         if self.A_last is None:
             self._orientation(t, y)
+        prob.stats.setdefault("stepper", "python")
+        if self.stepper != "python" and stepping.run_compiled(self, y, t, t_end, self.stepper):
+            return
         while True:  # one solver per partition
             self._tolerances(len(y))
             solver = self.cls(prob.fun, t, y, t_end, **self.opts)

@@ -1,0 +1,181 @@
+"""A whole integration in compiled code: the DOP853 stepper of ckernel_stepper.h (issue 13).
+
+Where a run qualifies (STEPPERS), `simulate` hands the solver loop to the model's C module:
+the same scipy DOP853 step (LeanDOP853's formulas, scipy's tableau read from the solver, the
+start and first step size computed by scipy in Python), the right side straight from the
+forward kernel, and for `projection` the Gauss-Newton and velocity projection of
+integrate_projection after every accepted step. What it returns is what the Python loop
+records: every accepted step, nfev, nsteps, the smallest pivot ratio, the projection counts;
+the rank-loss monitor of integrate._Run runs afterwards on the recorded states (one batched
+Jacobian call).
+
+Errors keep the Python stepping's words: where the C loop meets a state it does not take (a
+singular or undefined forward, a projection that fails) it stops, and the run is made again
+on the Python stepper, which raises what it always raised. The step-size underflow and the
+max_steps / max_wall_s bounds are raised here with the Python loop's messages.
+
+The two steppers agree to round-off, not to the bit: numpy's dot products and LU solve sum
+in another order than the C loops (measured: tests/test_integrate_compiled.py).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+
+from .errors import ModelInputError
+
+# the simulate(stepper=...) values; CROSSCHECK_STEPPER sets the default
+STEPPERS = ("auto", "c", "python")
+# ckernel_stepper.h's statuses
+DONE, TOO_SMALL, MAX_STEPS, DEADLINE, DECLINED = range(5)
+COMPILED_METHODS = {"index1": 0, "projection": 1}
+
+
+def setting(stepper: str | None) -> str:
+    """The stepper asked for: the argument, else CROSSCHECK_STEPPER, else 'auto'."""
+    want = stepper or os.environ.get("CROSSCHECK_STEPPER", "").strip().lower() or "auto"
+    if want not in STEPPERS:
+        raise ModelInputError(f"stepper {want!r}: valid values are {', '.join(STEPPERS)}")
+    return want
+
+
+def why_not(run, integrator: str, method: str) -> str | None:
+    """Why this run cannot take the compiled stepper, or None when it can."""
+    nm, prob = run.nm, run.prob
+    stepper = getattr(nm._k, "stepper", None)
+    if nm.backend != "c" or stepper is None or nm._kf is None:
+        return f"the model runs on the {nm.backend} backend (the stepper is in the C module)"
+    if integrator != "DOP853":
+        return f"integrator {integrator} (the compiled stepper is DOP853's)"
+    if method not in COMPILED_METHODS:
+        return f"method {method} (compiled: {', '.join(COMPILED_METHODS)})"
+    if run.te is not None:
+        return "t_eval (the compiled stepper records the accepted steps; no dense output)"
+    if run.bookkeeping:
+        return "the work integral is carried (energy bookkeeping)"
+    if not prob.rates:
+        return "q' = N(q, u) (the compiled right side is q' = u)"
+    if np.ndim(run.opts["rtol"]) or np.ndim(run.opts["atol"]):
+        return "vector tolerances"
+    return None
+
+
+def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
+    """Integrate `run` (an integrate._Run) from (t0, y) to t_end on the C stepper: True when it
+    did, False when the Python loop must (not eligible, or the C loop stopped at a state it
+    does not take; prob.stats["stepper"] says which and why)."""
+    prob = run.prob
+    reason = why_not(run, *_what(run))
+    if reason is not None:
+        if stepper == "c":
+            raise ModelInputError(f"{run.nm.model.name}: stepper='c' cannot run: {reason}")
+        prob.stats["stepper"] = "python"
+        return False
+    nm, k = run.nm, run.nm._k
+    solver = run.cls(prob.fun, t0, y, t_end, **run.opts)  # scipy's start: f0, first step
+    deadline = math.inf
+    if run.max_wall_s is not None:
+        deadline = run.max_wall_s - (time.perf_counter() - run.t_start)
+    mode = COMPILED_METHODS[run.method]
+    if mode and not prob.refresh:
+        mode = 2
+    a_offset = -1 if prob.mc == prob.m else k.offsets["matrices"][2][0]
+    from .integrate_common import PROJECTION_FAIL, PROJECTION_MAX_ITER, PROJECTION_TOL
+
+    tableau = tuple(
+        np.ascontiguousarray(a, float).ravel()
+        for a in (solver.A, solver.B, solver.C, solver.E3, solver.E5)
+    )
+    status, T, Y, nfev, nsteps, pmin, nproj, niter, t_stop, _y_stop = k.stepper()(
+        np.ascontiguousarray(solver.y, float),
+        np.ascontiguousarray(solver.f, float),
+        (
+            float(t0),
+            float(t_end),
+            float(solver.h_abs),
+            float(solver.max_step),
+            float(solver.rtol),
+            float(solver.atol),
+            float(solver.error_exponent),
+            deadline,
+        ),
+        tableau,
+        nm._pa,
+        nm._db0,
+        (mode, -1 if run.max_steps is None else int(run.max_steps), a_offset, PROJECTION_MAX_ITER),
+        (PROJECTION_TOL, PROJECTION_FAIL),
+    )
+    if status == DECLINED:  # the Python loop redoes the run and words the error
+        prob.stats["stepper"] = f"python (the C stepper stopped at t = {t_stop:.6g})"
+        return False
+    prob.stats["stepper"] = "c"
+    _record(run, T, Y, solver.nfev + nfev, nsteps, pmin, nproj, niter)
+    _raise_bounds(run, status, t_stop, t_end, solver.TOO_SMALL_STEP)
+    return True
+
+
+def _what(run) -> tuple[str, str]:
+    return run.integrator, run.method
+
+
+def _record(run, T, Y, nfev, nsteps, pmin, nproj, niter) -> None:
+    prob, nq = run.prob, run.prob.nq
+    run.nfev += nfev
+    run.nsteps += nsteps
+    prob.pmin[0] = min(prob.pmin[0], pmin)
+    prob.stats["projections"] += nproj
+    prob.stats["projection_iterations"] += niter
+    run.T.extend(T.tolist())
+    run.Q.extend(Y[:, :nq].tolist())
+    run.U.extend(Y[:, nq:].tolist())
+    run.W.extend([None] * len(T))
+    _monitor(run, T, Y[:, :nq])
+
+
+def _monitor(run, T, Q) -> None:
+    """integrate._Run._orientation over the recorded states: det(A_k A_k-1^T) < 0 between two
+    accepted steps, with every A from one batched call of the position Jacobian."""
+    prob, nm = run.prob, run.nm
+    mc, nq, N = prob.mc, prob.nq, len(T)
+    if not mc or not N:
+        return
+    out = np.empty((N, nm._k.total["position_jacobian"]))
+    st = np.empty(N, np.int64)
+    nm._k.get("position_jacobian_batch")(
+        np.ascontiguousarray(Q), np.zeros((N, nm.n)), T, nm._pa[None], nm._db0[None], out, st
+    )
+    if (st != 0).any():  # a Jacobian that is not finite: the state-by-state monitor
+        for t, q in zip(T, Q, strict=True):
+            run._orientation(float(t), np.concatenate([q, np.zeros(nm.n)]))
+        return
+    A = out[:, : mc * nq].reshape(N, mc, nq)
+    prev = np.asarray(run.A_last, float).reshape(1, mc, nq)
+    both = np.concatenate([prev, A])
+    d = np.linalg.det(np.einsum("kij,klj->kil", both[1:], both[:-1]))
+    run.rank_crossings.extend(float(t) for t in T[d < 0.0])
+    run.A_last = A[-1].ravel()
+
+
+def _raise_bounds(run, status, t_stop, t_end, too_small_msg) -> None:
+    from .integrate_common import IntegrationError, IntegrationTimeout
+
+    name = run.nm.model.name
+    if status == TOO_SMALL:
+        raise IntegrationError(
+            f"{name}: {run.integrator} failed at t = {t_stop:.6g} with method {run.method}: "
+            f"{too_small_msg}"
+        )
+    if status == MAX_STEPS:
+        raise IntegrationTimeout(
+            f"{name}: {run.method} reached max_steps = {run.max_steps} at t = {t_stop:.6g} "
+            f"of {t_end}"
+        )
+    if status == DEADLINE:
+        raise IntegrationTimeout(
+            f"{name}: {run.method} exceeded max_wall_s = {run.max_wall_s} s at t = "
+            f"{t_stop:.6g} of {t_end} after {run.nsteps} steps"
+        )
