@@ -420,6 +420,11 @@ def _print_targets(tg: dict) -> None:
             print(
                 f"  {key}: met={t.get('met')} ratio={t.get('ratio')}"
                 + (
+                    f" met_speedup>={t['speedup_target']:g}={t['met_speedup']}"
+                    if "met_speedup" in t
+                    else ""
+                )
+                + (
                     f" ({t.get('compared_with') or t.get('reason')})"
                     if t.get("compared_with") or t.get("reason")
                     else ""

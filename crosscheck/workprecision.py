@@ -9,16 +9,17 @@ One record per model x engine x method x setting:
   other, e.g. Exudyn's implicit solvers, FIXED_STEPS_OTHER), every step adjusted to divide the
   horizon; a soft engine whose adapter takes `solref` also at stiffer constraint settings (time
   constant SOFT_TIMECONST_STEPS steps: method "<integrator> solref=<k>h", field solref).
-Fields: model, engine, method, integrator, setting (rtol = atol, or the time step), setting_kind,
-wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state - reference|,
-the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u + a0|,
-evaluated by the reference on the engine's mapped states), residual_position/_velocity,
+Fields: model, engine, method, integrator, setting (rtol = atol, or the time step),
+setting_kind, wall_s (median of `repeats`), wall_s_min, error (max over q and u of |final state
+- reference|, the model's own coordinates), residual (max over the outputs of |f(q, t)| and |A u
++ a0|, evaluated by the reference on the engine's mapped states), residual_position/_velocity,
 energy_drift (max |E - E0 - W| / |E| scale, None where not checked), timed_energy (the
-reference's: what its timed runs integrate besides the motion), nfev, t_end, and the
-reference's kind and estimated accuracy; error_resolved (False: the error is at or below the
-reference's own accuracy, error_note says so: the figure bounds the run's error, it does not
-measure it); reference_same_method (True: the reference solution is a tighter run of this
-row's own method, models without an independent reference: the error shows convergence only);
+reference's: what its timed runs integrate besides the motion), stepper (the reference's: "c",
+the whole run in the model's C module, or "python"; reference.integrate_compiled), nfev, t_end,
+and the reference's kind and estimated accuracy; error_resolved (False: the error is at or below
+the reference's own accuracy, error_note says so: the figure bounds the run's error, it does not
+measure it); reference_same_method (True: the reference solution is a tighter run of this row's
+own method, models without an independent reference: the error shows convergence only);
 setting_requested (the ladder's step where it was adjusted to divide the horizon), solref,
 engine_steps. A run that fails keeps its row with "failed": reason; an engine's refusal of a
 model (EngineUnsupported) is a row with "skipped", "refusal" and the reason, any other build
@@ -227,6 +228,7 @@ def reference_records(name, quick, ref, nm, methods=METHODS, ladder=None):
                     nsteps=tr.nsteps,
                     bookkeeping=trw.settings["bookkeeping"],
                     timed_energy=TIMED_ENERGY,
+                    stepper=tr.stats.get("stepper"),
                 )
                 if method == "nullspace":
                     rec["partitions"] = tr.stats.get("partitions")

@@ -45,7 +45,7 @@ def setting(stepper: str | None) -> str:
 
 def why_not(run, integrator: str, method: str) -> str | None:
     """Why this run cannot take the compiled stepper, or None when it can."""
-    nm, prob = run.nm, run.prob
+    nm = run.nm
     stepper = getattr(nm._k, "stepper", None)
     if nm.backend != "c" or stepper is None or nm._kf is None:
         return f"the model runs on the {nm.backend} backend (the stepper is in the C module)"
@@ -53,14 +53,6 @@ def why_not(run, integrator: str, method: str) -> str | None:
         return f"integrator {integrator} (the compiled stepper is DOP853's)"
     if method not in COMPILED_METHODS:
         return f"method {method} (compiled: {', '.join(COMPILED_METHODS)})"
-    if run.te is not None:
-        return "t_eval (the compiled stepper records the accepted steps; no dense output)"
-    if run.bookkeeping:
-        return "the work integral is carried (energy bookkeeping)"
-    if not prob.rates:
-        return "q' = N(q, u) (the compiled right side is q' = u)"
-    if np.ndim(run.opts["rtol"]) or np.ndim(run.opts["atol"]):
-        return "vector tolerances"
     return None
 
 
@@ -76,6 +68,7 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         prob.stats["stepper"] = "python"
         return False
     nm, k = run.nm, run.nm._k
+    run._tolerances(len(y))  # W's tolerances, where it is carried (as the Python loop's)
     solver = run.cls(prob.fun, t0, y, t_end, **run.opts)  # scipy's start: f0, first step
     deadline = math.inf
     if run.max_wall_s is not None:
@@ -83,14 +76,26 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
     mode = COMPILED_METHODS[run.method]
     if mode and not prob.refresh:
         mode = 2
-    a_offset = -1 if prob.mc == prob.m else k.offsets["matrices"][2][0]
+    a_offset = -1 if prob.mc == prob.m and prob.rates else k.offsets["matrices"][2][0]
     from .integrate_common import PROJECTION_FAIL, PROJECTION_MAX_ITER, PROJECTION_TOL
 
     tableau = tuple(
-        np.ascontiguousarray(a, float).ravel()
-        for a in (solver.A, solver.B, solver.C, solver.E3, solver.E5)
+        np.ascontiguousarray(getattr(solver, a), float).ravel()
+        for a in ("A", "B", "C", "E3", "E5", "A_EXTRA", "C_EXTRA", "D")
     )
-    status, T, Y, nfev, nsteps, pmin, nproj, niter, t_stop, _y_stop = k.stepper()(
+    te = None if run.te is None else np.ascontiguousarray(run.te[run.k_eval :], float)
+    ny = len(solver.y)
+    options = (
+        mode,
+        -1 if run.max_steps is None else int(run.max_steps),
+        a_offset,
+        PROJECTION_MAX_ITER,
+        int(run.bookkeeping),
+        int(prob.rheonomic),
+        k.offsets["energy"][0][0] + 2,  # the power of the loads (_Problem.power)
+        int(prob.rates),
+    )
+    status, T, Y, TE, YE, nfev, nsteps, pmin, nproj, niter, t_stop, _y = k.stepper()(
         np.ascontiguousarray(solver.y, float),
         np.ascontiguousarray(solver.f, float),
         (
@@ -98,22 +103,27 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
             float(t_end),
             float(solver.h_abs),
             float(solver.max_step),
-            float(solver.rtol),
-            float(solver.atol),
             float(solver.error_exponent),
             deadline,
         ),
+        tuple(
+            np.ascontiguousarray(np.broadcast_to(v, ny), float) for v in (solver.rtol, solver.atol)
+        ),
         tableau,
+        te,
         nm._pa,
         nm._db0,
-        (mode, -1 if run.max_steps is None else int(run.max_steps), a_offset, PROJECTION_MAX_ITER),
+        options,
         (PROJECTION_TOL, PROJECTION_FAIL),
     )
     if status == DECLINED:  # the Python loop redoes the run and words the error
         prob.stats["stepper"] = f"python (the C stepper stopped at t = {t_stop:.6g})"
         return False
     prob.stats["stepper"] = "c"
-    _record(run, T, Y, solver.nfev + nfev, nsteps, pmin, nproj, niter)
+    _record(run, (T, Y) if te is None else (TE, YE), solver.nfev + nfev, nsteps, pmin)
+    prob.stats["projections"] += nproj
+    prob.stats["projection_iterations"] += niter
+    _monitor(run, T, Y[:, : prob.nq])
     _raise_bounds(run, status, t_stop, t_end, solver.TOO_SMALL_STEP)
     return True
 
@@ -122,18 +132,18 @@ def _what(run) -> tuple[str, str]:
     return run.integrator, run.method
 
 
-def _record(run, T, Y, nfev, nsteps, pmin, nproj, niter) -> None:
+def _record(run, outputs, nfev, nsteps, pmin) -> None:
+    """The outputs (every accepted step, or the states at t_eval) as _Run.record keeps them."""
     prob, nq = run.prob, run.prob.nq
+    T, Y = outputs
     run.nfev += nfev
     run.nsteps += nsteps
+    run.k_eval += len(T) if run.te is not None else 0
     prob.pmin[0] = min(prob.pmin[0], pmin)
-    prob.stats["projections"] += nproj
-    prob.stats["projection_iterations"] += niter
     run.T.extend(T.tolist())
     run.Q.extend(Y[:, :nq].tolist())
-    run.U.extend(Y[:, nq:].tolist())
-    run.W.extend([None] * len(T))
-    _monitor(run, T, Y[:, :nq])
+    run.U.extend(Y[:, nq : nq + prob.n].tolist())
+    run.W.extend(Y[:, -1].tolist() if run.bookkeeping else [None] * len(T))
 
 
 def _monitor(run, T, Q) -> None:
