@@ -8,7 +8,7 @@
    step(y, f, (t, t_bound, h_abs, max_step, error_exponent, deadline_s), (rtol, atol),
         (A, B, C, E3, E5, A_EXTRA, C_EXTRA, D), t_eval, pa, db,
         (mode, max_steps, a_offset, max_iter, work, rheonomic, p_offset, rates),
-        (projection_tol, projection_fail))
+        (projection_tol, projection_fail, alpha, beta))
      y, f       the state (q, u[, W]) after the solver's start and its derivative (scipy
                 computed both, and the first step size h_abs, in Python: LeanDOP853's start);
                 W, with `work`, the work of the loads (energy output p_offset) and, where the
@@ -18,7 +18,8 @@
      t_eval     sorted output times (None: none, every accepted step is the output)
      rates      1: q' = u; 0: q' = N(q, u, t) from the kinematics kernel
      mode       0: index1, y' = (q', u'); 1: projection (refreshing f after it); 2: projection
-                reusing the unprojected f
+                reusing the unprojected f; 3: baumgarte, index1 with the rows' right side offset
+                by -2 alpha (A u + a0) - beta^2 f(q, t)
      a_offset   where the velocity rows' A sits in the `matrices` output (-1: A is the position
                 Jacobian, the models whose rows are all configuration rows)
    returns (status, T, Y, TE, YE, nfev, nsteps, min_pivot, projections, projection_iterations,
@@ -39,6 +40,8 @@ typedef struct {
     const double *pa, *db;
     double *fo, *ro, *jo, *mo, *jj, *eo, *ao, *ko; /* kernel outputs, J J^T */
     int rates; /* q' = u; else q' = N(q, u, t), the kinematics kernel */
+    double two_alpha, beta2; /* Baumgarte's gains (integrate_index1._Baumgarte); alpha < 0: none */
+    double *bo;              /* the b offsets of a Baumgarte right side */
     double pmin;
     long nfev, iters;
     int ny, work, rheonomic, p_offset; /* y = (q, u[, W]); W' = the power at eo[p_offset] */
@@ -53,7 +56,15 @@ static const double zeros[NU > 0 ? NU : 1];
 static int rhs(stepper_t *s, double t, const double *y, double *out)
 {
     ++s->nfev;
-    const int st = s->fwd->body(y, y + NQ, t, s->pa, s->db, s->fo);
+    const double *db = s->db;
+    if (s->two_alpha >= 0.0) { /* A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t) (f: position rows) */
+        if (s->res->body(y, y + NQ, t, s->pa, s->db, s->ao) != ST_OK) return 0;
+        const int mc = (int)s->res->nout - NM;
+        for (int j = 0; j < NM; ++j)
+            s->bo[j] = -s->two_alpha * s->ao[mc + j] - (j < mc ? s->beta2 * s->ao[j] : 0.0);
+        db = s->bo;
+    }
+    const int st = s->fwd->body(y, y + NQ, t, s->pa, db, s->fo);
     const double piv = s->fo[NU + NM];
     if (st != ST_OK || !(piv > PIVOT_MIN)) return 0;
     if (piv < s->pmin) s->pmin = piv;
@@ -418,7 +429,7 @@ static PyObject *step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         || !vec_of(args[6], NP + NM, &pa) || !vec_of(args[7], NM, &db)
         || !PyArg_ParseTuple(args[8], "iliiiiii", &r.mode, &r.max_steps, &s.a_offset,
                              &s.max_iter, &s.work, &s.rheonomic, &s.p_offset, &s.rates)
-        || !PyArg_ParseTuple(args[9], "dd", &s.ptol, &s.pfail)) {
+        || !PyArg_ParseTuple(args[9], "dddd", &s.ptol, &s.pfail, &s.two_alpha, &s.beta2)) {
         if (!PyErr_Occurred())
             PyErr_SetString(PyExc_TypeError, "step(y, f, times, (rtol, atol), tableau, t_eval, "
                                              "pa, db, options, tolerances): see "
@@ -426,6 +437,12 @@ static PyObject *step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         return NULL;
     }
     s.work = s.work != 0;
+    if (r.mode == 3) {
+        r.mode = 0; /* no projection */
+        s.two_alpha *= 2.0, s.beta2 *= s.beta2;
+    } else {
+        s.two_alpha = -1.0;
+    }
     s.ny = (int)ny;
     if (ny != NQ + NU + s.work || nf != ny || nrt != ny || nat != ny) {
         PyErr_SetString(PyExc_ValueError, "step: y, f, rtol and atol are (q, u[, W]) long");
@@ -472,13 +489,13 @@ static PyObject *step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     r.deadline += now_s();
     const size_t need = (size_t)(rows * ny + 3 * ny + s.fwd->nout + 2 * s.res->nout
                                  + s.pjac->nout + s.mat->nout + s.en->nout + s.kin->nout
-                                 + (NM + NQ) * (NM + NQ));
+                                 + NM + (NM + NQ) * (NM + NQ));
     double *work = malloc(need * sizeof(double));
     if (work == NULL) return PyErr_NoMemory();
     double *K = work, *ys = K + rows * ny, *y = ys + ny, *f = y + ny; /* K: rows x ny */
     s.fo = f + ny, s.ro = s.fo + s.fwd->nout, s.jo = s.ro + s.res->nout;
     s.mo = s.jo + s.pjac->nout, s.eo = s.mo + s.mat->nout, s.ao = s.eo + s.en->nout;
-    s.ko = s.ao + s.res->nout, s.jj = s.ko + s.kin->nout;
+    s.ko = s.ao + s.res->nout, s.bo = s.ko + s.kin->nout, s.jj = s.bo + NM;
     memcpy(y, y0, sizeof(double) * ny);
     memcpy(f, f0, sizeof(double) * ny);
     record_t rec = {.ny = s.ny}, out = {.ny = s.ny};

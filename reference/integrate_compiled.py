@@ -3,7 +3,7 @@
 Where a run qualifies (STEPPERS), `simulate` hands the solver loop to the model's C module:
 the same scipy DOP853 step (LeanDOP853's formulas, scipy's tableau read from the solver, the
 start and first step size computed by scipy in Python), the right side straight from the
-forward kernel, and for `projection` the Gauss-Newton and velocity projection of
+forward kernel (for `baumgarte` with its offset of the rows' right side), and for `projection` the Gauss-Newton and velocity projection of
 integrate_projection after every accepted step. What it returns is what the Python loop
 records: every accepted step, nfev, nsteps, the smallest pivot ratio, the projection counts;
 the rank-loss monitor of integrate._Run runs afterwards on the recorded states (one batched
@@ -32,7 +32,7 @@ from .errors import ModelInputError
 STEPPERS = ("auto", "c", "python")
 # ckernel_stepper.h's statuses
 DONE, TOO_SMALL, MAX_STEPS, DEADLINE, DECLINED = range(5)
-COMPILED_METHODS = {"index1": 0, "projection": 1}
+COMPILED_METHODS = {"index1": 0, "projection": 1, "baumgarte": 3}
 
 
 def setting(stepper: str | None) -> str:
@@ -74,8 +74,9 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
     if run.max_wall_s is not None:
         deadline = run.max_wall_s - (time.perf_counter() - run.t_start)
     mode = COMPILED_METHODS[run.method]
-    if mode and not prob.refresh:
+    if mode == 1 and not prob.refresh:
         mode = 2
+    baumgarte = (prob.alpha, prob.beta) if mode == 3 else (0.0, 0.0)
     a_offset = -1 if prob.mc == prob.m and prob.rates else k.offsets["matrices"][2][0]
     from .integrate_common import PROJECTION_FAIL, PROJECTION_MAX_ITER, PROJECTION_TOL
 
@@ -114,7 +115,7 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         nm._pa,
         nm._db0,
         options,
-        (PROJECTION_TOL, PROJECTION_FAIL),
+        (PROJECTION_TOL, PROJECTION_FAIL, *baumgarte),
     )
     if status == DECLINED:  # the Python loop redoes the run and words the error
         prob.stats["stepper"] = f"python (the C stepper stopped at t = {t_stop:.6g})"

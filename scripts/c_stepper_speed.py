@@ -1,7 +1,7 @@
 """The C stepper against the Python stepper (docs/compiled.md, "The compiled stepper"): the
-wall time of simulate() on each model over its work-precision horizon, index1 and projection
-at rtol = atol 1e-10, every accepted step recorded (the work-precision runs) and on a 201-point
-grid with the work integral where the model carries it (the trajectory checks' reference
+wall time of simulate() on each model over its work-precision horizon, index1, projection and
+baumgarte at rtol = atol 1e-10, every accepted step recorded (the work-precision runs) and on a
+201-point grid with the work integral where the model carries it (the trajectory checks' reference
 runs); best of 7, with the right-side calls and the largest output difference.
 
     PYTHONPATH=$PWD python scripts/c_stepper_speed.py [models...]
@@ -44,7 +44,7 @@ def main(names):
     for name in names:
         nm = NumericModel(models.get(name))
         T = horizon(name)
-        for method in ("index1", "projection"):
+        for method in ("index1", "projection", "baumgarte"):
             for label, kw in (
                 ("steps", {"energy": "none"}),
                 ("grid", {"t_eval": np.linspace(0.0, T, 201)}),
