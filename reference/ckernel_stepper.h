@@ -33,7 +33,7 @@
 
 #include <time.h>
 
-enum { STEP_DONE = 0, STEP_TOO_SMALL = 1, STEP_MAX_STEPS = 2, STEP_DEADLINE = 3, STEP_DECLINED = 4 };
+enum { STEP_DONE, STEP_TOO_SMALL, STEP_MAX_STEPS, STEP_DEADLINE, STEP_DECLINED };
 
 typedef struct {
     const kernel_t *fwd, *res, *pjac, *mat, *en, *kin;
@@ -57,7 +57,7 @@ static int rhs(stepper_t *s, double t, const double *y, double *out)
 {
     ++s->nfev;
     const double *db = s->db;
-    if (s->two_alpha >= 0.0) { /* A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t) (f: position rows) */
+    if (s->two_alpha >= 0.0) { /* A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), f: mc rows */
         if (s->res->body(y, y + NQ, t, s->pa, s->db, s->ao) != ST_OK) return 0;
         const int mc = (int)s->res->nout - NM;
         for (int j = 0; j < NM; ++j)

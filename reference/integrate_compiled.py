@@ -1,21 +1,24 @@
 """A whole integration in compiled code: the DOP853 stepper of ckernel_stepper.h (issue 13).
 
-Where a run qualifies (STEPPERS), `simulate` hands the solver loop to the model's C module:
-the same scipy DOP853 step (LeanDOP853's formulas, scipy's tableau read from the solver, the
-start and first step size computed by scipy in Python), the right side straight from the
-forward kernel (for `baumgarte` with its offset of the rows' right side), and for `projection` the Gauss-Newton and velocity projection of
-integrate_projection after every accepted step. What it returns is what the Python loop
-records: every accepted step, nfev, nsteps, the smallest pivot ratio, the projection counts;
-the rank-loss monitor of integrate._Run runs afterwards on the recorded states (one batched
-Jacobian call).
+Where a run qualifies (why_not), `simulate` hands the solver loop to the model's C module: the
+same scipy DOP853 step (LeanDOP853's formulas, scipy's tableau read from the solver, the start
+and first step size computed by scipy in Python), the right side straight from the forward
+kernel (for `baumgarte` with its offset of the rows' right side, with the work integral W where
+the run carries it), and for `projection` the Gauss-Newton and velocity projection of
+integrate_projection after every accepted step. It returns what the Python loop records: every
+accepted step, or the states at t_eval from scipy's dense output (projected in projection
+mode), nfev, nsteps, the smallest pivot ratio, the projection counts; the rank-loss monitor of
+integrate._Run runs afterwards on the accepted states (one batched Jacobian call).
 
 Errors keep the Python stepping's words: where the C loop meets a state it does not take (a
 singular or undefined forward, a projection that fails) it stops, and the run is made again
 on the Python stepper, which raises what it always raised. The step-size underflow and the
 max_steps / max_wall_s bounds are raised here with the Python loop's messages.
 
-The two steppers agree to round-off, not to the bit: numpy's dot products and LU solve sum
-in another order than the C loops (measured: tests/test_integrate_compiled.py).
+The two steppers agree within the run's tolerance, not to the bit: numpy sums the stages, the
+error estimate and the normal equations in another order than the C loops, and the error
+estimate carries that round-off into the step sizes (measured: tests/test_integrate_compiled.py,
+docs/compiled.md "The compiled stepper").
 """
 
 from __future__ import annotations
