@@ -20,6 +20,7 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+import tempfile
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -66,6 +67,64 @@ def _compiler_identity(cmd: tuple[str, ...]) -> str:
     return r.stdout.splitlines()[0] if r.returncode == 0 and r.stdout else ""
 
 
+# an OpenMP loop that must compile and link into a shared object (the batch loop's pragma)
+_OPENMP_PROBE = """int probe(int n)
+{
+    int s = 0;
+#pragma omp parallel for reduction(+ : s)
+    for (int i = 0; i < n; ++i) s += i;
+    return s;
+}
+"""
+
+
+def openmp() -> bool:
+    """Whether the compiler builds -fopenmp into a shared object (gcc does; Apple's clang does
+    not). Without it the batch loops are serial (the pragma is ignored) instead of every
+    module failing to build. Tried once per compiler, the answer kept in the cache directory."""
+    from .codegen import cache_dir
+
+    return _openmp(tuple(compiler()), cache_dir())
+
+
+@cache
+def _openmp(cmd: tuple[str, ...], directory: Path) -> bool:
+    ident = _compiler_identity(cmd)
+    if not ident:
+        return False
+    tag = hashlib.sha256(f"{' '.join(cmd)}\0{ident}".encode()).hexdigest()[:16]
+    known = directory / f"openmp-{tag}.txt"
+    try:
+        return known.read_text().strip() == "1"
+    except OSError:
+        pass
+    with tempfile.TemporaryDirectory() as d:
+        src, out = Path(d) / "probe.c", Path(d) / "probe.so"
+        src.write_text(_OPENMP_PROBE)
+        try:
+            r = subprocess.run(
+                [*cmd, "-fopenmp", "-fPIC", "-shared", str(src), "-o", str(out)],
+                capture_output=True,
+                timeout=60,
+            )
+            ok = r.returncode == 0
+        except (OSError, subprocess.SubprocessError):
+            ok = False
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        tmp = known.with_name(f"{known.name}.{os.getpid()}.tmp")
+        tmp.write_text("1" if ok else "0")
+        os.replace(tmp, known)
+    except OSError:
+        pass  # a read-only cache: the probe runs again next time
+    return ok
+
+
+def compile_flags() -> list[str]:
+    """CFLAGS, without -fopenmp where the compiler has no OpenMP (openmp())."""
+    return [f for f in CFLAGS if f != "-fopenmp" or openmp()]
+
+
 def available() -> bool:
     """True when a C compiler answers and Python's and numpy's headers are installed."""
     include = Path(sysconfig.get_paths()["include"]) / "Python.h"
@@ -98,7 +157,7 @@ def _digest(text: str, cmd: list[str]) -> str:
 
 def _target(text: str, stem: str, directory: Path) -> tuple[Path, str, list[str]]:
     """Where module `text` is built, its module name and the compiler's flags."""
-    flags = [*CFLAGS, *(f"-I{d}" for d in _include_dirs())]
+    flags = [*compile_flags(), *(f"-I{d}" for d in _include_dirs())]
     digest = _digest(text, flags)
     suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
     return directory / f"{stem}_c_{digest}{suffix}", f"_crosscheck_c_{digest}", flags

@@ -9,6 +9,7 @@ from __future__ import annotations
 import gc
 import math
 import os
+import shutil
 import subprocess
 import sys
 import weakref
@@ -111,6 +112,38 @@ def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_another_backend
         assert (
             "rejected the module (error: refusing on purpose" in compiled.TIMINGS[stem]["c_error"]
         )
+
+
+def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypatch, tmp_path):
+    """Fault injection: gcc refusing -fopenmp, as Apple's clang does. The probe finds it once,
+    the modules build without it (the batch loops serial) and the answers are the same."""
+    gcc = shutil.which("gcc") or shutil.which("cc")
+    if gcc is None:
+        pytest.skip("no gcc to wrap")
+    cc = tmp_path / "cc-without-openmp"
+    cc.write_text(
+        '#!/bin/sh\nfor a in "$@"; do [ "$a" = -fopenmp ] && '
+        "{ echo 'clang: error: unsupported option -fopenmp' >&2; exit 1; }; done\n"
+        f'exec {gcc} "$@"\n'
+    )
+    cc.chmod(0o755)
+    monkeypatch.setenv("CROSSCHECK_CC", str(cc))
+    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path / "cache"))
+    cbuild._openmp.cache_clear()
+    cbuild._LOADED.clear()
+    try:
+        assert cbuild.openmp() is False
+        assert "-fopenmp" not in cbuild.compile_flags()
+        nm = NumericModel(models.get("slider_crank"))
+        assert nm.backend == "c"
+        stem = nm._scalar["__cache_path__"].stem
+        assert "c_error" not in compiled.TIMINGS[stem] and compiled.TIMINGS[stem]["built"]
+        q, u = nm.model.initial_q, nm.model.initial_u
+        batch = nm.forward_batch(np.array([q] * 9), np.array([u] * 9), 0.0)
+        assert np.array_equal(batch[0][4], nm.forward(q, u).accelerations)
+    finally:
+        cbuild._openmp.cache_clear()
+        cbuild._LOADED.clear()
 
 
 def test_a_model_the_printer_cannot_translate_takes_another_backend(
