@@ -313,6 +313,11 @@ def cmd_bench(args) -> int:
     result["targets"] = tg
     result["skips"] = skip_savings(args.quick)
     log("targets and skip measurements done")
+    from .stepper_bench import stepper_records
+
+    # the compiled stepper against the Python one, each model's runs timed side by side
+    result["stepper"] = stepper_records(names, args.quick)
+    log("stepper comparison done")
     result["meta"]["quick"] = bool(args.quick)
     result["failed_checks"] = failed_checks(result)
     result["meta"]["wall_s"] = time.perf_counter() - t_start
@@ -339,6 +344,11 @@ def failed_checks(result: dict) -> list[str]:
     out += [
         f"forward {r['model']} {r['engine']}: {r['failed']}"
         for r in result.get("forward", [])
+        if r.get("failed")
+    ]
+    out += [
+        f"stepper {r['model']} {r['method']} {r['outputs']}: {str(r['failed'])[:300]}"
+        for r in result.get("stepper", [])
         if r.get("failed")
     ]
     return out

@@ -26,8 +26,10 @@ from __future__ import annotations
 import math
 import os
 import time
+from functools import cache
 
 import numpy as np
+import scipy.integrate as si
 
 from .errors import ModelInputError
 
@@ -72,7 +74,9 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         return False
     nm, k = run.nm, run.nm._k
     run._tolerances(len(y))  # W's tolerances, where it is carried (as the Python loop's)
-    solver = run.cls(prob.fun, t0, y, t_end, **run.opts)  # scipy's start: f0, first step
+    # scipy's start (f0, the first step size) from scipy's own DOP853: LeanDOP853's extra set-up
+    # is for its Python stages, which do not run here
+    solver = si.DOP853(prob.fun, t0, y, t_end, **run.opts)
     deadline = math.inf
     if run.max_wall_s is not None:
         deadline = run.max_wall_s - (time.perf_counter() - run.t_start)
@@ -83,10 +87,7 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
     a_offset = -1 if prob.mc == prob.m and prob.rates else k.offsets["matrices"][2][0]
     from .integrate_common import PROJECTION_FAIL, PROJECTION_MAX_ITER, PROJECTION_TOL
 
-    tableau = tuple(
-        np.ascontiguousarray(getattr(solver, a), float).ravel()
-        for a in ("A", "B", "C", "E3", "E5", "A_EXTRA", "C_EXTRA", "D")
-    )
+    tableau = _tableau()
     te = None if run.te is None else np.ascontiguousarray(run.te[run.k_eval :], float)
     ny = len(solver.y)
     options = (
@@ -130,6 +131,15 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
     _monitor(run, T, Y[:, : prob.nq])
     _raise_bounds(run, status, t_stop, t_end, solver.TOO_SMALL_STEP)
     return True
+
+
+@cache
+def _tableau() -> tuple:
+    """scipy's DOP853 coefficients as the stepper reads them (flat float64, made once)."""
+    return tuple(
+        np.ascontiguousarray(getattr(si.DOP853, a), float).ravel()
+        for a in ("A", "B", "C", "E3", "E5", "A_EXTRA", "C_EXTRA", "D")
+    )
 
 
 def _what(run) -> tuple[str, str]:

@@ -126,3 +126,18 @@ def test_the_environment_sets_the_default(monkeypatch):
     assert simulate(nm, m.initial_q, m.initial_u, 0.5, "index1").stats["stepper"] == "python"
     monkeypatch.setenv("CROSSCHECK_STEPPER", "auto")
     assert simulate(nm, m.initial_q, m.initial_u, 0.5, "index1").stats["stepper"] == "c"
+
+
+def test_the_bench_records_both_steppers_side_by_side():
+    """bench.json "stepper": one record per model, method and output kind; the figures are
+    timings (not judged here), the record says what ran and how far the two runs are apart."""
+    from crosscheck.stepper_bench import stepper_record
+
+    nm = _nm("pendulum_xy")
+    rec = stepper_record(nm, "projection", "grid", rounds=1)
+    assert rec["stepper"] == "c" and rec["nfev_python"] == rec["nfev_c"]
+    assert rec["python_wall_s"] > 0 and rec["c_wall_s"] > 0
+    # the pendulum's |q|, |u| stay below 1.2 over its horizon: 1 + that is under 3
+    assert rec["max_difference"] <= SAME_OUTPUT * rec["rtol"] * 3.0
+    bad = stepper_record(nm, "no-such-method", "steps", rounds=1)
+    assert "unknown method" in bad["failed"]
