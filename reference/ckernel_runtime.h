@@ -136,20 +136,30 @@ static PyObject *call_single(PyObject *self, PyObject *const *args, Py_ssize_t n
 
 #ifdef HAS_FORWARD4
 /* Four states of a batch whose checks passed, on forward_body4 (one vector lane per state):
-   gather, compute, scatter, and judge each lane as the scalar kernel judges its state.
+   gather (parameters and b offsets per state where the batch has one row each; shared ones
+   come splatted once per batch, in ps and ds), compute, scatter, and judge each lane as the
+   scalar kernel judges its state.
    Compiled for AVX2 only (a baseline clone doubled the build time for a 2-lane gain); a CPU
    without AVX2 runs the scalar kernel state by state (call_batch asks the CPU). */
 __attribute__((target("avx2"))) static void
-forward_block(const double *Q, const double *U, const double *T, Py_ssize_t nT, const double *pa,
-              const double *db, double *OUT, Py_ssize_t sOUT, int64_t *ST, Py_ssize_t i)
+forward_block(const double *Q, const double *U, const double *T, Py_ssize_t nT, const double *P,
+              Py_ssize_t sP, const double *DB, Py_ssize_t sDB, const vd *ps, const vd *ds,
+              double *OUT, Py_ssize_t sOUT, int64_t *ST, Py_ssize_t i)
 {
-    vd qv[NQ > 0 ? NQ : 1], uv[NU > 0 ? NU : 1], out[FORWARD_NOUT], tv;
+    vd qv[NQ > 0 ? NQ : 1], uv[NU > 0 ? NU : 1], pv[NP + NM > 0 ? NP + NM : 1],
+        dv[NM > 0 ? NM : 1], out[FORWARD_NOUT], tv;
     for (int k = 0; k < NQ; ++k)
         for (int j = 0; j < LANES; ++j) qv[k][j] = Q[(i + j) * NQ + k];
     for (int k = 0; k < NU; ++k)
         for (int j = 0; j < LANES; ++j) uv[k][j] = U[(i + j) * NU + k];
+    if (ps == NULL)
+        for (int k = 0; k < NP + NM; ++k)
+            for (int j = 0; j < LANES; ++j) pv[k][j] = P[(i + j) * sP + k];
+    if (ds == NULL)
+        for (int k = 0; k < NM; ++k)
+            for (int j = 0; j < LANES; ++j) dv[k][j] = DB[(i + j) * sDB + k];
     for (int j = 0; j < LANES; ++j) tv[j] = T[nT > 1 ? i + j : 0];
-    forward_body4(qv, uv, tv, pa, db, out);
+    forward_body4(qv, uv, tv, ps ? ps : pv, ds ? ds : dv, out);
     for (int j = 0; j < LANES; ++j) {
         double *o = OUT + (i + j) * sOUT;
         int fin = 1;
@@ -191,12 +201,23 @@ static PyObject *call_batch(PyObject *self, PyObject *const *args, Py_ssize_t na
     const Py_ssize_t sOUT = PyArray_DIM((PyArrayObject *)args[5], 1);
     const int nth = batch_threads;
 #ifdef HAS_FORWARD4
-    /* blocks of four on the vector body where the parameters are shared by every state */
-    const int four = k->is_forward && nP == 1 && nDB == 1 && __builtin_cpu_supports("avx2");
+    /* blocks of four on the vector body, the parameters shared or one row per state */
+    const int four = k->is_forward && __builtin_cpu_supports("avx2");
 #else
     const int four = 0;
 #endif
     const Py_ssize_t nblocks = (N + LANES - 1) / LANES;
+#ifdef HAS_FORWARD4
+    /* shared parameters and b offsets: splatted once for every block */
+    vd ps[NP + NM > 0 ? NP + NM : 1], ds[NM > 0 ? NM : 1];
+    if (four) {
+        for (int k = 0; k < NP + NM; ++k)
+            for (int j = 0; j < LANES; ++j) ps[k][j] = P[k];
+        for (int k = 0; k < NM; ++k)
+            for (int j = 0; j < LANES; ++j) ds[k][j] = DB[k];
+    }
+    const vd *psh = nP == 1 ? ps : NULL, *dsh = nDB == 1 ? ds : NULL;
+#endif
     Py_BEGIN_ALLOW_THREADS
 #pragma omp parallel for schedule(static) num_threads(nth) if (nth > 1)
     for (Py_ssize_t blk = 0; blk < nblocks; ++blk) {
@@ -208,7 +229,7 @@ static PyObject *call_batch(PyObject *self, PyObject *const *args, Py_ssize_t na
         }
 #ifdef HAS_FORWARD4
         if (all_ok) {
-            forward_block(Q, U, T, nT, P, DB, OUT, sOUT, ST, i0);
+            forward_block(Q, U, T, nT, P, sP, DB, sDB, psh, dsh, OUT, sOUT, ST, i0);
             continue;
         }
 #endif

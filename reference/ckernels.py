@@ -93,9 +93,10 @@ class _Printer:
 class _LanePrinter(_Printer):
     """The same expressions on four states at once (GCC vector extensions, one lane per
     state): every +, -, *, / is the same IEEE operation per lane, so each lane's result equals
-    the scalar kernel's. Expressions of the parameters alone stay scalars; a scalar meets a
-    vector by GCC's broadcast. Functions run per lane (ckernel_lanes.h); x**2 is x*x, as gcc
-    compiles the scalar kernel's pow(x, 2.0)."""
+    the scalar kernel's. The parameters, Schur references and b offsets are lanes too (a sweep
+    gives each state its own; shared ones are splatted by the runtime); constants stay
+    scalars, which meet a vector by GCC's broadcast. Functions run per lane (ckernel_lanes.h);
+    x**2 is x*x, as gcc compiles the scalar kernel's pow(x, 2.0)."""
 
     def __init__(self, npar: int, lanes: set[str]):
         super().__init__(npar)
@@ -132,7 +133,9 @@ class _LanePrinter(_Printer):
             if e.func.id in _FUNCTIONS and not e.keywords:
                 return f"v_{e.func.id}({', '.join(_splat(a, v) for a, v in args)})", True
             raise UnsupportedExpression(f"function {e.func.id}")
-        return self.expr(e), False  # constants, parameters, Schur references, b offsets
+        if isinstance(e, ast.Subscript):  # Schur references and b offsets: pa[k], db[k]
+            return self.expr(e), True
+        return self.expr(e), False  # constants
 
 
 def _sincos_pairs(fn: ast.FunctionDef) -> dict[str, tuple[str, str]]:
@@ -168,17 +171,20 @@ def _splat(code: str, vector: bool) -> str:
 
 
 def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
-    """`forward_body4`: forward on four states (q, u, t vectors; parameters shared), outputs
-    and the pivot ratio into `out` as vectors; the runtime gathers, scatters and judges."""
+    """`forward_body4`: forward on four states (q, u, t, parameters, b offsets: one vector
+    lane per state), outputs and the pivot ratio into `out` as vectors; the runtime gathers,
+    scatters and judges."""
     nq, n, npar = dims
     lanes = {f"_q{i}" for i in range(nq)} | {f"_u{i}" for i in range(n)} | {"_t"}
+    lanes |= {f"_p{i}" for i in range(npar)}
     pr = _LanePrinter(npar, lanes)
     lines = _prologue(
         "static inline __attribute__((always_inline)) void forward_body4("
-        "const vd *restrict qa, const vd *restrict ua, vd _t, const double *restrict pa, "
-        "const double *restrict db, vd *restrict out)",
+        "const vd *restrict qa, const vd *restrict ua, vd _t, const vd *restrict pa, "
+        "const vd *restrict db, vd *restrict out)",
         "vd",
         dims,
+        "vd",
     )
     declared: dict[str, bool] = {}
     pairs = _sincos_pairs(fn)
@@ -194,7 +200,7 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
             if pair is not None and pair[0] not in declared:  # the first of the two
                 arg, vec = pr.lane(st.value.args[0])  # type: ignore[attr-defined]
                 # (either assignment's argument: _sincos_pairs matched them by name)
-                if not vec:  # of a parameter: two plain scalar calls, as any other
+                if not vec:  # of a constant: two plain scalar calls, as any other
                     pairs.pop(pair[0])
                     pairs.pop(pair[1])
                     pair = None
@@ -228,14 +234,16 @@ def _lane_body(fn: ast.FunctionDef, dims: tuple[int, int, int]) -> list[str]:
     return lines
 
 
-def _prologue(signature: str, state_type: str, dims: tuple[int, int, int]) -> list[str]:
-    """A body's signature and its loads: q and u by index (of type `state_type`: one state's
-    doubles or one vector lane per state), the parameters as doubles."""
+def _prologue(
+    signature: str, state_type: str, dims: tuple[int, int, int], param_type: str = "double"
+) -> list[str]:
+    """A body's signature and its loads: q, u and the parameters by index (of type
+    `state_type` / `param_type`: one state's doubles or one vector lane per state)."""
     nq, n, npar = dims
     lines = [signature, "{", "    (void)qa; (void)ua; (void)_t; (void)pa; (void)db;"]
     lines += [f"    const {state_type} _q{i} = qa[{i}];" for i in range(nq)]
     lines += [f"    const {state_type} _u{i} = ua[{i}];" for i in range(n)]
-    lines += [f"    const double _p{i} = pa[{i}];" for i in range(npar)]
+    lines += [f"    const {param_type} _p{i} = pa[{i}];" for i in range(npar)]
     return lines
 
 

@@ -1,8 +1,8 @@
-"""The C batch's four-lane body against its scalar kernel (docs/compiled.md, "The C backend"):
-10^4 consistent states per model, timed through the batch kernel with the parameters shared
-(blocks of four on the vector body) and with one parameter row per state (the scalar kernel
-state by state), and through NumericModel.forward_batch; every 37th state is compared with the
-checked single-state call, to the bit.
+"""The C batch's four-lane body (docs/compiled.md, "The C backend"): 10^4 consistent states
+per model, timed through the batch kernel with the parameters shared (splatted once per
+batch) and with one parameter row per state (gathered per block of four, as a sweep runs), and
+through NumericModel.forward_batch; every 37th state is compared with the checked single-state
+call, to the bit.
 
     PYTHONPATH=$PWD python scripts/c_batch_lanes.py [models...]
 """
@@ -56,7 +56,8 @@ def measure(name: str) -> str:
     scalar = best_us(lambda: kernel(Q, U, T, per_state, DB, out, st))
     public = best_us(lambda: nm.forward_batch(Q, U, 0.0))
     return (
-        f"{name:20s} four lanes {lanes:.3f}  scalar {scalar:.3f}  forward_batch {public:.3f}"
+        f"{name:20s} four lanes {lanes:.3f}  per-state parameters {scalar:.3f}  "
+        f"forward_batch {public:.3f}"
         f" us per state (min of 7 x {N}); equal to the single call to the bit: {same}"
     )
 

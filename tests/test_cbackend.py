@@ -201,7 +201,8 @@ def test_bound_raw_call_takes_keywords_and_number_types(c_backend):
 def test_four_lane_batch_equals_the_scalar_kernel_and_judges_each_lane(c_backend):
     """Slider-crank with l1 = l2: theta1 = pi/2 on the branch theta2 = -theta1 is singular.
     Ten states: two blocks of four on the vector body (one holding the singular state) and a
-    tail of two on the scalar kernel; per-state parameters take the scalar kernel throughout."""
+    tail of two on the scalar kernel; the same with one parameter row per state, and with rows
+    that differ (a sweep), each state against the scalar kernel on its own row."""
     equal = {"l1": 0.3, "l2": 0.3, "r2": 0.15, "I_G2": 2.0 * 0.09 / 12}
     nm = NumericModel(models.get("slider_crank"), params=equal)
     states = consistent_states(nm, 10)
@@ -220,15 +221,22 @@ def test_four_lane_batch_equals_the_scalar_kernel_and_judges_each_lane(c_backend
     out1, out2 = np.empty((N, nm._nf)), np.empty((N, nm._nf))
     st1, st2 = np.empty(N, np.int64), np.empty(N, np.int64)
     T, DB = np.array([0.25]), nm._db0[None]
-    kf(Q, U, T, nm._pa[None], DB, out1, st1)  # shared parameters: blocks of four
-    kf(Q, U, T, np.tile(nm._pa, (N, 1)), DB, out2, st2)  # one row per state: scalar
+    kf(Q, U, T, nm._pa[None], DB, out1, st1)  # shared parameters: splatted
+    kf(Q, U, T, np.tile(nm._pa, (N, 1)), DB, out2, st2)  # one row per state: gathered
     assert st1.tolist() == st2.tolist() and st1[5] == compiled.SINGULAR
     assert np.array_equal(out1, out2, equal_nan=True)
+    P = np.tile(nm._pa, (N, 1))
+    P[:, 0] *= np.linspace(0.5, 2.0, N)  # a different first parameter in every lane
+    kf(Q, U, T, P, np.tile(DB, (N, 1)), out2, st2)
+    one, out = nm._k.get("forward"), np.empty(nm._nf)
+    for i in range(N):
+        assert one(Q[i], U[i], 0.25, P[i], nm._db0, out) == st2[i]
+        assert np.array_equal(out, out2[i], equal_nan=True)
 
 
-def test_the_four_lane_printer_pairs_sin_and_cos_of_a_state_not_of_a_parameter():
-    """A sin/cos pair of a coordinate becomes one sincos per lane; of a parameter, two scalar
-    calls (a vector sincos of a scalar would not compile, and the batch would lose its lanes)."""
+def test_the_four_lane_printer_pairs_sin_and_cos_of_a_state_and_of_a_parameter():
+    """A sin/cos pair of a coordinate becomes one sincos per lane, and so does one of a
+    parameter: parameters are lanes too (a sweep gives each state its own)."""
     src = (
         "META = {'n': 1, 'm': 0}\n"
         "def forward(_q, _u, _t, _p, _sref, _db=None):\n"
@@ -238,5 +246,5 @@ def test_the_four_lane_printer_pairs_sin_and_cos_of_a_state_not_of_a_parameter()
     )
     text, sizes = ckernels.c_source(src, 1, 1, 1, 0, 1e-12)
     lanes = text[text.index("forward_body4") :]
-    assert "double _a = sin(_p0);" in lanes and "double _b = cos(_p0);" in lanes
+    assert "v_sincos(_p0, &_a, &_b);" in lanes and "const vd _p0 = pa[0];" in lanes
     assert "v_sincos(_q0, &_d, &_c);" in lanes and sizes == {"forward": [1, 0]}
