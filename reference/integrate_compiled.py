@@ -58,6 +58,10 @@ def why_not(run, integrator: str, method: str) -> str | None:
         return f"integrator {integrator} (the compiled stepper is DOP853's)"
     if method not in COMPILED_METHODS:
         return f"method {method} (compiled: {', '.join(COMPILED_METHODS)})"
+    if _tableau() is None:
+        import scipy
+
+        return f"scipy {scipy.__version__}: DOP853's tableau is not where the stepper reads it"
     return None
 
 
@@ -134,12 +138,22 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
 
 
 @cache
-def _tableau() -> tuple:
-    """scipy's DOP853 coefficients as the stepper reads them (flat float64, made once)."""
-    return tuple(
-        np.ascontiguousarray(getattr(si.DOP853, a), float).ravel()
-        for a in ("A", "B", "C", "E3", "E5", "A_EXTRA", "C_EXTRA", "D")
-    )
+def _tableau() -> tuple | None:
+    """scipy's DOP853 coefficients as the stepper reads them (flat float64, made once), or
+    None where this scipy does not hold them in the shapes the stepper was written for (the
+    class attributes of scipy 1.11-1.17): the run then takes the Python stepper."""
+    try:
+        A, B, C, E3, E5, AX, CX, D = (
+            np.asarray(getattr(si.DOP853, a), float)
+            for a in ("A", "B", "C", "E3", "E5", "A_EXTRA", "C_EXTRA", "D")
+        )
+    except (AttributeError, TypeError, ValueError):
+        return None
+    s, x = len(B), len(CX)
+    shapes = [(s, s), (s,), (s,), (s + 1,), (s + 1,), (x, s + 1 + x), (x,), (len(D), s + 1 + x)]
+    if [a.shape for a in (A, B, C, E3, E5, AX, CX, D)] != shapes:
+        return None
+    return tuple(np.ascontiguousarray(a).ravel() for a in (A, B, C, E3, E5, AX, CX, D))
 
 
 def _what(run) -> tuple[str, str]:

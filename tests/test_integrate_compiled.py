@@ -141,3 +141,24 @@ def test_the_bench_records_both_steppers_side_by_side():
     assert rec["max_difference"] <= SAME_OUTPUT * rec["rtol"] * 3.0
     bad = stepper_record(nm, "no-such-method", "steps", rounds=1)
     assert "unknown method" in bad["failed"]
+
+
+def test_a_scipy_without_the_tableau_takes_the_python_stepper(monkeypatch):
+    """The stepper reads scipy's DOP853 coefficients from the class; a scipy that moved them
+    gets the Python stepper (and a reason), not a crash or a wrong table."""
+    import scipy.integrate as si
+
+    from reference import integrate_compiled
+
+    nm = _nm("pendulum_xy")
+    m = nm.model
+    integrate_compiled._tableau.cache_clear()
+    monkeypatch.setattr(si.DOP853, "D", si.DOP853.D[:, :-1])  # a table of another shape
+    try:
+        tr = simulate(nm, m.initial_q, m.initial_u, 0.5, "index1")
+        assert tr.stats["stepper"] == "python"
+        with pytest.raises(ModelInputError, match="tableau is not where the stepper reads it"):
+            simulate(nm, m.initial_q, m.initial_u, 0.5, "index1", stepper="c")
+    finally:
+        monkeypatch.undo()
+        integrate_compiled._tableau.cache_clear()
