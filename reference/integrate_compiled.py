@@ -32,6 +32,13 @@ import numpy as np
 import scipy.integrate as si
 
 from .errors import ModelInputError
+from .integrate_common import (
+    PROJECTION_FAIL,
+    PROJECTION_MAX_ITER,
+    PROJECTION_TOL,
+    IntegrationError,
+    IntegrationTimeout,
+)
 
 # the simulate(stepper=...) values; CROSSCHECK_STEPPER sets the default
 STEPPERS = ("auto", "c", "python")
@@ -70,11 +77,11 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
     did, False when the Python loop must (not eligible, or the C loop stopped at a state it
     does not take; prob.stats["stepper"] says which and why)."""
     prob = run.prob
-    reason = why_not(run, *_what(run))
+    reason = why_not(run, run.integrator, run.method)
     if reason is not None:
         if stepper == "c":
             raise ModelInputError(f"{run.nm.model.name}: stepper='c' cannot run: {reason}")
-        prob.stats["stepper"] = "python"
+        prob.stats["stepper"] = f"python ({reason})"
         return False
     nm, k = run.nm, run.nm._k
     run._tolerances(len(y))  # W's tolerances, where it is carried (as the Python loop's)
@@ -89,8 +96,6 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         mode = 2
     baumgarte = (prob.alpha, prob.beta) if mode == 3 else (0.0, 0.0)
     a_offset = -1 if prob.mc == prob.m and prob.rates else k.offsets["matrices"][2][0]
-    from .integrate_common import PROJECTION_FAIL, PROJECTION_MAX_ITER, PROJECTION_TOL
-
     tableau = _tableau()
     te = None if run.te is None else np.ascontiguousarray(run.te[run.k_eval :], float)
     ny = len(solver.y)
@@ -156,10 +161,6 @@ def _tableau() -> tuple | None:
     return tuple(np.ascontiguousarray(a).ravel() for a in (A, B, C, E3, E5, AX, CX, D))
 
 
-def _what(run) -> tuple[str, str]:
-    return run.integrator, run.method
-
-
 def _record(run, outputs, nfev, nsteps, pmin) -> None:
     """The outputs (every accepted step, or the states at t_eval) as _Run.record keeps them."""
     prob, nq = run.prob, run.prob.nq
@@ -199,8 +200,6 @@ def _monitor(run, T, Q) -> None:
 
 
 def _raise_bounds(run, status, t_stop, t_end, too_small_msg) -> None:
-    from .integrate_common import IntegrationError, IntegrationTimeout
-
     name = run.nm.model.name
     if status == TOO_SMALL:
         raise IntegrationError(
