@@ -15,15 +15,15 @@ setting_kind, wall_s (median of `repeats`), wall_s_min, error (max over q and u 
 + a0|, evaluated by the reference on the engine's mapped states), residual_position/_velocity,
 energy_drift (max |E - E0 - W| / |E| scale, None where not checked), timed_energy (the
 reference's: what its timed runs integrate besides the motion), stepper (the reference's: "c",
-the whole run in the model's C module, or "python"; reference.integrate_compiled), nfev, t_end,
-and the reference's kind and estimated accuracy; error_resolved (False: the error is at or below
-the reference's own accuracy, error_note says so: the figure bounds the run's error, it does not
-measure it); reference_same_method (True: the reference solution is a tighter run of this row's
-own method, models without an independent reference: the error shows convergence only);
-setting_requested (the ladder's step where it was adjusted to divide the horizon), solref,
-engine_steps. A run that fails keeps its row with "failed": reason; an engine's refusal of a
-model (EngineUnsupported) is a row with "skipped", "refusal" and the reason, any other build
-error a failed row.
+the whole run in the model's C module, or "python (why)"; reference.integrate_compiled), nfev,
+t_end, and the reference's kind and estimated accuracy; error_resolved (False: the error is at
+or below the reference's own accuracy, error_note says so: the figure bounds the run's error, it
+does not measure it); reference_same_method (True: the reference solution is a tighter run of
+this row's own method, models without an independent reference: the error shows convergence
+only); setting_requested (the ladder's step where it was adjusted to divide the horizon),
+solref, engine_steps. A run that fails keeps its row with "failed": reason; an engine's refusal
+of a model (EngineUnsupported) is a row with "skipped", "refusal" and the reason, any other
+build error a failed row.
 
 Timings are medians over repeats and meaningful only as ratios within one run (crosscheck/timing).
 What is inside each wall_s: reference: simulate() from the projected initial state to t_end
