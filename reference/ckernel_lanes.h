@@ -43,7 +43,17 @@ LANEWISE1(v_acos, acos)
 LANEWISE1(v_atan, atan)
 LANEWISE2(v_atan2, atan2)
 LANEWISE2(v_pow, pow)
-LANEWISE2(v_nmin, nmin)
+
+/* nmin on every lane without a branch: a + b where either is NaN, else a < b ? a : b, as the
+   scalar nmin (the same comparison and the same sum per lane, selected by masks). The lanewise
+   loop compiled to a compare and a branch per lane through memory. */
+typedef long long vmask __attribute__((vector_size(LANES * sizeof(double))));
+INLINE vd v_nmin(vd a, vd b)
+{
+    const vmask nan = (a != a) | (b != b), lt = a < b;
+    const vmask least = (lt & (vmask)a) | (~lt & (vmask)b);
+    return (vd)((nan & (vmask)(a + b)) | (~nan & least));
+}
 
 INLINE void v_sincos(vd x, vd *s, vd *c)
 {
