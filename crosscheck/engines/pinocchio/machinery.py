@@ -46,10 +46,20 @@ def R_to_quat(R) -> np.ndarray:
     return pin.Quaternion(np.asarray(R, float)).coeffs().copy()
 
 
-def quat_rate(qxyzw, omega_local) -> np.ndarray:
-    """d/dt of a unit quaternion (x, y, z, w) for the local angular velocity: q (x) (w, 0) / 2."""
-    v, w = np.asarray(qxyzw[:3]), qxyzw[3]
-    return 0.5 * np.concatenate([w * omega_local + np.cross(v, omega_local), [-(v @ omega_local)]])
+def quat_rate(qxyzw, omega_local) -> list[float]:
+    """d/dt of a unit quaternion (x, y, z, w) for the local angular velocity: q (x) (w, 0) / 2,
+    i.e. (w omega + v x omega, -v . omega) / 2 with v = (x, y, z). Written out on floats: the
+    integrators call it at every stage, and numpy's cross and concatenate on 3-vectors cost
+    33 us per call where this costs 3, with the same result to the bit (1000 random inputs;
+    cProfile of `crosscheck run --engines pinocchio,mujoco`: 7.4 s of 36 s in np.cross)."""
+    x, y, z, w = (float(c) for c in qxyzw)
+    a, b, c = (float(o) for o in omega_local)
+    return [
+        0.5 * (w * a + (y * c - z * b)),
+        0.5 * (w * b + (z * a - x * c)),
+        0.5 * (w * c + (x * b - y * a)),
+        0.5 * -(x * a + y * b + z * c),
+    ]
 
 
 def at(x, y, z) -> pin.SE3:
@@ -149,16 +159,23 @@ class PinEngineModel(EngineModel):
         is R v_linear (its linear velocity is in the local frame, docs/engines/pinocchio.md)."""
         if self.model.nq == self.model.nv:
             return ve
+        key = (id(self.model), self.model.njoints)
+        cached = self.__dict__.get("_joint_plan")
+        if cached is None or cached[0] != key:  # kinds and offsets, read from pin's model once
+            plan = [
+                (jm.shortname(), jm.idx_q, jm.idx_v, jm.nq, jm.nv) for jm in self.model.joints[1:]
+            ]
+            self._joint_plan = (key, plan)
+        plan = self._joint_plan[1]
         out = np.empty(self.model.nq)
-        for jm in self.model.joints[1:]:
-            iq, iv, kind = jm.idx_q, jm.idx_v, jm.shortname()
+        for kind, iq, iv, nq, nv in plan:
             if kind == "JointModelSpherical":
                 out[iq : iq + 4] = quat_rate(qe[iq : iq + 4], ve[iv : iv + 3])
             elif kind == "JointModelFreeFlyer":
                 out[iq : iq + 3] = quat_to_R(qe[iq + 3 : iq + 7]) @ ve[iv : iv + 3]
                 out[iq + 3 : iq + 7] = quat_rate(qe[iq + 3 : iq + 7], ve[iv + 3 : iv + 6])
             else:
-                out[iq : iq + jm.nq] = ve[iv : iv + jm.nv]
+                out[iq : iq + nq] = ve[iv : iv + nv]
         return out
 
     def fingerprint(self) -> str:
