@@ -35,7 +35,7 @@ def _difference(label: str, py, c) -> float:
 
 def stepper_record(nm: NumericModel, method: str, label: str, rounds: int) -> dict:
     """One model, method and output kind: both steppers timed in `rounds` interleaved rounds."""
-    name, m = nm.model.name, nm.model
+    name, start = nm.model.name, (nm.model.initial_q, nm.model.initial_u)
     T = horizon(name)
     kw = {"energy": "none"} if label == "steps" else {"t_eval": np.linspace(0.0, T, GRID_POINTS)}
     rec: dict = {"model": name, "method": method, "outputs": label, "rtol": RTOL}
@@ -44,10 +44,7 @@ def stepper_record(nm: NumericModel, method: str, label: str, rounds: int) -> di
     try:
         for _ in range(rounds):
             for stepper in walls:
-                tr = simulate(
-                    nm, m.initial_q, m.initial_u, T, method, rtol=RTOL, atol=RTOL,
-                    stepper=stepper, **kw,
-                )  # fmt: skip
+                tr = simulate(nm, *start, T, method, rtol=RTOL, atol=RTOL, stepper=stepper, **kw)
                 walls[stepper].append(tr.wall_s)
                 runs[stepper] = tr
     except Exception as exc:  # recorded, never hidden
