@@ -143,7 +143,7 @@ def _digest(text: str, cmd: list[str]) -> str:
     h = hashlib.sha256()
     for part in (
         text,
-        *(h.read_text() for h in HEADERS),
+        *(header.read_text() for header in HEADERS),
         " ".join(cmd),
         _compiler_identity(tuple(compiler())),
         sys.version,

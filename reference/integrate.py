@@ -68,6 +68,11 @@ computed after the run from the stored states); `energy="none"` skips the bookke
 components' tolerances are scaled by sqrt(N / (N + 1)), so the RMS error norm and hence every
 step are those of the run without W: bookkeeping never changes the trajectory.
 
+Stepping: on the C backend the whole DOP853 run of index1, projection and baumgarte runs in
+the model's C module (integrate_compiled: within the tolerance of the Python loop, with the
+same errors); the Python loop below runs everything else, and any run the C loop declines.
+`stepper` chooses.
+
 Layout: integrate_common (settings, errors, Trajectory, the _Problem base), one module per
 method family (integrate_index1: index1 and baumgarte; integrate_projection;
 integrate_nullspace); this module is the driver (simulate) and re-exports the public names.
