@@ -3,13 +3,15 @@
 
 One record per model x method x outputs: simulate() over the model's work-precision horizon at
 rtol = atol RTOL, on the Python stepper and on the C one (reference.integrate_compiled), in
-interleaved rounds (the minimum of each). "steps": every accepted step recorded, the motion
-only (the work-precision runs); "grid": GRID_POINTS output times with the work integral where
-the model carries it (the trajectory checks' reference runs). Fields: model, method, outputs,
-rtol, python_wall_s, c_wall_s, speedup (python / c), nfev_python, nfev_c, max_difference (max
+interleaved rounds (the minimum of each). "steps": every accepted step recorded, the motion only
+(the work-precision runs); "grid": GRID_POINTS output times with the work integral where the
+model carries it (the trajectory checks' reference runs). Fields: model, method, outputs, rtol,
+python_wall_s, c_wall_s, speedup (python / c), nfev_python, nfev_c, max_difference (max
 |y_python - y_c| over the outputs at the same times, or at t_end for "steps", whose step times
-differ by round-off), stepper (what the C run actually ran: "c", or "python" with the reason
-where the run does not qualify, e.g. a model on another backend).
+differ by round-off), state_scale (1 + the largest |q|, |u| of the Python run: max_difference /
+(rtol state_scale) is the difference in units of the tolerance), stepper (what the C run
+actually ran: "c", or "python" with the reason where the run does not qualify, e.g. a model on
+another backend).
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ def stepper_record(nm: NumericModel, method: str, label: str, rounds: int) -> di
         nfev_python=py.nfev,
         nfev_c=c.nfev,
         max_difference=_difference(label, py, c),
+        state_scale=1.0 + float(max(np.max(np.abs(py.q)), np.max(np.abs(py.u)))),
         stepper=c.stats.get("stepper"),
     )
     return rec

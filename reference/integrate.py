@@ -273,14 +273,11 @@ class _Run:
 
     def _step(self, solver, t_end) -> bool:
         """One accepted step, its outputs and the bounds; True when a restart is due."""
-        prob, te, name = self.prob, self.te, self.nm.model.name
+        prob, te = self.prob, self.te
         msg = solver.step()
         if solver.status == "failed":
             self.nfev += solver.nfev
-            raise IntegrationError(
-                f"{name}: {self.integrator} failed at t = {solver.t:.6g} "
-                f"with method {self.method}: {msg}"
-            )
+            raise self.failed(solver.t, msg)
         self.nsteps += 1
         if te is not None and self.k_eval < len(te) and te[self.k_eval] <= solver.t:
             dense = solver.dense_output()
@@ -294,20 +291,33 @@ class _Run:
             self.record(float(solver.t), *prob.full(solver.t, solver.y))
         running = solver.status == "running"
         if self.max_steps is not None and self.nsteps >= self.max_steps and running:
-            raise IntegrationTimeout(
-                f"{name}: {self.method} reached max_steps = {self.max_steps} at t = "
-                f"{solver.t:.6g} of {t_end}"
-            )
+            raise self.out_of_steps(solver.t, t_end)
         if (
             self.max_wall_s is not None
             and running
             and time.perf_counter() - self.t_start > self.max_wall_s
         ):
-            raise IntegrationTimeout(
-                f"{name}: {self.method} exceeded max_wall_s = {self.max_wall_s} s at t = "
-                f"{solver.t:.6g} of {t_end} after {self.nsteps} steps"
-            )
+            raise self.out_of_time(solver.t, t_end)
         return restart
+
+    # the errors of a run that stops early, worded once for both steppers
+    def failed(self, t, msg) -> IntegrationError:
+        return IntegrationError(
+            f"{self.nm.model.name}: {self.integrator} failed at t = {t:.6g} "
+            f"with method {self.method}: {msg}"
+        )
+
+    def out_of_steps(self, t, t_end) -> IntegrationTimeout:
+        return IntegrationTimeout(
+            f"{self.nm.model.name}: {self.method} reached max_steps = {self.max_steps} at t = "
+            f"{t:.6g} of {t_end}"
+        )
+
+    def out_of_time(self, t, t_end) -> IntegrationTimeout:
+        return IntegrationTimeout(
+            f"{self.nm.model.name}: {self.method} exceeded max_wall_s = {self.max_wall_s} s at "
+            f"t = {t:.6g} of {t_end} after {self.nsteps} steps"
+        )
 
     def _orientation(self, t, y):
         """Rank-loss monitor: det(A_k A_{k-1}^T) < 0 between two accepted steps means a singular

@@ -36,8 +36,6 @@ from .integrate_common import (
     PROJECTION_FAIL,
     PROJECTION_MAX_ITER,
     PROJECTION_TOL,
-    IntegrationError,
-    IntegrationTimeout,
 )
 
 # the simulate(stepper=...) values; CROSSCHECK_STEPPER sets the default
@@ -200,19 +198,10 @@ def _monitor(run, T, Q) -> None:
 
 
 def _raise_bounds(run, status, t_stop, t_end, too_small_msg) -> None:
-    name = run.nm.model.name
+    """The Python loop's errors for a run the C loop stopped early (integrate._Run words them)."""
     if status == TOO_SMALL:
-        raise IntegrationError(
-            f"{name}: {run.integrator} failed at t = {t_stop:.6g} with method {run.method}: "
-            f"{too_small_msg}"
-        )
+        raise run.failed(t_stop, too_small_msg)
     if status == MAX_STEPS:
-        raise IntegrationTimeout(
-            f"{name}: {run.method} reached max_steps = {run.max_steps} at t = {t_stop:.6g} "
-            f"of {t_end}"
-        )
+        raise run.out_of_steps(t_stop, t_end)
     if status == DEADLINE:
-        raise IntegrationTimeout(
-            f"{name}: {run.method} exceeded max_wall_s = {run.max_wall_s} s at t = "
-            f"{t_stop:.6g} of {t_end} after {run.nsteps} steps"
-        )
+        raise run.out_of_time(t_stop, t_end)

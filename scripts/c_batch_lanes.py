@@ -53,10 +53,10 @@ def measure(name: str) -> str:
     shared, per_state = nm._pa[None], np.ascontiguousarray(np.tile(nm._pa, (N, 1)))
     out, st = np.empty((N, nm._nf)), np.empty(N, np.int64)
     lanes = best_us(lambda: kernel(Q, U, T, shared, DB, out, st))
-    scalar = best_us(lambda: kernel(Q, U, T, per_state, DB, out, st))
+    rows = best_us(lambda: kernel(Q, U, T, per_state, DB, out, st))
     public = best_us(lambda: nm.forward_batch(Q, U, 0.0))
     return (
-        f"{name:20s} four lanes {lanes:.3f}  per-state parameters {scalar:.3f}  "
+        f"{name:20s} four lanes {lanes:.3f}  per-state parameters {rows:.3f}  "
         f"forward_batch {public:.3f}"
         f" us per state (min of 7 x {N}); equal to the single call to the bit: {same}"
     )

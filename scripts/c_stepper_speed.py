@@ -1,8 +1,12 @@
 """The C stepper against the Python stepper (docs/compiled.md, "The compiled stepper"), the
 records `crosscheck bench` writes to bench.json "stepper" (crosscheck/stepper_bench.py), for
-the given models (default: four) with seven interleaved rounds, as a table.
+the given models (default: four) with seven interleaved rounds, as a table; "/ tol" is the
+largest output difference in units of rtol (1 + max |q|, |u|). With --profile: cProfile of 200
+C-stepper runs of the slider-crank (index1, rtol 1e-10, every step recorded), what the run
+spends outside the C loop.
 
     PYTHONPATH=$PWD python scripts/c_stepper_speed.py [models...]
+    PYTHONPATH=$PWD python scripts/c_stepper_speed.py --profile
 """
 
 from __future__ import annotations
@@ -12,7 +16,7 @@ import sys
 
 os.environ.setdefault("CROSSCHECK_BACKEND", "c")
 
-from crosscheck.stepper_bench import stepper_records
+from crosscheck.stepper_bench import RTOL, stepper_records
 
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
 
@@ -20,7 +24,7 @@ MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
 def main(names):
     print(
         f"{'model':20s} {'method':10s} {'outputs':8s} {'python ms':>10s} {'C ms':>8s} "
-        f"{'ratio':>6s} {'nfev py/C':>11s} {'max |dy|':>9s}  stepper"
+        f"{'ratio':>6s} {'nfev py/C':>11s} {'max |dy|':>9s} {'/ tol':>7s}  stepper"
     )
     for r in stepper_records(names, quick=False):
         head = f"{r['model']:20s} {r['method']:10s} {r['outputs']:8s}"
@@ -30,9 +34,33 @@ def main(names):
         print(
             f"{head} {r['python_wall_s'] * 1e3:10.2f} {r['c_wall_s'] * 1e3:8.2f} "
             f"{r['speedup']:6.1f} {r['nfev_python']:5d}/{r['nfev_c']:<5d} "
-            f"{r['max_difference']:9.1e}  {r['stepper']}"
+            f"{r['max_difference']:9.1e} {r['max_difference'] / (RTOL * r['state_scale']):7.3f}"
+            f"  {r['stepper']}"
         )
 
 
+def profile() -> None:
+    import cProfile
+    import pstats
+
+    from reference import NumericModel, models
+    from reference.integrate import simulate
+
+    nm = NumericModel(models.get("slider_crank"))
+    q0, u0 = nm.model.initial_q, nm.model.initial_u
+
+    def runs():
+        for _ in range(200):
+            simulate(nm, q0, u0, 2.0, "index1", rtol=RTOL, atol=RTOL, energy="none", stepper="c")
+
+    runs()  # warm: the kernels and the tableau
+    pr = cProfile.Profile()
+    pr.runcall(runs)
+    pstats.Stats(pr).sort_stats("tottime").print_stats(12)
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:] or MODELS)
+    if sys.argv[1:] == ["--profile"]:
+        profile()
+    else:
+        main(sys.argv[1:] or MODELS)

@@ -844,3 +844,17 @@ if __name__ == "__main__":  # pragma: no cover
             f"{r['acc_rel']:9.1e} {r['lam_abs']:9.1e} {r['lam_rel']:9.1e} {r['iter']:4d}"
         )
     print(f"({time.perf_counter() - t0:.1f} s)")
+
+
+def test_quaternion_rate_is_the_quaternion_product():
+    """machinery.quat_rate, written out on floats, against the product it stands for,
+    q (x) (omega, 0) / 2 in numpy's form (w omega + v x omega, -v . omega) / 2: equal to the
+    last bit, as the floats follow the same operations (random unit and non-unit q)."""
+    from crosscheck.engines.pinocchio.machinery import quat_rate
+
+    rng = np.random.default_rng(7)
+    for _ in range(1000):
+        q, omega = rng.standard_normal(4), 10.0 * rng.standard_normal(3)
+        v, w = q[:3], q[3]
+        numpy_form = 0.5 * np.concatenate([w * omega + np.cross(v, omega), [-(v @ omega)]])
+        assert np.array_equal(quat_rate(q, omega), numpy_form)

@@ -158,7 +158,8 @@ def test_sigint_during_exudyn_solves(previous_run, delay):
     (exit 0 with every record, or exit 1 with a failed trajectory record). With the compiled
     stepper that run takes about 6 s warm, so a signal at 5 s could land after its last
     check (a finished run, exit 0: CI run 18); two models keep every delay inside Exudyn's
-    solves (11.5 s warm)."""
+    solves (11.5 s warm: `/usr/bin/time -f %e python -m crosscheck run slider_crank
+    slider_crank_free --engines exudyn --out <dir>`)."""
     before = _snapshot(previous_run)
     models = ["slider_crank", "slider_crank_free"]
     proc = _start(["run", *models, "--engines", "exudyn", "--out", str(previous_run)])

@@ -49,9 +49,9 @@ def R_to_quat(R) -> np.ndarray:
 def quat_rate(qxyzw, omega_local) -> list[float]:
     """d/dt of a unit quaternion (x, y, z, w) for the local angular velocity: q (x) (w, 0) / 2,
     i.e. (w omega + v x omega, -v . omega) / 2 with v = (x, y, z). Written out on floats: the
-    integrators call it at every stage, and numpy's cross and concatenate on 3-vectors cost
-    33 us per call where this costs 3, with the same result to the bit (1000 random inputs;
-    cProfile of `crosscheck run --engines pinocchio,mujoco`: 7.4 s of 36 s in np.cross)."""
+    integrators call it at every stage, and numpy's cross on 3-vectors alone costs 33-47 us a
+    call where this costs 3-5 (docs/compiled.md "Start-up" gives the commands), with the same
+    result to the bit (tests/test_engine_pinocchio.py)."""
     x, y, z, w = (float(c) for c in qxyzw)
     a, b, c = (float(o) for o in omega_local)
     return [
