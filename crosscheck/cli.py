@@ -9,6 +9,7 @@ nothing failed exits 4 (incomplete, not passed).
 from __future__ import annotations
 
 import argparse
+import atexit
 import math
 import os
 import re
@@ -288,6 +289,9 @@ def main(argv=None) -> int:
         # handled here: leave with the status the command promises
         sys.stdout.flush()
         sys.stderr.flush()
+        # what a normal exit runs first (multiprocessing's finalizers release an interrupted
+        # worker pool's semaphores; without them its resource tracker warns of leaks)
+        atexit._run_exitfuncs()
         os._exit(code)
     return code
 

@@ -14,6 +14,9 @@ outputs after one (Outputs.commit asks).
 from __future__ import annotations
 
 import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 _seen: list[int] = []
 
@@ -34,4 +37,25 @@ def seen() -> bool:
 def check() -> None:
     """Raise KeyboardInterrupt if a SIGINT arrived, even if what it interrupted swallowed it."""
     if _seen:
+        raise KeyboardInterrupt
+
+
+@contextmanager
+def deferred() -> Iterator[None]:
+    """Hold Ctrl-C until the block has run, then deliver it: for a step that must not be cut
+    half-way. Starting worker processes is one: a fork the interrupt cut off before we learnt
+    the worker's pid would still be served by the server after we had gone, and that worker
+    would print a traceback into the terminal."""
+    if threading.current_thread() is not threading.main_thread():
+        yield  # signal handlers belong to the main thread
+        return
+    held: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if held:
+            _seen.append(held[0])
+    if held and previous is not signal.SIG_IGN:
         raise KeyboardInterrupt

@@ -59,7 +59,10 @@ def _formulation_records(name, nm, states):
         "arithmetic order: round-off only",
     )
     for other in model.formulations[1:]:
-        on = NumericModel(model, other, nm.params)
+        # the Python path: evaluated at a handful of states here, where a C build would take
+        # 1-2 s of compiler time per formulation (scripts/c_build_times.py); it equals the
+        # compiled path to the bit or within 1e-14 (tests/test_compiled.py)
+        on = NumericModel(model, other, nm.params, backend="python")
         acc, lam = C.WorstCase(), C.WorstCase()
         for i, (q, u) in enumerate(states):
             a, b = nm.forward(q, u), on.forward(q, u)
@@ -171,7 +174,7 @@ def run(
         # other core while this model is checked; reference/cbuild.py): on a cold cache
         # only the first model waits for its compiler
         for ahead in model_names[k : k + 2] if k == 0 else model_names[k + 1 : k + 2]:
-            cbuild.prebuild_model(models.get(ahead))
+            cbuild.prebuild_model(models.get(ahead), models.get(ahead).formulations[:1])
         nm = NumericModel(model)
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)
@@ -232,9 +235,14 @@ def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .provenance import meta
+    from .run_jobs import WORKER_MODULE
+    from .workers import default_workers, process_context
 
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
+    jobs = min(args.jobs or default_workers(), len(names))
+    if jobs > 1:  # its imports run on the other core while this process does its own
+        process_context(WORKER_MODULE)
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
     check_perturb(names, perturb)
@@ -246,16 +254,28 @@ def cmd_run(args) -> int:
 
         bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
     agreement: list[dict] = []
-    records, series = run(
-        names,
-        engine_names,
-        args.states,
-        perturb,
-        progress=(lambda n: bar.update(1)) if bar else None,
-        trajectories=not args.instantaneous,
-        t_end=args.t_end,
-        agreement=agreement,
-    )
+    progress = (lambda n: bar.update(1)) if bar else None
+    if jobs > 1:
+        from .run_jobs import ModelJob, run_models
+
+        work = [
+            ModelJob(
+                n, tuple(engine_names), args.states, perturb, not args.instantaneous, args.t_end
+            )
+            for n in names
+        ]
+        records, series = run_models(work, jobs, tuple(args.model_file), progress, agreement)
+    else:
+        records, series = run(
+            names,
+            engine_names,
+            args.states,
+            perturb,
+            progress=progress,
+            trajectories=not args.instantaneous,
+            t_end=args.t_end,
+            agreement=agreement,
+        )
     if bar:
         bar.close()
     out = Path(args.out)
@@ -264,6 +284,7 @@ def cmd_run(args) -> int:
             **meta(sys.argv[1:]),
             "states_per_model": args.states,
             "state_seed": "crc32 of the model name (crosscheck.sampling.consistent_states)",
+            "jobs": jobs,
             "metrics": C.METRICS,
         },
         "records": records,
@@ -321,6 +342,13 @@ def register(sub):
     r.add_argument("--out", default="out")
     r.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL")
     r.add_argument("--states", type=positive_int, default=6, help="consistent states per model")
+    r.add_argument(
+        "--jobs",
+        type=positive_int,
+        default=None,
+        help="worker processes, one model at a time each (default: the cores this process "
+        "may use; 1 runs in this process). The records are the same either way",
+    )
     r.add_argument(
         "--instantaneous",
         action="store_true",

@@ -5,38 +5,18 @@ from __future__ import annotations
 
 import math
 import os
-import signal
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from reference.errors import ModelInputError
 
-from .engines.registry import engine_modules
 from .sweep_config import DASK_MAX_CHUNK, DASK_MIN_CHUNK, LOCAL_CHUNK_MAX
 from .sweep_worker import _first_line, run_chunk
-
-
-def default_workers() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
-def _worker_init():
-    # Ctrl-C goes to the whole process group: the parent handles it (cancels, keeps what is
-    # done); a worker killed by it would break the pool and lose the chunks in flight
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+from .workers import default_workers, process_context, start_worker
 
 
 def _mp_context():
-    """forkserver: workers fork from a clean server that has imported this module (and the
-    engines), so they start fast and inherit no threads of the parent (a Dask client, tqdm)."""
-    import multiprocessing as mp
-
-    ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["crosscheck.sweep", *engine_modules()])
-    return ctx
+    return process_context("crosscheck.sweep")
 
 
 class _Serial:
@@ -75,7 +55,10 @@ class _Pool:
 
     def __init__(self, specs, workers: int):
         self.ex = ProcessPoolExecutor(
-            max_workers=workers, mp_context=_mp_context(), initializer=_worker_init
+            max_workers=workers,
+            mp_context=_mp_context(),
+            initializer=start_worker,
+            initargs=(os.getpid(),),
         )
         self.todo = _submittable(specs)
         self.live: dict = {}  # future -> spec

@@ -223,8 +223,9 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
     return target, modname, _compile(text, stem, target, modname, flags)
 
 
-def prebuild_model(model) -> None:
-    """Start the C builds of every formulation of `model`, deriving what the cache lacks, so
+def prebuild_model(model, formulations=None) -> None:
+    """Start the C builds of `formulations` of `model` (default all), deriving what the cache
+    lacks, so
     that each compiles while the next is derived and the first is checked (crosscheck run
     calls this before it builds the model's NumericModels). Does nothing off the C backend;
     a module the printer refuses is left to NumericModel, which records why."""
@@ -234,7 +235,7 @@ def prebuild_model(model) -> None:
 
     if compiled.backend() != "c":
         return
-    for f in model.formulations:
+    for f in formulations or model.formulations:
         scalar, _batched, src = codegen.load_compiled(
             lambda f=f: derive(model, f), model, f, resolve_parameters(model)
         )

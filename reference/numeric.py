@@ -83,7 +83,21 @@ class Forward:
 class NumericModel(BatchedForward, ManifoldProjection):
     """Compiled numeric model for one formulation and one parameter set."""
 
-    def __init__(self, model: Model, formulation: str | None = None, params: dict | None = None):
+    def __init__(
+        self,
+        model: Model,
+        formulation: str | None = None,
+        params: dict | None = None,
+        backend: str | None = None,
+    ):
+        """``backend`` overrides the setting (reference.compiled.backend) for this model:
+        'python' where it is evaluated at a few states only, so a compile would cost more
+        than it saves (1-2 s of the C compiler per module, scripts/c_build_times.py)."""
+        if backend not in (None, *compiled.BACKENDS):
+            raise ModelInputError(
+                f"backend {backend!r}: give one of {', '.join(compiled.BACKENDS)}, or None "
+                "for the setting (CROSSCHECK_BACKEND)"
+            )
         model.validate()
         self.model = model
         self.formulation = formulation or model.formulations[0]
@@ -108,7 +122,7 @@ class NumericModel(BatchedForward, ManifoldProjection):
         self.rank = self.m  # rank of A at the initial state (below m only if redundant)
         self.sref = self._schur_reference()
         self._no_db = (0.0,) * self.m
-        self._k = self._kernels()
+        self._k = self._kernels(backend or compiled.backend())
         # every single-state kernel compiled or loaded here (the batch kernels on first use)
         # (no forward kernel where the solve is numeric: dependent rows or a large model)
         self._kf: Any = None if self._numeric or self._k is None else self._k.get("forward")
@@ -119,11 +133,10 @@ class NumericModel(BatchedForward, ManifoldProjection):
         self._nlam = self.n + self.m
         self._pack()
 
-    def _kernels(self) -> Any:
-        """The compiled kernels of this model's code: C (reference.cbuild), else numba, else
-        None (the pure-Python path). A model the C printer cannot translate, or a compiler
-        that rejects it, takes numba; the reason is in bench.json's `compiled`."""
-        which = compiled.backend()
+    def _kernels(self, which: str) -> Any:
+        """The compiled kernels of this model's code on backend `which`: C (reference.cbuild),
+        else numba, else None (the pure-Python path). A model the C printer cannot translate,
+        or a compiler that rejects it, takes numba; the reason is in bench.json's `compiled`."""
         if which == "python" or codegen.numeric_kkt(self.n, self.m):
             # numba's compile of a large model's long straight-line M, A code costs more than
             # the run (docs/scaling.md); a small model with dependent rows keeps its kernels

@@ -165,3 +165,23 @@ def test_auto_setting_uses_the_python_path_until_a_worker_has_compiled(monkeypat
     assert warm.backend == "numba"
     q, u = cold.model.initial_q, cold.model.initial_u
     _same(warm.forward(q, u).accelerations, cold.forward(q, u).accelerations, "u'")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_model_can_take_its_own_backend(monkeypatch, backend):
+    """NumericModel(..., backend=...) overrides the setting for one model (crosscheck run
+    evaluates the second and third formulations at a few states on the Python path): the
+    override runs what it names, equal to the setting's backend, and a wrong name is an
+    error that lists the valid ones."""
+    monkeypatch.setenv("CROSSCHECK_BACKEND", backend)
+    model = models.get("slider_crank")
+    other = model.formulations[1]
+    fast = NumericModel(model, other)
+    slow = NumericModel(model, other, backend="python")
+    assert (fast.backend, slow.backend) == (backend, "python")
+    for q, u in consistent_states(slow, 4):
+        a, b = fast.forward(q, u), slow.forward(q, u)
+        _same(a.accelerations, b.accelerations, "u'")
+        _same(a.multipliers, b.multipliers, "lambda")
+    with pytest.raises(ModelInputError, match="give one of c, numba, python"):
+        NumericModel(model, other, backend="fortran")

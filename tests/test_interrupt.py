@@ -89,7 +89,9 @@ def test_sigint_on_a_real_run(previous_run, delay):
     one inside PyRun-executed code ended the process by the signal, status -2) and later
     (computing): one line, exit 130, the previous files intact."""
     before = _snapshot(previous_run)
-    proc = _start(["run", "pendulum_angle", "slider_crank", "--out", str(previous_run)])
+    # in this process (--jobs 1); tests/test_run_jobs.py interrupts runs on worker processes
+    models = ["pendulum_angle", "slider_crank"]
+    proc = _start(["run", *models, "--jobs", "1", "--out", str(previous_run)])
     time.sleep(delay)
     assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(signal.SIGINT)
@@ -159,13 +161,36 @@ def test_sigint_during_exudyn_solves(previous_run, delay):
     stepper that run takes about 6 s warm, so a signal at 5 s could land after its last
     check (a finished run, exit 0: CI run 18); two models keep every delay inside Exudyn's
     solves (11.5 s warm: `/usr/bin/time -f %e python -m crosscheck run slider_crank
-    slider_crank_free --engines exudyn --out <dir>`)."""
+    slider_crank_free --engines exudyn --jobs 1 --out <dir>`)."""
     before = _snapshot(previous_run)
     models = ["slider_crank", "slider_crank_free"]
-    proc = _start(["run", *models, "--engines", "exudyn", "--out", str(previous_run)])
+    # --jobs 1: the solves run in the process that gets the signal (workers ignore it)
+    proc = _start(
+        ["run", *models, "--engines", "exudyn", "--jobs", "1", "--out", str(previous_run)]
+    )
     time.sleep(delay)
     assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert _snapshot(previous_run) == before
+
+
+def test_a_deferred_interrupt_arrives_after_the_block(monkeypatch):
+    """interrupts.deferred: a SIGINT during the block does not cut it; it is raised once the
+    block is done, and remembered for interrupts.check."""
+    import os as _os
+
+    from crosscheck import interrupts
+
+    monkeypatch.setattr(interrupts, "_seen", [])
+    before = signal.getsignal(signal.SIGINT)
+    finished = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts.deferred():
+            _os.kill(_os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the handler has run by now
+            finished.append(True)
+    assert finished == [True]
+    assert interrupts.seen()
+    assert signal.getsignal(signal.SIGINT) is before

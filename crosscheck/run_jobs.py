@@ -1,0 +1,161 @@
+"""`crosscheck run --jobs N`: the models of a run on N local worker processes.
+
+A model's checks need nothing from another model's (its consistent states are seeded by its own
+name, crosscheck.sampling), so each model is one piece of work: a worker runs crosscheck.run.run
+on it, and the parent puts the records, series and agreement matrices back in the models'
+order. results.json is the serial run's, record for record (tests/test_run_jobs.py).
+
+Faults keep the serial run's meaning: bad input in several models reports the first model's, as
+a serial run would meet it; a worker that dies (an engine crashing) is an error naming the
+models it may have been checking, never a silently shorter results.json. Ctrl-C reaches the
+parent (workers ignore SIGINT), which stops the workers at once: one line, exit 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import traceback
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+
+from reference.errors import ModelInputError
+
+from . import interrupts
+from .workers import process_context, start_worker, stop_workers
+
+WORKER_MODULE = "crosscheck.run_jobs"  # what the workers' server imports before forking them
+SETTINGS = "CROSSCHECK_"  # the environment variables that are the suite's settings
+
+
+def _settings() -> tuple[tuple[str, str], ...]:
+    return tuple(sorted((k, v) for k, v in os.environ.items() if k.startswith(SETTINGS)))
+
+
+@dataclass(frozen=True)
+class ModelJob:
+    """One model of a run, as crosscheck.run.run takes it."""
+
+    name: str
+    engines: tuple[str, ...]
+    n_states: int
+    perturb: dict
+    trajectories: bool
+    t_end: float
+    # the parent's CROSSCHECK_* settings when the job was made: the workers' server keeps the
+    # environment it was started with, and a caller in one process may have changed it since
+    settings: tuple[tuple[str, str], ...] = field(default_factory=_settings)
+
+
+class WorkerError(RuntimeError):
+    """A worker's internal error (a bug, not a failed check), with the worker's traceback."""
+
+
+def _start_worker(parent: int, model_files: tuple[str, ...]) -> None:
+    """workers.start_worker, then register the user's models (their files, the
+    `crosscheck.models` entry points) as the parent did: a worker is a fresh process."""
+    start_worker(parent)
+    from .arguments import load_model_files
+
+    load_model_files(argparse.Namespace(model_file=list(model_files)))
+
+
+def run_model(job: ModelJob) -> tuple:
+    """("ok", records, series, agreement), ("input", message) or ("internal", traceback).
+    Errors travel as text: an exception class with its own constructor arguments does not
+    survive pickling back to the parent."""
+    from .run import run
+
+    for key in [k for k in os.environ if k.startswith(SETTINGS)]:
+        del os.environ[key]
+    os.environ.update(job.settings)
+    try:
+        agreement: list = []
+        records, series = run(
+            [job.name],
+            list(job.engines),
+            job.n_states,
+            job.perturb,
+            trajectories=job.trajectories,
+            t_end=job.t_end,
+            agreement=agreement,
+        )
+        return ("ok", records, series, agreement)
+    except ModelInputError as exc:
+        return ("input", str(exc))
+    except Exception:
+        return ("internal", traceback.format_exc())
+
+
+def run_models(
+    jobs: list[ModelJob],
+    workers: int,
+    model_files: tuple[str, ...] = (),
+    progress=None,
+    agreement: list | None = None,
+) -> tuple[list, list]:
+    """run() over `jobs` on `workers` processes: (records, series) in the jobs' order;
+    ``agreement`` receives the matrices as run() gives them; ``progress(name)`` is called as
+    each model completes."""
+    outcomes: dict[int, tuple] = {}
+    ex = ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=process_context(WORKER_MODULE),
+        initializer=_start_worker,
+        initargs=(os.getpid(), tuple(model_files)),
+    )
+    try:
+        with interrupts.deferred():  # the first submit starts every worker (forkserver)
+            futures: dict[Future, int] = {ex.submit(run_model, j): i for i, j in enumerate(jobs)}
+        first_fault = len(jobs)
+        while not all(i in outcomes for i in range(first_fault)):
+            done, _ = wait(list(futures), return_when=FIRST_COMPLETED)
+            for fut in done:
+                i = futures.pop(fut)
+                outcomes[i] = _outcome(fut, jobs, futures.values(), i)
+                if outcomes[i][0] != "ok":
+                    first_fault = min(first_fault, i)
+                    for later, k in futures.items():  # a serial run would not reach them
+                        if k > i:
+                            later.cancel()
+                elif progress:
+                    progress(jobs[i].name)
+            futures = {f: k for f, k in futures.items() if k < first_fault}
+    except BaseException:
+        stop_workers(ex)  # Ctrl-C: no waiting for the models in flight
+        raise
+    ex.shutdown(wait=True, cancel_futures=True)
+    if first_fault < len(jobs):
+        _raise(outcomes[first_fault], jobs[first_fault].name)
+    records: list = []
+    series: list = []
+    for i in range(len(jobs)):
+        _, recs, ser, agr = outcomes[i]
+        records += recs
+        series += ser
+        if agreement is not None:
+            agreement += agr
+    return records, series
+
+
+def _outcome(fut: Future, jobs: list[ModelJob], in_flight, i: int) -> tuple:
+    try:
+        return fut.result()
+    except BrokenProcessPool:
+        names = sorted({jobs[i].name, *(jobs[k].name for k in in_flight)})
+        return (
+            "died",
+            "a worker process ended abruptly (an engine crashed, or the machine ran out of "
+            f"memory) while checking one of: {', '.join(names)}; run one of them with "
+            "--jobs 1 to see where",
+        )
+
+
+def _raise(outcome: tuple, name: str):
+    kind, text = outcome
+    if kind == "input":
+        raise ModelInputError(text)
+    if kind == "died":
+        raise WorkerError(text)
+    raise WorkerError(f"in the worker checking {name}:\n{text}")

@@ -1,0 +1,103 @@
+"""Local worker processes, shared by the commands that spread work over the cores
+(`crosscheck run --jobs`, `crosscheck sweep --workers`)."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import threading
+import time
+
+from .engines.registry import engine_modules
+
+
+def default_workers() -> int:
+    """The cores this process may run on (its affinity mask, not the machine's count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def start_worker(parent: int) -> None:
+    """A worker's first act (the pool's initializer, given the parent's pid). Ctrl-C goes to
+    the whole process group: the parent handles it (cancels, keeps what is done, stops the
+    workers); a worker killed by it would break the pool and lose the work in flight. And a
+    worker ends when the parent does: one forked after the parent was interrupted (the
+    server still importing when the fork was asked for) or whose parent was killed would
+    otherwise block for ever writing its result into a pipe nobody reads."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    watch = threading.Thread(target=_exit_with, args=(parent,), daemon=True, name="parent")
+    watch.start()
+
+
+def _exit_with(parent: int) -> None:
+    """Wait for process `parent` to end, then end this process."""
+    try:
+        fd = os.pidfd_open(parent)  # Linux >= 5.3: readable once the process has ended
+    except (AttributeError, OSError):
+        fd = None
+    if fd is not None:
+        select.select([fd], [], [])
+    else:  # pragma: no cover - no pidfd: poll
+        while True:
+            time.sleep(0.5)
+            try:
+                os.kill(parent, 0)
+            except ProcessLookupError:
+                break
+            except PermissionError:
+                pass
+    os._exit(1)
+
+
+def process_context(main_module: str):
+    """The workers' process context, its server started (start_server): forkserver, so
+    workers fork from a clean server that has imported `main_module` and the engines, start
+    fast and inherit no threads of the parent (a Dask client, tqdm, the C builds running
+    ahead)."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload([main_module, *engine_modules()])
+    start_server()
+    return ctx
+
+
+def start_server() -> None:
+    """Start the workers' server if it is not running, with Ctrl-C ignored: an ignored signal
+    stays ignored across exec, so a Ctrl-C at the terminal (it goes to the whole process
+    group) cannot break the server's imports (a traceback in the terminal), and the workers
+    it forks ignore it from their first instruction (they inherit the server's setting).
+    The parent ignores SIGINT only for the fork and exec, a few milliseconds. Called early
+    (crosscheck run), the server's imports (about 2.5 s with the engines) run on another
+    core while this process does its own."""
+    from multiprocessing import forkserver
+
+    if threading.current_thread() is not threading.main_thread():
+        forkserver.ensure_running()  # signal handlers belong to the main thread
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def stop_workers(executor) -> None:
+    """End the workers now (an interrupt must not wait for a model in flight; they ignore
+    SIGINT), cancel what has not started, and release the pool's pipes and semaphores.
+    The workers are signalled first: once the pool is shutting down its manager thread
+    closes their handles, and a handle then reads as a process that has ended. Python 3.14
+    has terminate_workers; before it the executor's process table is the only handle."""
+    terminate = getattr(executor, "terminate_workers", None)
+    if terminate is not None:  # pragma: no cover - Python >= 3.14
+        terminate()
+    else:
+        for pid in list(getattr(executor, "_processes", None) or {}):
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+    executor.shutdown(wait=True, cancel_futures=True)

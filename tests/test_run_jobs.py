@@ -1,0 +1,160 @@
+"""`crosscheck run --jobs N` (crosscheck/run_jobs.py): the models on worker processes give the
+serial run's results record for record; bad input, a worker's bug and a dying worker keep
+their meaning; an interrupt leaves no worker behind."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from crosscheck.cli import main
+from crosscheck.run_jobs import ModelJob, WorkerError, run_models
+from reference.errors import ModelInputError
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ["pendulum_angle", "knife_edge", "pendulum_xy"]
+
+
+def _results(out: Path) -> dict:
+    return json.loads((out / "results.json").read_text())
+
+
+def test_jobs_give_the_serial_records(tmp_path, capsys):
+    """Trajectories included (a short horizon): every record, series and agreement matrix in
+    the same order and to the bit; only meta's `jobs` differs."""
+    runs = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"jobs{jobs}"
+        args = ["run", *MODELS, "--t-end", "0.5", "--no-report", "--jobs", jobs]
+        assert main([*args, "--out", str(out)]) == 0
+        runs[jobs] = _results(out)
+    capsys.readouterr()
+    serial, parallel = runs["1"], runs["2"]
+    assert (serial["meta"]["jobs"], parallel["meta"]["jobs"]) == (1, 2)
+    assert [r["model"] for r in parallel["records"]] == [r["model"] for r in serial["records"]]
+    for key in ("records", "series", "agreement"):
+        assert parallel[key] == serial[key], key
+    assert {r["model"] for r in serial["records"]} == set(MODELS)
+
+
+def _job(name: str, perturb: dict | None = None, n_states=2) -> ModelJob:
+    return ModelJob(name, ("pinocchio",), n_states, perturb or {}, False, 1.0)
+
+
+def test_bad_input_reports_the_first_model_a_serial_run_meets():
+    """Two models with bad input: the error is the earlier one's, as in a serial run, even
+    when the later one fails first (it is the cheaper one here)."""
+    bad = {"pinocchio": {"no_such_parameter": 1e-3}}
+    jobs = [_job("pendulum_angle"), _job("double_pendulum_3d", bad), _job("pendulum_xy", bad)]
+    with pytest.raises(ModelInputError, match="model 'double_pendulum_3d' has no parameter"):
+        run_models(jobs, 2)
+
+
+def test_results_come_back_in_the_models_order():
+    progress: list[str] = []
+    records, _series = run_models(
+        [_job("pendulum_xy"), _job("pendulum_angle")], 2, progress=progress.append
+    )
+    assert sorted(progress) == ["pendulum_angle", "pendulum_xy"]
+    models = [r["model"] for r in records]
+    assert models == sorted(models, key=["pendulum_xy", "pendulum_angle"].index)
+
+
+def test_a_bug_in_a_worker_carries_its_traceback():
+    with pytest.raises(WorkerError, match=r"(?s)checking pendulum_angle.*Traceback"):
+        run_models([_job("pendulum_angle", n_states="two"), _job("pendulum_xy")], 2)
+
+
+DYING_FILE = """
+import dataclasses
+import multiprocessing
+import os
+
+from reference import models as builtin
+
+
+def models():
+    if multiprocessing.parent_process() is not None:  # a worker: die as a crashed engine would
+        os._exit(3)
+    return [dataclasses.replace(builtin.get("pendulum_angle"), name="my_pendulum")]
+"""
+
+
+def test_a_worker_that_dies_is_an_error_naming_the_models(tmp_path, capsys):
+    """Never a shorter results.json: the run fails (exit 3) and says which models were in
+    flight and how to see where (--jobs 1)."""
+    path = tmp_path / "dying.py"
+    path.write_text(DYING_FILE)
+    out = tmp_path / "out"
+    args = ["run", "my_pendulum", "pendulum_angle", "--model-file", str(path)]
+    code = main([*args, "--instantaneous", "--jobs", "2", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 3, err
+    assert "a worker process ended abruptly" in err and "my_pendulum" in err
+    assert "--jobs 1" in err
+    assert not (out / "results.json").exists()
+
+
+def _tagged_processes(tag: str) -> list[int]:
+    """The processes whose environment holds `tag` (the run, its server and its workers)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if tag.encode() in (entry / "environ").read_bytes():
+                    found.append(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs Linux /proc")
+@pytest.mark.parametrize("delay", [2.0, 3.5, 6.0])
+def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay):
+    """SIGINT to the parent only (the tests' send_signal): one line, exit 130, and within a
+    few seconds no worker or server of the run is left. Delays from the server's imports (a
+    fork asked for then is served after the parent has gone) to the models' computing."""
+    tag = f"CROSSCHECK_TEST_TAG={uuid.uuid4().hex}"
+    key, value = tag.split("=")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), key: value}
+    models = ["pendulum_xy", "slider_crank", "top_euler"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "crosscheck", "run", *models, "--jobs", "2", "--out", "out"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(delay)
+    assert proc.poll() is None, "the run ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("crosscheck: interrupted"), err
+    deadline = time.time() + 15
+    while _tagged_processes(tag) and time.time() < deadline:
+        time.sleep(0.2)
+    left = _tagged_processes(tag)
+    for pid in left:  # do not leak them into the rest of the session
+        os.kill(pid, signal.SIGKILL)
+    assert not left, f"processes left after the interrupt: {left}"
+
+
+def test_the_callers_settings_reach_the_workers(monkeypatch):
+    """The workers' server keeps the environment it started with; a CROSSCHECK_* setting made
+    afterwards in this process still reaches the workers (here a wrong one, so its error
+    shows that it arrived)."""
+    run_models([_job("pendulum_angle")], 2)  # the server is running now
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "fortran")
+    with pytest.raises(ModelInputError, match="CROSSCHECK_BACKEND"):
+        run_models([_job("pendulum_angle"), _job("pendulum_xy")], 2)
