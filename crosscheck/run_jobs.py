@@ -125,9 +125,10 @@ def run_models(
     except BaseException:
         stop_workers(ex)  # Ctrl-C: no waiting for the models in flight
         raise
-    ex.shutdown(wait=True, cancel_futures=True)
     if first_fault < len(jobs):
+        stop_workers(ex)  # a later model still computing is not waited for
         _raise(outcomes[first_fault], jobs[first_fault].name)
+    ex.shutdown(wait=True)
     records: list = []
     series: list = []
     for i in range(len(jobs)):
