@@ -15,7 +15,7 @@ import math
 import shutil
 from pathlib import Path
 
-from .output import write_atomic
+from .output import TMP_PREFIX, write_atomic
 
 STORE = "sweep.chunks"
 FORMAT = 1
@@ -34,6 +34,12 @@ def _plain(x):
     if isinstance(x, dict):
         return {k: _plain(v) for k, v in x.items()}
     return x
+
+
+def chunk_files(directory: Path) -> list[Path]:
+    """The stored chunks <model>-<start>.json; not a file still being written or left half
+    written by a killed process (its temporary name, TMP_PREFIX..., matches the pattern too)."""
+    return [p for p in directory.glob("*-*.json") if not p.name.startswith(TMP_PREFIX)]
 
 
 class ChunkStore:
@@ -59,7 +65,7 @@ class ChunkStore:
 
     def load(self) -> list[dict]:
         """The stored chunk results, in a fixed order (model, start)."""
-        out = [decode(json.loads(p.read_text())) for p in self.dir.glob("*-*.json")]
+        out = [decode(json.loads(p.read_text())) for p in chunk_files(self.dir)]
         return sorted(out, key=lambda r: (r["model"], r["start"]))
 
     def remove(self) -> None:

@@ -12,6 +12,7 @@ import pytest
 
 from crosscheck import sweep as S
 from crosscheck.cli import main
+from crosscheck.output import TMP_PREFIX
 from crosscheck.sweep_store import STORE, ChunkStore
 
 from .test_sweep import _same
@@ -45,6 +46,8 @@ def test_resume_computes_only_what_is_missing(tmp_path, undisturbed):
     part, merged = _interrupted(tmp_path, after=3)
     assert part["status"]["stopped"] == "interrupted" and not part["status"]["passed"]
     assert len(list((tmp_path / STORE).glob("*-*.json"))) == 3
+    # a chunk a killed process left half written under its temporary name: not a stored chunk
+    (tmp_path / STORE / f"{TMP_PREFIX}999-{MODELS[0]}-6.json").write_text('{"model": "pen')
     cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
     computed = []
     res = S.campaign(
