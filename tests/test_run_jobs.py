@@ -158,3 +158,20 @@ def test_the_callers_settings_reach_the_workers(monkeypatch):
     monkeypatch.setenv("CROSSCHECK_BACKEND", "fortran")
     with pytest.raises(ModelInputError, match="CROSSCHECK_BACKEND"):
         run_models([_job("pendulum_angle"), _job("pendulum_xy")], 2)
+
+
+def test_a_users_model_file_is_loaded_in_every_worker(tmp_path, capsys):
+    """--model-file models run on the workers as in one process: each worker registers the
+    files again (they are not inherited), and the records are the serial run's."""
+    from .test_user_models_cli import FOURBAR
+
+    runs = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"jobs{jobs}"
+        args = ["run", "pendulum_angle", "fourbar_connect", "--model-file", FOURBAR]
+        args.append("--instantaneous")
+        assert main([*args, "--no-report", "--jobs", jobs, "--out", str(out)]) in (0, 1)
+        runs[jobs] = _results(out)["records"]
+    capsys.readouterr()
+    assert runs["2"] == runs["1"]
+    assert len({r["model"] for r in runs["1"]}) == 2
