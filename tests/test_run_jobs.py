@@ -170,7 +170,7 @@ def test_a_users_model_file_is_loaded_in_every_worker(tmp_path, capsys):
         out = tmp_path / f"jobs{jobs}"
         args = ["run", "pendulum_angle", "fourbar_connect", "--model-file", FOURBAR]
         args.append("--instantaneous")
-        assert main([*args, "--no-report", "--jobs", jobs, "--out", str(out)]) in (0, 1)
+        assert main([*args, "--no-report", "--jobs", jobs, "--out", str(out)]) == 0
         runs[jobs] = _results(out)["records"]
     capsys.readouterr()
     assert runs["2"] == runs["1"]
