@@ -225,10 +225,10 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
 
 def prebuild_model(model, formulations=None) -> None:
     """Start the C builds of `formulations` of `model` (default all), deriving what the cache
-    lacks, so
-    that each compiles while the next is derived and the first is checked (crosscheck run
-    calls this before it builds the model's NumericModels). Does nothing off the C backend;
-    a module the printer refuses is left to NumericModel, which records why."""
+    lacks, so that each compiles while the next is derived and the first is checked
+    (crosscheck run calls this with the first formulation before it builds the model's
+    NumericModels). Does nothing off the C backend; a module the printer refuses is left to
+    NumericModel, which records why."""
     from . import codegen, compiled
     from .formulations import derive
     from .numeric import PIVOT_RATIO_MIN, resolve_parameters
