@@ -117,11 +117,15 @@ def _tagged_processes(tag: str) -> list[int]:
 
 
 @pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs Linux /proc")
-@pytest.mark.parametrize("delay", [2.0, 3.5, 6.0])
-def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay):
-    """SIGINT to the parent only (the tests' send_signal): one line, exit 130, and within a
-    few seconds no worker or server of the run is left. Delays from the server's imports (a
-    fork asked for then is served after the parent has gone) to the models' computing."""
+@pytest.mark.parametrize(
+    "delay,whole_group", [(2.0, False), (3.5, False), (6.0, False), (2.0, True), (3.5, True)]
+)
+def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay, whole_group):
+    """SIGINT to the parent only (as `kill -INT pid`), or to the whole process group (as
+    Ctrl-C at a terminal: the server and the workers get it too): one line, exit 130, and
+    within a few seconds no worker or server of the run is left. Delays from the server's
+    imports (a fork asked for then is served after the parent has gone) to the models'
+    computing."""
     tag = f"CROSSCHECK_TEST_TAG={uuid.uuid4().hex}"
     key, value = tag.split("=")
     env = {**os.environ, "PYTHONPATH": str(ROOT), key: value}
@@ -133,10 +137,17 @@ def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        start_new_session=True,  # its own process group, as a terminal gives a command
+        # and Ctrl-C's default action, as a terminal's shell gives it (pytest may have been
+        # started in the background, with SIGINT ignored, and children inherit that)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     time.sleep(delay)
     assert proc.poll() is None, "the run ended before it could be interrupted"
-    proc.send_signal(signal.SIGINT)
+    if whole_group:
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     lines = err.strip().splitlines()
