@@ -174,7 +174,8 @@ def run(
         # other core while this model is checked; reference/cbuild.py): on a cold cache
         # only the first model waits for its compiler
         for ahead in model_names[k : k + 2] if k == 0 else model_names[k + 1 : k + 2]:
-            cbuild.prebuild_model(models.get(ahead), models.get(ahead).formulations[:1])
+            upcoming = models.get(ahead)
+            cbuild.prebuild_model(upcoming, upcoming.formulations[:1])
         nm = NumericModel(model)
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)

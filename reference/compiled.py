@@ -48,16 +48,13 @@ def numba_available() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
-BACKENDS = ("c", "numba", "python")  # what a model can run; the setting adds "auto"
-
-
 def setting() -> str:
     """CROSSCHECK_BACKEND: 'auto' (unset: the C kernels where a C compiler works, built in the
     process in about a second per model; else the numba kernels where numba's cache holds
     them, else the Python path now and a numba compile in the background after the process
     ends), 'c', 'numba' (compile here when needed) or 'python' (the fallback only)."""
     want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower() or "auto"
-    if want not in ("auto", *BACKENDS):
+    if want not in ("auto", "c", "numba", "python"):
         from .errors import ModelInputError
 
         raise ModelInputError(

@@ -65,6 +65,7 @@ def test_results_come_back_in_the_models_order():
     )
     assert sorted(progress) == ["pendulum_angle", "pendulum_xy"]
     models = [r["model"] for r in records]
+    assert set(models) == {"pendulum_xy", "pendulum_angle"}
     assert models == sorted(models, key=["pendulum_xy", "pendulum_angle"].index)
 
 
