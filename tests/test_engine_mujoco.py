@@ -754,6 +754,30 @@ def test_simulate_rk4_matches_reference_and_energy_is_read_after_forward():
     assert lagged.sum() == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-12)
 
 
+def test_simulate_steps_in_one_call_as_step_by_step_and_rejects_bad_times():
+    """The steps between two output times go to MuJoCo as one mj_step(nstep=k) call: the
+    recorded states equal a step-by-step loop's to the bit. Output times that go backwards or
+    start before 0 are an error that says what is expected."""
+    em = engine("slider_crank_split", None)
+    nm = reference("slider_crank_split")
+    q0, u0 = nm.model.initial_q, nm.model.initial_u
+    t_eval = [0.0, 0.013, 0.05, 0.051]
+    tr = em.simulate(q0, u0, t_eval, integrator="RK4", timestep=1e-3)
+    m = mujoco.MjModel.from_xml_string(em.xml)
+    m.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    m.opt.timestep = 1e-3
+    d = mujoco.MjData(m)
+    em._set(*em.to_engine_state(q0, u0), m, d)
+    for k in range(1, 52):
+        mujoco.mj_step(m, d)
+        if k == 51:
+            assert np.array_equal(em.from_engine_state(d.qpos.copy(), d.qvel.copy())[0], tr.q[-1])
+    assert tr.steps == 51 and len(tr.t) == 4
+    for bad in ([0.0, 0.02, 0.01], [-0.001, 0.01]):
+        with pytest.raises(ValueError, match="increasing times >= 0"):
+            em.simulate(q0, u0, bad, integrator="RK4", timestep=1e-3)
+
+
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast", "RK4"])
 def test_simulate_constrained_drift(integrator):
     """slider_crank_split for 0.5 s at dt = 1e-3: the state comes back in reference

@@ -847,10 +847,10 @@ if __name__ == "__main__":  # pragma: no cover
 
 
 def test_quaternion_rate_is_the_quaternion_product():
-    """machinery.quat_rate, written out on floats, against the product it stands for,
+    """ode.quat_rate, written out on floats, against the product it stands for,
     q (x) (omega, 0) / 2 in numpy's form (w omega + v x omega, -v . omega) / 2: equal to the
     last bit, as the floats follow the same operations (random unit and non-unit q)."""
-    from crosscheck.engines.pinocchio.machinery import quat_rate
+    from crosscheck.engines.pinocchio.ode import quat_rate
 
     rng = np.random.default_rng(7)
     for _ in range(1000):
@@ -858,3 +858,55 @@ def test_quaternion_rate_is_the_quaternion_product():
         v, w = q[:3], q[3]
         numpy_form = 0.5 * np.concatenate([w * omega + np.cross(v, omega), [-(v @ omega)]])
         assert np.array_equal(quat_rate(q, omega), numpy_form)
+
+
+def test_quaternion_rotation_is_eigens_matrix_row_by_row():
+    """ode.quat_rotate on floats against Pinocchio's (Eigen's) rotation matrix applied to v one
+    row at a time, in order: equal to the bit; numpy's R @ v may fuse multiply-adds, so it is
+    held to a few units in the last place only."""
+    from crosscheck.engines.pinocchio.machinery import quat_to_R
+    from crosscheck.engines.pinocchio.ode import quat_rotate
+
+    rng = np.random.default_rng(11)
+    for _ in range(1000):
+        q, v = rng.standard_normal(4), 10.0 * rng.standard_normal(3)
+        q /= np.linalg.norm(q)
+        R = quat_to_R(q)
+        in_order = [R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2] for i in range(3)]
+        assert quat_rotate(q, v) == in_order
+        assert np.allclose(quat_rotate(q, v), R @ v, rtol=0.0, atol=1e-14 * np.linalg.norm(v))
+
+
+def test_trajectory_right_hand_side_keeps_quaternions_unit_and_maps_rates():
+    """ode.normalized scales only the quaternions to unit length, and coordinate_rates gives
+    q' = v on hinges, the quaternion product on ball joints, R v and the product on a free
+    flyer (top_cartesian's free body, double_pendulum_3d's ball-joint tree)."""
+    from crosscheck.engines.pinocchio.machinery import quat_to_R
+    from crosscheck.engines.pinocchio.ode import coordinate_rates, normalized, quat_rate
+
+    rng = np.random.default_rng(5)
+    for name, variant in (("top_cartesian", "free"), ("double_pendulum_3d", "tree")):
+        em = engine(name, variant)
+        lay = em.layout
+        assert lay.quaternions, name
+        qe = 1.5 * rng.standard_normal(em.model.nq)
+        ve = rng.standard_normal(em.model.nv)
+        qn = normalized(lay, qe)
+        for iq in lay.quaternions:
+            assert abs(np.linalg.norm(qn[iq : iq + 4]) - 1.0) <= 4e-16
+            assert np.allclose(qn[iq : iq + 4], qe[iq : iq + 4] / np.linalg.norm(qe[iq : iq + 4]))
+        rest = np.ones(em.model.nq, bool)
+        for iq in lay.quaternions:
+            rest[iq : iq + 4] = False
+        assert np.array_equal(qn[rest], qe[rest])
+        rates = coordinate_rates(lay, qn, ve)
+        for iq, iv in lay.spherical:
+            assert rates[iq : iq + 4].tolist() == quat_rate(qn[iq : iq + 4], ve[iv : iv + 3])
+        for iq, iv in lay.free_flyer:
+            R = quat_to_R(qn[iq + 3 : iq + 7])
+            assert np.allclose(rates[iq : iq + 3], R @ ve[iv : iv + 3], rtol=0, atol=1e-14)
+            assert rates[iq + 3 : iq + 7].tolist() == quat_rate(
+                qn[iq + 3 : iq + 7], ve[iv + 3 : iv + 6]
+            )
+        for iq, iv, n in lay.plain:
+            assert np.array_equal(rates[iq : iq + n], ve[iv : iv + n])

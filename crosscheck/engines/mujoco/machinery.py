@@ -467,7 +467,8 @@ class MjEngineModel(EngineModel):
         timestep: float | None = None,
     ) -> EngineTrajectory:
         """Run mj_step from the mapped initial state for round(t_eval[-1] / timestep) steps,
-        recording the state at the steps nearest to t_eval (which must lie on the step grid).
+        recording the state at the steps nearest to t_eval (increasing times >= 0 on the step
+        grid); the steps between two records are one mj_step(nstep=...) call.
 
         A fresh MjModel/MjData (same XML) with opt.timestep and opt.integrator set, so forward()
         is not disturbed. At each recorded step the state is read, mapped to the reference,
@@ -484,6 +485,8 @@ class MjEngineModel(EngineModel):
                 f"{integrator} takes a fixed step: give timestep > 0 and t_eval "
                 f"ending at t >= 0 (got timestep {timestep!r})"
             )
+        if t_eval[0] < 0 or np.any(np.diff(t_eval) <= 0):
+            raise ValueError("t_eval must be increasing times >= 0")
         marks = np.rint(t_eval / timestep).astype(int)
         if np.max(np.abs(marks * timestep - t_eval)) > 1e-9 * max(1.0, float(t_eval[-1])):
             raise ValueError(f"t_eval is not on the {timestep:g} s step grid")
@@ -507,12 +510,12 @@ class MjEngineModel(EngineModel):
             Vv.append(float(np.max(np.abs(d.efc_vel[: d.nefc]))) if d.nefc else 0.0)
 
         t0 = time.perf_counter()
-        if 0 in record_at:
+        done = 0
+        for mark in sorted(record_at):
+            if mark > done:  # the steps between two records in one call (MuJoCo's own loop)
+                mujoco.mj_step(m, d, nstep=mark - done)
+                done = mark
             record()
-        for k in range(1, n_steps + 1):
-            mujoco.mj_step(m, d)
-            if k in record_at:
-                record()
         wall = time.perf_counter() - t0
         return EngineTrajectory(
             t=np.array(T),

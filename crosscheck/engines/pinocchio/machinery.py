@@ -13,6 +13,7 @@ from scipy.integrate import solve_ivp
 import pinocchio as pin
 
 from ..base import EngineForward, EngineModel, EngineTrajectory, check_state
+from .ode import JointLayout, coordinate_rates, joint_layout, normalized, right_hand_side
 
 # scipy's error-controlled integrators the trajectories use (solve_ivp methods)
 INTEGRATORS = ("DOP853",)
@@ -44,22 +45,6 @@ def quat_to_R(qxyzw) -> np.ndarray:
 def R_to_quat(R) -> np.ndarray:
     """(x, y, z, w) of a rotation matrix, Pinocchio's (Eigen's) coefficient order."""
     return pin.Quaternion(np.asarray(R, float)).coeffs().copy()
-
-
-def quat_rate(qxyzw, omega_local) -> list[float]:
-    """d/dt of a unit quaternion (x, y, z, w) for the local angular velocity: q (x) (w, 0) / 2,
-    i.e. (w omega + v x omega, -v . omega) / 2 with v = (x, y, z). Written out on floats: the
-    integrators call it at every stage, and numpy's cross on 3-vectors alone costs 33-47 us a
-    call where this costs 3-5 (docs/compiled.md "Start-up" gives the commands), with the same
-    result to the bit (tests/test_engine_pinocchio.py)."""
-    x, y, z, w = (float(c) for c in qxyzw)
-    a, b, c = (float(o) for o in omega_local)
-    return [
-        0.5 * (w * a + (y * c - z * b)),
-        0.5 * (w * b + (z * a - x * c)),
-        0.5 * (w * c + (x * b - y * a)),
-        0.5 * -(x * a + y * b + z * c),
-    ]
 
 
 def at(x, y, z) -> pin.SE3:
@@ -152,31 +137,19 @@ class PinEngineModel(EngineModel):
         """(J, gamma) for the 'kkt' solver: J a + gamma = 0 is the textbook's A u' = b."""
         raise NotImplementedError
 
+    @property
+    def layout(self) -> JointLayout:
+        """Where each joint's coordinates and velocities sit in q_e, v_e (read once)."""
+        if "_layout" not in self.__dict__:
+            self._layout = joint_layout(self.model)
+        return self._layout
+
     def _qdot(self, qe, ve) -> np.ndarray:
-        """Engine coordinate rates from engine velocities: identity for hinges and slides;
-        for the quaternion (x, y, z, w) of a spherical or free-flyer joint, whose velocity is
-        the LOCAL angular velocity, q' = q (x) (omega, 0) / 2; the free flyer's position rate
-        is R v_linear (its linear velocity is in the local frame, docs/engines/pinocchio.md)."""
-        if self.model.nq == self.model.nv:
-            return ve
-        key = (id(self.model), self.model.njoints)
-        cached = self.__dict__.get("_joint_plan")
-        if cached is None or cached[0] != key:  # kinds and offsets, read from pin's model once
-            plan = [
-                (jm.shortname(), jm.idx_q, jm.idx_v, jm.nq, jm.nv) for jm in self.model.joints[1:]
-            ]
-            self._joint_plan = (key, plan)
-        plan = self._joint_plan[1]
-        out = np.empty(self.model.nq)
-        for kind, iq, iv, nq, nv in plan:
-            if kind == "JointModelSpherical":
-                out[iq : iq + 4] = quat_rate(qe[iq : iq + 4], ve[iv : iv + 3])
-            elif kind == "JointModelFreeFlyer":
-                out[iq : iq + 3] = quat_to_R(qe[iq + 3 : iq + 7]) @ ve[iv : iv + 3]
-                out[iq + 3 : iq + 7] = quat_rate(qe[iq + 3 : iq + 7], ve[iv + 3 : iv + 6])
-            else:
-                out[iq : iq + nq] = ve[iv : iv + nv]
-        return out
+        """Engine coordinate rates from engine velocities (ode.coordinate_rates): identity for
+        hinges and slides, q' = q (x) (omega, 0) / 2 for a quaternion (x, y, z, w), whose
+        velocity is the LOCAL angular velocity, and R v_linear for a free flyer's position (its
+        linear velocity is in the local frame, docs/engines/pinocchio.md)."""
+        return coordinate_rates(self.layout, qe, ve)
 
     def fingerprint(self) -> str:
         """SHA-256 of the built model's physics: joint types and placements, every body's
@@ -214,16 +187,7 @@ class PinEngineModel(EngineModel):
         """Engine configuration on its manifold: unit quaternions (the integrator's drift of
         |q| is removed before every evaluation and in the output; |q| itself is not a
         constraint of the engine). Identity for hinges and slides."""
-        if self.model.nq == self.model.nv:
-            return qe
-        qe = np.array(qe, float)
-        for jm in self.model.joints[1:]:
-            iq, kind = jm.idx_q, jm.shortname()
-            if kind == "JointModelSpherical":
-                qe[iq : iq + 4] /= np.linalg.norm(qe[iq : iq + 4])
-            elif kind == "JointModelFreeFlyer":
-                qe[iq + 3 : iq + 7] /= np.linalg.norm(qe[iq + 3 : iq + 7])
-        return qe
+        return normalized(self.layout, qe)
 
     def constraint_violation(self, qe, t: float = 0.0) -> float:
         """Position-level constraint violation in the engine, in length units: the largest
@@ -499,14 +463,8 @@ class PinEngineModel(EngineModel):
         nq = self.model.nq
         y0 = np.concatenate([qe0, ve0])
 
-        def rhs(t, y):
-            qe = self._normalize(y[:nq])
-            ve = y[nq:]
-            a, _ = self._solve(qe, ve, t)
-            return np.concatenate([self._qdot(qe, ve), a])
-
         sol = solve_ivp(
-            rhs,
+            right_hand_side(self.layout, lambda qe, ve, t: self._engine_call(qe, ve, t)()),
             (0.0, float(t_eval[-1])),
             y0,
             method=integrator,
