@@ -171,7 +171,14 @@ class Model:
 
     def content_hash(self) -> str:
         """A hash of everything that defines the equations (for the derivation cache). The name
-        is left out: it is the cache entry's readable prefix, not part of the physics."""
+        is left out: it is the cache entry's readable prefix, not part of the physics. Kept on
+        the instance after the first call: the model is frozen, and printing its expressions
+        costs about 9 ms, on every NumericModel built from it."""
+        if "_content_hash" not in self.__dict__:
+            object.__setattr__(self, "_content_hash", self._hash_content())
+        return self.__dict__["_content_hash"]
+
+    def _hash_content(self) -> str:
         parts = [repr(self.formulations)]
         parts += [sp.srepr(x) for x in self.coordinates + self.speeds + self.kinematics]
         for b in self.bodies:

@@ -149,3 +149,32 @@ def test_editing_a_formulation_misses_the_cache(tmp_path):
     assert set(entries0) < set(entries1), "the original's entry was lost"
     assert all(e.startswith(key1) for e in set(entries1) - set(entries0)), entries1
     assert not [e for e in entries0 if e.startswith(key1)], "the copies share an entry"
+
+
+def test_compiled_entry_is_kept_beside_its_source(tmp_path, monkeypatch):
+    """codegen._code_object keeps compile()'s result beside the entry: a second load does not
+    compile; an entry whose source changed, or a damaged file, is compiled again (and the
+    code runs the new source), never loaded stale."""
+    import builtins
+
+    entry = tmp_path / "kane-0123456789abcdef.py"
+    entry.write_text("X = 1\n")
+    first = codegen._code_object(entry.read_text(), entry)
+    (kept,) = tmp_path.glob("kane-0123456789abcdef.*.code")
+    calls = []
+    real_compile = builtins.compile
+    monkeypatch.setattr(
+        builtins, "compile", lambda *a, **k: calls.append(a[1]) or real_compile(*a, **k)
+    )
+
+    def x_of(code) -> int:
+        namespace: dict = {}
+        exec(code, namespace)
+        return namespace["X"]
+
+    assert x_of(codegen._code_object("X = 1\n", entry)) == x_of(first) == 1 and calls == []
+    assert x_of(codegen._code_object("X = 2\n", entry)) == 2 and calls == [str(entry)]
+    kept.write_bytes(kept.read_bytes()[:40])  # cut short after its stamp
+    assert x_of(codegen._code_object("X = 2\n", entry)) == 2 and len(calls) == 2
+    assert x_of(codegen._code_object("X = 2\n", entry)) == 2 and len(calls) == 2
+    assert not list(tmp_path.glob("*.tmp"))
