@@ -1,0 +1,56 @@
+"""Wall time of the Pinocchio adapter's trajectories, as `crosscheck run` integrates them
+(solve_ivp DOP853 at rtol = atol = 1e-10 over 5 s, every variant of five models), with the
+number of right-hand-side calls; --save keeps the states, --compare reads another run's to
+give the largest state difference per run (to compare two commits, run it in each).
+
+    PYTHONPATH=$PWD python scripts/pinocchio_trajectory_times.py [--save F.npz] [--compare F.npz]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from crosscheck.engines.registry import get_engine
+from reference.models import get
+from reference.numeric import NumericModel
+
+MODELS = ("double_pendulum_3d", "top_cartesian", "slider_crank", "exercise_6_1", "top_euler")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--save", help="write every run's (q, u) to this .npz")
+    ap.add_argument("--compare", help="a --save file of another run: print max |difference|")
+    args = ap.parse_args()
+    adapter = get_engine("pinocchio")
+    t_eval = np.linspace(0.0, 5.0, 251)
+    states, total = {}, 0.0
+    other = dict(np.load(args.compare)) if args.compare else {}
+    for name in MODELS:
+        model = get(name)
+        params = NumericModel(model).params
+        q0, u0 = np.array(model.initial_q, float), np.array(model.initial_u, float)
+        for variant in adapter.variants(name):
+            em = adapter.build(name, params, variant)
+            t0 = time.perf_counter()
+            tr = em.simulate(q0, u0, t_eval, integrator="DOP853", rtol=1e-10)
+            wall = time.perf_counter() - t0
+            total += wall
+            key = f"{name}:{variant}"
+            states[key] = np.hstack([tr.q, tr.u])
+            diff = (
+                f"  max |diff| {np.max(np.abs(states[key] - other[key])):.2e}"
+                if key in other
+                else ""
+            )
+            print(f"{key:28s} {wall:7.3f} s  {tr.steps:6d} calls{diff}", flush=True)
+    print(f"total {total:.2f} s")
+    if args.save:
+        np.savez(args.save, **states)
+
+
+if __name__ == "__main__":
+    main()
