@@ -204,3 +204,51 @@ def test_default_paths_resolve_in_the_tests_own_directory(tmp_path, capsys):
     assert Path.cwd() == tmp_path
     code, _, err = _run(capsys, "report")
     assert code == 2 and "out/results.json does not exist" in err
+
+
+def test_the_program_leaves_without_teardown_and_loses_no_output(tmp_path):
+    """The `crosscheck` program skips the interpreter's teardown (cli._leave): what it printed
+    into a pipe (block-buffered) arrives whole, and its exit status is the command's."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, CROSSCHECK_CACHE_DIR=str(tmp_path))
+    ok = subprocess.run(
+        [sys.executable, "-m", "crosscheck", "models", "--json"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert ok.returncode == 0, ok.stderr
+    assert "pendulum_angle" in {m["name"] for m in json.loads(ok.stdout)}
+    bad = subprocess.run(
+        [sys.executable, "-m", "crosscheck", "run", "no_such_model", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert bad.returncode == 2 and "unknown model 'no_such_model'" in bad.stderr
+
+
+def test_a_running_thread_keeps_the_normal_exit():
+    """cli._running_threads: a non-daemon thread still working (a C build) makes the program
+    exit normally, which waits for it; a daemon thread changes nothing (an earlier test's C
+    build pool may hold a thread of its own in this process: the baseline)."""
+    import threading
+
+    from crosscheck.cli import _running_threads
+
+    baseline = _running_threads()
+    release = threading.Event()
+    for daemon in (True, False):
+        t = threading.Thread(target=release.wait, daemon=daemon)
+        t.start()
+        try:
+            assert _running_threads() is (True if not daemon else baseline)
+        finally:
+            release.set()
+            t.join()
+        release.clear()
