@@ -41,8 +41,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("rev", help="the earlier commit (A)")
     ap.add_argument("--reps", type=int, default=3)
-    ap.add_argument("run_args", nargs="*", help="after --: crosscheck run's own options")
-    args = ap.parse_args()
+    argv = sys.argv[1:]
+    cut = argv.index("--") if "--" in argv else len(argv)
+    args = ap.parse_args(argv[:cut])  # after --: crosscheck run's own options
+    args.run_args = argv[cut + 1 :]
     with tempfile.TemporaryDirectory(prefix="warm-ab-") as tmp:
         base = Path(tmp)
         old = base / "a"
