@@ -283,7 +283,7 @@ def main(argv=None) -> int:
         interrupts.install()
         one_blas_thread()
     code = _main(argv)
-    if entry and (code == EXIT_INTERRUPTED or not _running_threads()):
+    if entry and (code == EXIT_INTERRUPTED or not (_running_threads() or _observed())):
         # CPython kills itself with SIGINT at exit (status -2, not 130) when the interrupt
         # passed through code run by PyRun_* (some extensions' imports), even though it was
         # handled here: leave with the status the command promises. And a finished command
@@ -301,6 +301,12 @@ def _running_threads() -> bool:
 
     main_thread = threading.main_thread()
     return any(t is not main_thread and not t.daemon for t in threading.enumerate())
+
+
+def _observed() -> bool:
+    """Whether a profiler or tracer watches this process (`python -m cProfile -m crosscheck`,
+    coverage): it writes what it saw at the normal exit, which os._exit would skip."""
+    return sys.getprofile() is not None or sys.gettrace() is not None
 
 
 def _leave(code: int) -> None:

@@ -236,14 +236,14 @@ def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
 def cmd_run(args) -> int:
     from .arguments import output_dir, resolve_engines, resolve_models
     from .provenance import meta
-    from .run_jobs import WORKER_MODULE
+    from .run_jobs import WORKER_MODULES
     from .workers import default_workers, process_context
 
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
     jobs = min(args.jobs or default_workers(), len(names))
     if jobs > 1:  # its imports run on the other core while this process does its own
-        process_context(WORKER_MODULE)
+        process_context(*WORKER_MODULES, engines=args.engines or None)  # None: every engine
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
     check_perturb(names, perturb)

@@ -25,7 +25,8 @@ from reference.errors import ModelInputError
 from . import interrupts
 from .workers import process_context, start_worker, stop_workers
 
-WORKER_MODULE = "crosscheck.run_jobs"  # what the workers' server imports before forking them
+# what the workers' server imports before forking them: this module and the checks it runs
+WORKER_MODULES = ("crosscheck.run_jobs", "crosscheck.run")
 SETTINGS = "CROSSCHECK_"  # the environment variables that are the suite's settings
 
 
@@ -101,7 +102,7 @@ def run_models(
     outcomes: dict[int, tuple] = {}
     ex = ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=process_context(WORKER_MODULE),
+        mp_context=process_context(*WORKER_MODULES, engines=jobs[0].engines if jobs else None),
         initializer=_start_worker,
         initargs=(os.getpid(), tuple(model_files)),
     )

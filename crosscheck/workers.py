@@ -8,6 +8,7 @@ import select
 import signal
 import threading
 import time
+from collections.abc import Sequence
 
 from .engines.registry import engine_modules
 
@@ -52,15 +53,15 @@ def _exit_with(parent: int) -> None:
     os._exit(1)
 
 
-def process_context(main_module: str):
+def process_context(*modules: str, engines: Sequence[str] | None = None):
     """The workers' process context, its server started (start_server): forkserver, so
-    workers fork from a clean server that has imported `main_module` and the engines, start
-    fast and inherit no threads of the parent (a Dask client, tqdm, the C builds running
-    ahead)."""
+    workers fork from a clean server that has imported `modules` and the engines (those named,
+    or every registered one), start fast and inherit no threads of the parent (a Dask client,
+    tqdm, the C builds running ahead)."""
     import multiprocessing as mp
 
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload([main_module, *engine_modules()])
+    ctx.set_forkserver_preload([*modules, *engine_modules(engines)])
     start_server()
     return ctx
 

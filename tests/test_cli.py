@@ -252,3 +252,23 @@ def test_a_running_thread_keeps_the_normal_exit():
             release.set()
             t.join()
         release.clear()
+
+
+def test_a_profiled_program_still_writes_its_profile(tmp_path):
+    """Under `python -m cProfile -o F -m crosscheck` (the profiling command docs/compiled.md
+    gives) the program exits normally, so the profiler writes F."""
+    import os
+    import pstats
+    import subprocess
+    import sys
+
+    prof = tmp_path / "models.prof"
+    r = subprocess.run(
+        [sys.executable, "-m", "cProfile", "-o", str(prof), "-m", "crosscheck", "models"],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, CROSSCHECK_CACHE_DIR=str(tmp_path)),
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr
+    assert pstats.Stats(str(prof)).total_calls > 0

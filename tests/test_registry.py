@@ -40,3 +40,16 @@ def test_every_system_of_the_unit_is_modelled():
         "Exercise 6.7",
     ]:
         assert place in sources, f"no model declares source {place!r}"
+
+
+def test_engine_modules_of_the_named_engines_only():
+    """What the workers' server preloads for `--engines mujoco`: that engine's module alone,
+    read from the entry points; a name that is not registered adds nothing (the run reports
+    it), and no names means every registered engine."""
+    from crosscheck.engines.registry import engine_modules, engine_names
+
+    everything = engine_modules()
+    assert len(everything) == len(engine_names())
+    assert engine_modules(("mujoco",)) == ("crosscheck.engines.mujoco",)
+    assert engine_modules(("mujoco", "no_such_engine")) == ("crosscheck.engines.mujoco",)
+    assert engine_modules(()) == ()

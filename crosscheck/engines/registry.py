@@ -11,6 +11,7 @@ The entry point names a class derived from ``EngineAdapter`` (constructed withou
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 from importlib import metadata
@@ -94,9 +95,11 @@ def engine_label(name: str) -> str:
         return name
 
 
-def engine_modules() -> tuple[str, ...]:
-    """The module of every registered engine's entry point (what worker processes preload)."""
-    return tuple(_entry_points()[n].module for n in engine_names())
+def engine_modules(names: Sequence[str] | None = None) -> tuple[str, ...]:
+    """The module of every registered engine's entry point, or of the registered ones among
+    `names` (what worker processes preload), read from the entry points without importing."""
+    eps = _entry_points()
+    return tuple(eps[n].module for n in engine_names() if names is None or n in names)
 
 
 def engine_distributions() -> tuple[str, ...]:
