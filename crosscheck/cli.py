@@ -288,8 +288,8 @@ def main(argv=None) -> int:
         # passed through code run by PyRun_* (some extensions' imports), even though it was
         # handled here: leave with the status the command promises. And a finished command
         # has written and closed its files: the interpreter's teardown of every module it
-        # imported (sympy, the engines) would add about 0.9 s to each command's wall time
-        # (docs/compiled.md, "Start-up"), so it is skipped
+        # imported (sympy, the engines) would add 0.4-1 s to each command's wall time
+        # (docs/compiled.md, "The warm run's own overheads"), so it is skipped
         _leave(code)
     return code
 

@@ -1,7 +1,8 @@
 """Wall time of the Pinocchio adapter's trajectories, as `crosscheck run` integrates them
-(solve_ivp DOP853 at rtol = atol = 1e-10 over 5 s, every variant of five models), with the
-number of right-hand-side calls; --save keeps the states, --compare reads another run's to
-give the largest state difference per run (to compare two commits, run it in each).
+(solve_ivp DOP853 at the run's rtol = atol, from the model's projected initial state, on the
+run's output grid; every variant of five models), with the number of right-hand-side calls.
+--save keeps the states, --compare reads another run's to give the largest state difference
+per run (to compare two commits, run it in each).
 
     PYTHONPATH=$PWD python scripts/pinocchio_trajectory_times.py [--save F.npz] [--compare F.npz]
 """
@@ -14,6 +15,7 @@ import time
 import numpy as np
 
 from crosscheck.engines.registry import get_engine
+from crosscheck.trajectory import ENGINE_RTOL, T_END, output_grid
 from reference.models import get
 from reference.numeric import NumericModel
 
@@ -26,17 +28,17 @@ def main() -> None:
     ap.add_argument("--compare", help="a --save file of another run: print max |difference|")
     args = ap.parse_args()
     adapter = get_engine("pinocchio")
-    t_eval = np.linspace(0.0, 5.0, 251)
+    t_eval = output_grid(T_END)
     states, total = {}, 0.0
     other = dict(np.load(args.compare)) if args.compare else {}
     for name in MODELS:
         model = get(name)
-        params = NumericModel(model).params
-        q0, u0 = np.array(model.initial_q, float), np.array(model.initial_u, float)
+        nm = NumericModel(model)
+        q0, u0 = nm.project(model.initial_q, model.initial_u)  # as the run starts
         for variant in adapter.variants(name):
-            em = adapter.build(name, params, variant)
+            em = adapter.build(name, nm.params, variant)
             t0 = time.perf_counter()
-            tr = em.simulate(q0, u0, t_eval, integrator="DOP853", rtol=1e-10)
+            tr = em.simulate(q0, u0, t_eval, integrator="DOP853", rtol=ENGINE_RTOL)
             wall = time.perf_counter() - t0
             total += wall
             key = f"{name}:{variant}"

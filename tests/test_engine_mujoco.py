@@ -768,11 +768,15 @@ def test_simulate_steps_in_one_call_as_step_by_step_and_rejects_bad_times():
     m.opt.timestep = 1e-3
     d = mujoco.MjData(m)
     em._set(*em.to_engine_state(q0, u0), m, d)
-    for k in range(1, 52):
-        mujoco.mj_step(m, d)
-        if k == 51:
-            assert np.array_equal(em.from_engine_state(d.qpos.copy(), d.qvel.copy())[0], tr.q[-1])
-    assert tr.steps == 51 and len(tr.t) == 4
+    stepwise = []
+    for k in range(52):
+        if k:
+            mujoco.mj_step(m, d)
+        if k in (0, 13, 50, 51):
+            stepwise.append(em.from_engine_state(d.qpos.copy(), d.qvel.copy()))
+    assert tr.steps == 51 and len(tr.t) == len(stepwise) == 4
+    for (q, u), tq, tu in zip(stepwise, tr.q, tr.u, strict=True):
+        assert np.array_equal(q, tq) and np.array_equal(u, tu)
     for bad in ([0.0, 0.02, 0.01], [-0.001, 0.01]):
         with pytest.raises(ValueError, match="increasing times >= 0"):
             em.simulate(q0, u0, bad, integrator="RK4", timestep=1e-3)

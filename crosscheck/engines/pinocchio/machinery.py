@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 import pinocchio as pin
 
 from ..base import EngineForward, EngineModel, EngineTrajectory, check_state
-from .ode import JointLayout, coordinate_rates, joint_layout, normalized, right_hand_side
+from .ode import JointLayout, joint_layout, normalized, right_hand_side
 
 # scipy's error-controlled integrators the trajectories use (solve_ivp methods)
 INTEGRATORS = ("DOP853",)
@@ -144,13 +144,6 @@ class PinEngineModel(EngineModel):
             self._layout = joint_layout(self.model)
         return self._layout
 
-    def _qdot(self, qe, ve) -> np.ndarray:
-        """Engine coordinate rates from engine velocities (ode.coordinate_rates): identity for
-        hinges and slides, q' = q (x) (omega, 0) / 2 for a quaternion (x, y, z, w), whose
-        velocity is the LOCAL angular velocity, and R v_linear for a free flyer's position (its
-        linear velocity is in the local frame, docs/engines/pinocchio.md)."""
-        return coordinate_rates(self.layout, qe, ve)
-
     def fingerprint(self) -> str:
         """SHA-256 of the built model's physics: joint types and placements, every body's
         mass, lever and inertia, gravity, the point constraints' joints and anchors, and the
@@ -182,12 +175,6 @@ class PinEngineModel(EngineModel):
             for x in self._kkt_rows(qe, ve, 0.7):
                 add(x)
         return h.hexdigest()
-
-    def _normalize(self, qe) -> np.ndarray:
-        """Engine configuration on its manifold: unit quaternions (the integrator's drift of
-        |q| is removed before every evaluation and in the output; |q| itself is not a
-        constraint of the engine). Identity for hinges and slides."""
-        return normalized(self.layout, qe)
 
     def constraint_violation(self, qe, t: float = 0.0) -> float:
         """Position-level constraint violation in the engine, in length units: the largest
@@ -443,9 +430,11 @@ class PinEngineModel(EngineModel):
         """Integrate Pinocchio's forward dynamics with scipy's solve_ivp (method `integrator`,
         rtol = atol = `rtol`) in engine coordinates from t = 0 to t_eval[-1].
 
-        The engine state is [q_e, v_e] (quaternions renormalized before every evaluation and
-        in the output; their rates from the local angular velocity, see _qdot); the output is
-        mapped to reference (q, u) at t_eval.
+        The engine state is [q_e, v_e] (crosscheck/engines/pinocchio/ode.py: quaternions
+        renormalized before every evaluation and in the output, since |q| is not a constraint
+        of the engine; their rates from the local angular velocity, a free flyer's position
+        rate R v_linear, docs/engines/pinocchio.md); the output is mapped to reference (q, u)
+        at t_eval.
 
         No constraint stabilization (no projection, no Baumgarte, the RigidConstraintModel
         correctors stay 0): run for 5 s from each model's initial state, the constraint drift
@@ -474,7 +463,7 @@ class PinEngineModel(EngineModel):
         )
         rows = []
         for t, y in zip(sol.t, sol.y.T, strict=False):
-            qe = self._normalize(y[:nq])
+            qe = normalized(self.layout, y[:nq])
             ve = y[nq:]
             rows.append(
                 (
