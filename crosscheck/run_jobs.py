@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import time
 import traceback
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -23,6 +24,7 @@ from dataclasses import dataclass, field
 from reference.errors import ModelInputError
 
 from . import interrupts
+from .run_order import hand_out_order, known_times, remember_times, setting_key
 from .workers import process_context, start_worker, stop_workers
 
 # what the workers' server imports before forking them: this module and the checks it runs
@@ -48,6 +50,11 @@ class ModelJob:
     # environment it was started with, and a caller in one process may have changed it since
     settings: tuple[tuple[str, str], ...] = field(default_factory=_settings)
 
+    @property
+    def setting(self) -> str:
+        """What the model's time depends on besides the model (run_order)."""
+        return setting_key(self.engines, self.n_states, self.trajectories, self.t_end)
+
 
 class WorkerError(RuntimeError):
     """A worker's internal error (a bug, not a failed check), with the worker's traceback."""
@@ -63,11 +70,12 @@ def _start_worker(parent: int, model_files: tuple[str, ...]) -> None:
 
 
 def run_model(job: ModelJob) -> tuple:
-    """("ok", records, series, agreement), ("input", message) or ("internal", traceback).
-    Errors travel as text: an exception class with its own constructor arguments does not
-    survive pickling back to the parent."""
+    """("ok", records, series, agreement, seconds), ("input", message) or ("internal",
+    traceback). Errors travel as text: an exception class with its own constructor arguments
+    does not survive pickling back to the parent."""
     from .run import run
 
+    start = time.perf_counter()
     for key in [k for k in os.environ if k.startswith(SETTINGS)]:
         del os.environ[key]
     os.environ.update(job.settings)
@@ -82,7 +90,7 @@ def run_model(job: ModelJob) -> tuple:
             t_end=job.t_end,
             agreement=agreement,
         )
-        return ("ok", records, series, agreement)
+        return ("ok", records, series, agreement, time.perf_counter() - start)
     except ModelInputError as exc:
         return ("input", str(exc))
     except Exception:
@@ -95,11 +103,15 @@ def run_models(
     model_files: tuple[str, ...] = (),
     progress=None,
     agreement: list | None = None,
+    meanwhile=None,
 ) -> tuple[list, list]:
     """run() over `jobs` on `workers` processes: (records, series) in the jobs' order;
     ``agreement`` receives the matrices as run() gives them; ``progress(name)`` is called as
-    each model completes."""
+    each model completes; ``meanwhile()``, once the models are handed out, while this process
+    would only wait for them. Models go out longest first (run_order)."""
     outcomes: dict[int, tuple] = {}
+    setting = jobs[0].setting if jobs else ""
+    order = hand_out_order([j.name for j in jobs], known_times(setting))
     ex = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=process_context(*WORKER_MODULES, engines=jobs[0].engines if jobs else None),
@@ -108,7 +120,9 @@ def run_models(
     )
     try:
         with interrupts.deferred():  # the first submit starts every worker (forkserver)
-            futures: dict[Future, int] = {ex.submit(run_model, j): i for i, j in enumerate(jobs)}
+            futures: dict[Future, int] = {ex.submit(run_model, jobs[i]): i for i in order}
+        if meanwhile is not None:
+            meanwhile()
         first_fault = len(jobs)
         while not all(i in outcomes for i in range(first_fault)):
             done, _ = wait(list(futures), return_when=FIRST_COMPLETED)
@@ -130,10 +144,11 @@ def run_models(
         stop_workers(ex)  # a later model still computing is not waited for
         _raise(outcomes[first_fault], jobs[first_fault].name)
     ex.shutdown(wait=True)
+    remember_times(setting, {jobs[i].name: outcomes[i][4] for i in range(len(jobs))})
     records: list = []
     series: list = []
     for i in range(len(jobs)):
-        _, recs, ser, agr = outcomes[i]
+        _, recs, ser, agr, _seconds = outcomes[i]
         records += recs
         series += ser
         if agreement is not None:

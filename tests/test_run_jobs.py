@@ -187,3 +187,23 @@ def test_a_users_model_file_is_loaded_in_every_worker(tmp_path, capsys):
     capsys.readouterr()
     assert runs["2"] == runs["1"]
     assert len({r["model"] for r in runs["1"]}) == 2
+
+
+def test_models_go_out_longest_first_and_their_times_are_kept(tmp_path, monkeypatch):
+    """With one worker the models complete in the order they were handed out: the longer
+    one by the times on file first; the results still come back in the models' order, and
+    the run's own times replace those on file (another setting's entry is kept)."""
+    from crosscheck import run_order
+
+    monkeypatch.setattr(run_order, "_path", lambda: tmp_path / run_order.FILE)
+    jobs = [_job("pendulum_angle"), _job("pendulum_xy")]
+    setting = jobs[0].setting
+    run_order.remember_times(setting, {"pendulum_angle": 0.1, "pendulum_xy": 50.0})
+    run_order.remember_times("another setting", {"pendulum_angle": 7.0})
+    completed: list[str] = []
+    records, _series = run_models(jobs, 1, progress=completed.append)
+    assert completed == ["pendulum_xy", "pendulum_angle"]
+    assert list(dict.fromkeys(r["model"] for r in records)) == ["pendulum_angle", "pendulum_xy"]
+    kept = run_order.known_times(setting)
+    assert set(kept) == {"pendulum_angle", "pendulum_xy"} and kept["pendulum_xy"] < 50.0
+    assert run_order.known_times("another setting") == {"pendulum_angle": 7.0}
