@@ -223,7 +223,7 @@ def _optional_commands():
     return [
         import_module(f"crosscheck.{name}").register
         for name in (
-            "run",
+            "run_command",
             "bench",
             "report",
             "gate",
@@ -327,8 +327,12 @@ def _main(argv) -> int:
     try:
         from reference.errors import ModelInputError
 
-        parser = build_parser()
         argv = list(sys.argv[1:] if argv is None else argv)
+        if argv[:1] == ["run"]:  # its workers' server starts before the imports below
+            from .run_command import start_workers_early
+
+            start_workers_early(argv[1:])
+        parser = build_parser()
         args = parser.parse_args(_attach_negative_values(parser, argv))
         try:
             if hasattr(args, "model_file"):  # before any model name is resolved

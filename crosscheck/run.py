@@ -1,15 +1,8 @@
-"""`crosscheck run`: the reference against every engine, stage by stage, then in time.
-
-Writes DIR/results.json = {"meta": {...}, "records": [...]} (see crosscheck.compare for the
-record fields). Exit 0 when every executed record passes, 1 when any fails, 2 on usage errors.
-`--perturb ENGINE:PARAM=REL` changes one parameter of one engine's model by a relative amount
-(fault injection: a run with mujoco:m2=1e-6 on the slider-crank must fail).
+"""The checks of `crosscheck run` (the command itself: crosscheck/run_command.py): each model's
+reference against every engine, stage by stage, then in time.
 """
 
 from __future__ import annotations
-
-import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -17,11 +10,10 @@ from reference import NumericModel, cbuild, models
 from reference.generic import generic_parameters
 
 from . import compare as C
-from . import jsonio
 from .agreement import reference_answers
 from .comparison import engine_records, reference_answer
 from .engines.registry import get_engine
-from .perturb import check_perturb, check_perturb_changes, parse_perturb, perturbed
+from .perturb import parse_perturb, perturbed
 from .sampling import consistent_states
 
 __all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
@@ -231,150 +223,3 @@ def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
     for r in out:
         r["check"] += GENERIC_SUFFIX
     return out
-
-
-def cmd_run(args) -> int:
-    from .arguments import output_dir, resolve_engines, resolve_models
-    from .provenance import meta
-    from .run_jobs import WORKER_MODULES
-    from .workers import default_workers, process_context
-
-    # unknown or repeated names fail before any work; none named: the --model-file models
-    names = resolve_models(args.models, getattr(args, "user_models", None))
-    jobs = min(args.jobs or default_workers(), len(names))
-    if jobs > 1:  # its imports run on the other core while this process does its own
-        process_context(*WORKER_MODULES, engines=args.engines or None)  # None: every engine
-    engine_names = resolve_engines(args.engines)
-    perturb = parse_perturb(args.perturb)
-    check_perturb(names, perturb)
-    check_perturb_changes(names, engine_names, perturb)
-    output_dir(args.out)  # an unusable --out fails now, not after the computation
-    bar = None
-    if sys.stderr.isatty():  # progress only for a person at a terminal; CI logs stay quiet
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
-    agreement: list[dict] = []
-    progress = (lambda n: bar.update(1)) if bar else None
-    if jobs > 1:
-        from .run_jobs import ModelJob, run_models
-
-        work = [
-            ModelJob(
-                n, tuple(engine_names), args.states, perturb, not args.instantaneous, args.t_end
-            )
-            for n in names
-        ]
-        provenance: dict = {}
-        records, series = run_models(
-            work,
-            jobs,
-            tuple(args.model_file),
-            progress,
-            agreement,
-            # meta's engine versions import every engine's adapter, also those this run
-            # does not use: 0.5 s this process would otherwise spend after the last model
-            meanwhile=lambda: provenance.update(meta(sys.argv[1:])),
-        )
-    else:
-        records, series = run(
-            names,
-            engine_names,
-            args.states,
-            perturb,
-            progress=progress,
-            trajectories=not args.instantaneous,
-            t_end=args.t_end,
-            agreement=agreement,
-        )
-        provenance = meta(sys.argv[1:])
-    if bar:
-        bar.close()
-    out = Path(args.out)
-    result = {
-        "meta": {
-            **provenance,
-            "states_per_model": args.states,
-            "state_seed": "crc32 of the model name (crosscheck.sampling.consistent_states)",
-            "jobs": jobs,
-            "metrics": C.METRICS,
-        },
-        "records": records,
-        "series": series,
-        "agreement": agreement,
-    }
-    _write_outputs(out, jsonio.dumps(result), not args.no_report)
-    failed = [r for r in records if r["passed"] is False]
-    skipped = [r for r in records if r["skipped"]]
-    passed = sum(1 for r in records if r["passed"])
-    for r in failed:
-        print(
-            f"FAIL {r['model']} {r['engine']} {r['check']} {r['quantity']}: error "
-            f"{r['error']:.3e} > {r['tolerance']:.1e}",
-            file=sys.stderr,
-        )
-    print(
-        f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
-        f"-> {out / 'results.json'}" + ("" if args.no_report else f", {out / 'index.html'}")
-    )
-    return 1 if failed else 0
-
-
-REPORT_FILES = ("index.html", "report.md", "junit.xml")
-
-
-def _write_outputs(out: Path, results_text: str, report: bool) -> None:
-    """results.json and the report, staged and renamed into place together: an interrupt leaves
-    the previous run's files or this run's, never a mix; without the report, an old one is
-    removed (it would describe other results)."""
-    from .output import Outputs
-
-    with Outputs(out) as staged:
-        staged.stage("results.json", results_text)
-        if report:  # the main job leaves a report a person can open
-            from .report import generate
-
-            bench = out / "bench.json"
-            generate(
-                str(out / "results.json"),
-                str(bench) if bench.exists() else None,
-                str(out),
-                outputs=staged,
-                results_text=results_text,
-            )
-        staged.commit(stale=REPORT_FILES)
-
-
-def register(sub):
-    from .arguments import MAX_T_END, add_engines, add_models, horizon, positive_int
-
-    r = sub.add_parser("run", help="cross-check the reference against the engines")
-    add_models(r)
-    add_engines(r)
-    r.add_argument("--out", default="out")
-    r.add_argument("--perturb", action="append", default=[], metavar="ENGINE:PARAM=REL")
-    r.add_argument("--states", type=positive_int, default=6, help="consistent states per model")
-    r.add_argument(
-        "--jobs",
-        type=positive_int,
-        default=None,
-        help="worker processes, one model at a time each (default: the cores this process "
-        "may use; 1 runs in this process). The records are the same either way",
-    )
-    r.add_argument(
-        "--instantaneous",
-        action="store_true",
-        help="only the checks at consistent states, no trajectories",
-    )
-    r.add_argument(
-        "--t-end",
-        type=horizon,
-        default=5.0,
-        help=f"trajectory length [s], > 0 and at most {MAX_T_END:g}",
-    )
-    r.add_argument(
-        "--no-report",
-        action="store_true",
-        help="write results.json only (no index.html / report.md / junit.xml)",
-    )
-    r.set_defaults(func=cmd_run)

@@ -1,4 +1,23 @@
-"""Engine-free reference implementation of the unit's multiplier formulations (Kamman, Unit 6)."""
+"""Engine-free reference implementation of the unit's multiplier formulations (Kamman, Unit 6).
 
-from .errors import ModelInputError  # noqa: F401
-from .numeric import NumericModel  # noqa: F401
+``NumericModel`` loads on first use: importing ``reference.errors`` (every command's error
+type) then does not import sympy, numpy and the code generator (about 1 s), so the command
+line can start its worker processes before it pays for them (crosscheck/run_command.py).
+"""
+
+from typing import TYPE_CHECKING
+
+from .errors import ModelInputError
+
+if TYPE_CHECKING:
+    from .numeric import NumericModel
+
+__all__ = ["ModelInputError", "NumericModel"]
+
+
+def __getattr__(name: str):
+    if name == "NumericModel":
+        from .numeric import NumericModel
+
+        return NumericModel
+    raise AttributeError(f"module 'reference' has no attribute {name!r}")

@@ -11,7 +11,6 @@ The entry point names a class derived from ``EngineAdapter`` (constructed withou
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cache
 from importlib import metadata
@@ -20,8 +19,8 @@ from typing import Any
 from reference.errors import ModelInputError
 
 from .base import EngineAdapter
-
-GROUP = "crosscheck.engines"
+from .entry_points import GROUP, engine_modules  # noqa: F401 - re-exported
+from .entry_points import entry_points as _entry_points
 
 
 class UnknownEngineError(ModelInputError):
@@ -30,11 +29,6 @@ class UnknownEngineError(ModelInputError):
 
 class EngineImportError(ModelInputError):
     """A registered engine whose package does not import here."""
-
-
-@cache
-def _entry_points() -> dict[str, metadata.EntryPoint]:
-    return {ep.name: ep for ep in metadata.entry_points(group=GROUP)}
 
 
 def engine_names() -> tuple[str, ...]:
@@ -93,13 +87,6 @@ def engine_label(name: str) -> str:
         return _adapter_class(name).label or name
     except (UnknownEngineError, EngineImportError):
         return name
-
-
-def engine_modules(names: Sequence[str] | None = None) -> tuple[str, ...]:
-    """The module of every registered engine's entry point, or of the registered ones among
-    `names` (what worker processes preload), read from the entry points without importing."""
-    eps = _entry_points()
-    return tuple(eps[n].module for n in engine_names() if names is None or n in names)
 
 
 def engine_distributions() -> tuple[str, ...]:
