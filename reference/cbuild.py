@@ -131,10 +131,15 @@ def available() -> bool:
     return bool(_compiler_identity(tuple(compiler()))) and include.exists()
 
 
-def _include_dirs() -> list[str]:
+# our headers' directory as the digest writes it: the headers enter the digest by content
+# (HEADERS), so the path of the checkout they sit in stays out of it
+OWN_HEADERS = "<reference>"
+
+
+def _include_dirs(own: str | None = None) -> list[str]:
     import numpy as np
 
-    return [sysconfig.get_paths()["include"], np.get_include(), str(RUNTIME.parent)]
+    return [sysconfig.get_paths()["include"], np.get_include(), own or str(RUNTIME.parent)]
 
 
 def _digest(text: str, cmd: list[str]) -> str:
@@ -158,7 +163,9 @@ def _digest(text: str, cmd: list[str]) -> str:
 def _target(text: str, stem: str, directory: Path) -> tuple[Path, str, list[str]]:
     """Where module `text` is built, its module name and the compiler's flags."""
     flags = [*compile_flags(), *(f"-I{d}" for d in _include_dirs())]
-    digest = _digest(text, flags)
+    # keyed without the checkout's path: a cache shared by two checkouts (git worktrees, a CI
+    # cache restored under another path) would otherwise build every module again in each
+    digest = _digest(text, [*compile_flags(), *(f"-I{d}" for d in _include_dirs(OWN_HEADERS))])
     suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
     return directory / f"{stem}_c_{digest}{suffix}", f"_crosscheck_c_{digest}", flags
 

@@ -52,6 +52,29 @@ def test_a_built_module_is_loaded_not_rebuilt(c_backend, monkeypatch, tmp_path):
     assert np.array_equal(first.forward(q, u).accelerations, again.forward(q, u).accelerations)
 
 
+def test_a_checkout_elsewhere_finds_the_same_built_module(tmp_path):
+    """A module's digest holds our headers by content, not the checkout's path: a copy of the
+    package in another directory (a git worktree, a CI cache restored elsewhere) names the
+    same module, so a shared cache loads it instead of building every module again."""
+    shutil.copytree(
+        os.path.dirname(cbuild.__file__),
+        tmp_path / "reference",
+        ignore=shutil.ignore_patterns("__pycache__"),
+    )
+    code = (
+        "import sys; from pathlib import Path; from reference import cbuild\n"
+        f"assert cbuild.__file__.startswith({str(tmp_path)!r}), cbuild.__file__\n"
+        "print(cbuild._target('double f(double x) { return x; }', 's', Path('.'))[1])\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    here = cbuild._target("double f(double x) { return x; }", "s", tmp_path)
+    assert out.stdout.strip() == here[1]
+    assert f"-I{os.path.dirname(cbuild.__file__)}" in here[2]  # the compiler still finds them
+
+
 def test_two_processes_building_the_same_module_at_once_both_get_it(tmp_path):
     """Each process compiles its own source and object file and renames the object into
     place: neither reads a file the other is writing."""
