@@ -28,7 +28,8 @@ from .run_order import hand_out_order, known_times, remember_times, setting_key
 from .workers import process_context, start_worker, stop_workers
 
 # what the workers' server imports before forking them: this module and the checks it runs
-WORKER_MODULES = ("crosscheck.run_jobs", "crosscheck.run")
+# (the trajectories' with scipy.integrate, which the engines' modules leave to their first use)
+WORKER_MODULES = ("crosscheck.run_jobs", "crosscheck.run", "crosscheck.trajectory")
 SETTINGS = "CROSSCHECK_"  # the environment variables that are the suite's settings
 
 

@@ -66,3 +66,17 @@ def test_the_command_module_imports_no_numerics():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_resolving_the_engines_leaves_scipy_integrate_to_the_workers():
+    """The command line imports the adapters of the engines it checks the names of; the
+    trajectories' scipy.integrate (a second of imports) loads in the workers' server."""
+    from crosscheck.run_jobs import WORKER_MODULES
+
+    code = (
+        "import sys; from crosscheck.arguments import resolve_engines; resolve_engines(None); "
+        "print('scipy.integrate' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+    assert "crosscheck.trajectory" in WORKER_MODULES

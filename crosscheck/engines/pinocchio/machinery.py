@@ -8,7 +8,6 @@ import hashlib
 import time
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 import pinocchio as pin
 
@@ -444,6 +443,10 @@ class PinEngineModel(EngineModel):
         violation (position level) and velocity_violation record it per output time, energy
         the engine's K + V; wall_s is the whole call (integration and mapping).
         """
+        # imported here: scipy.integrate is a second of imports the command line's process,
+        # which only checks the engine names before handing models to workers, does not need
+        from scipy.integrate import solve_ivp
+
         check_integrator(integrator, rtol)
         t_start = time.perf_counter()
         t_eval = np.asarray(t_eval, dtype=float)
