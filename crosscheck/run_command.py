@@ -54,8 +54,6 @@ def cmd_run(args) -> int:
     from . import compare as C
     from .arguments import output_dir, resolve_engines, resolve_models
     from .perturb import check_perturb, check_perturb_changes, parse_perturb
-    from .provenance import meta
-    from .run import run
 
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
@@ -74,38 +72,9 @@ def cmd_run(args) -> int:
         bar = tqdm(total=len(names), desc="models", unit="model", file=sys.stderr)
     agreement: list[dict] = []
     progress = (lambda n: bar.update(1)) if bar else None
-    if jobs > 1:
-        from .run_jobs import ModelJob, run_models
-
-        work = [
-            ModelJob(
-                n, tuple(engine_names), args.states, perturb, not args.instantaneous, args.t_end
-            )
-            for n in names
-        ]
-        provenance: dict = {}
-        records, series = run_models(
-            work,
-            jobs,
-            tuple(args.model_file),
-            progress,
-            agreement,
-            # meta's engine versions import every engine's adapter, also those this run
-            # does not use: 0.5 s this process would otherwise spend after the last model
-            meanwhile=lambda: provenance.update(meta(sys.argv[1:])),
-        )
-    else:
-        records, series = run(
-            names,
-            engine_names,
-            args.states,
-            perturb,
-            progress=progress,
-            trajectories=not args.instantaneous,
-            t_end=args.t_end,
-            agreement=agreement,
-        )
-        provenance = meta(sys.argv[1:])
+    records, series, provenance = _checks(
+        args, names, engine_names, perturb, jobs, progress, agreement
+    )
     if bar:
         bar.close()
     out = Path(args.out)
@@ -122,6 +91,49 @@ def cmd_run(args) -> int:
         "agreement": agreement,
     }
     _write_outputs(out, jsonio.dumps(result), not args.no_report)
+    return _summary(records, out, args.no_report)
+
+
+def _checks(args, names, engine_names, perturb, jobs, progress, agreement):
+    """(records, series, meta) of the run: on `jobs` worker processes or in this one."""
+    from .provenance import meta
+
+    if jobs <= 1:
+        from .run import run
+
+        records, series = run(
+            names,
+            engine_names,
+            args.states,
+            perturb,
+            progress=progress,
+            trajectories=not args.instantaneous,
+            t_end=args.t_end,
+            agreement=agreement,
+        )
+        return records, series, meta(sys.argv[1:])
+    from .run_jobs import ModelJob, run_models
+
+    work = [
+        ModelJob(n, tuple(engine_names), args.states, perturb, not args.instantaneous, args.t_end)
+        for n in names
+    ]
+    provenance: dict = {}
+    records, series = run_models(
+        work,
+        jobs,
+        tuple(args.model_file),
+        progress,
+        agreement,
+        # meta's engine versions import every engine's adapter, also those this run does
+        # not use: 0.5 s this process would otherwise spend after the last model
+        meanwhile=lambda: provenance.update(meta(sys.argv[1:])),
+    )
+    return records, series, provenance
+
+
+def _summary(records, out: Path, no_report: bool) -> int:
+    """The failed records and the counts on the terminal; the exit status."""
     failed = [r for r in records if r["passed"] is False]
     skipped = [r for r in records if r["skipped"]]
     passed = sum(1 for r in records if r["passed"])
@@ -133,7 +145,7 @@ def cmd_run(args) -> int:
         )
     print(
         f"crosscheck run: {passed} passed, {len(failed)} failed, {len(skipped)} skipped "
-        f"-> {out / 'results.json'}" + ("" if args.no_report else f", {out / 'index.html'}")
+        f"-> {out / 'results.json'}" + ("" if no_report else f", {out / 'index.html'}")
     )
     return 1 if failed else 0
 
