@@ -31,8 +31,8 @@ class _Quiet(argparse.ArgumentParser):
 
 def start_workers_early(argv: list[str]) -> None:
     """Start the workers' server of a `crosscheck run` that will hand its models to workers,
-    before the command line imports the models and engines (1.2 s, which the server imports
-    too): the server's own imports (2-3 s) then run on the other core from the start
+    before the command line imports the models and engines (about 1 s, which the server
+    imports too): the server's own imports (2-3 s) then run on the other core from the start
     (docs/compiled.md, "The workers' server starts first"). `argv` follows "run"; a run that
     will not use workers (one model named, `--jobs 1`, one core), a --model-file run without
     names (how many models is not known yet), a request for help or an argument the parser
@@ -47,7 +47,12 @@ def start_workers_early(argv: list[str]) -> None:
         return
     several = len(set(args.models)) > 1 if args.models else not args.model_file
     if several and (args.jobs or default_workers()) > 1:
-        process_context(*WORKER_MODULES, engines=args.engines or None)
+        _start_server(args.engines)
+
+
+def _start_server(engines) -> None:
+    """The workers' server, preloading the checks and the engines named (None: every one)."""
+    process_context(*WORKER_MODULES, engines=engines or None)
 
 
 def cmd_run(args) -> int:
@@ -58,8 +63,8 @@ def cmd_run(args) -> int:
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
     jobs = min(args.jobs or default_workers(), len(names))
-    if jobs > 1:  # its imports run on the other core while this process does its own
-        process_context(*WORKER_MODULES, engines=args.engines or None)  # None: every engine
+    if jobs > 1:  # started here unless start_workers_early did; a no-op then
+        _start_server(args.engines)
     engine_names = resolve_engines(args.engines)
     perturb = parse_perturb(args.perturb)
     check_perturb(names, perturb)

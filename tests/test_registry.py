@@ -46,7 +46,8 @@ def test_engine_modules_of_the_named_engines_only():
     """What the workers' server preloads for `--engines mujoco`: that engine's module alone,
     read from the entry points; a name that is not registered adds nothing (the run reports
     it), and no names means every registered engine."""
-    from crosscheck.engines.registry import engine_modules, engine_names
+    from crosscheck.engines.entry_points import engine_modules
+    from crosscheck.engines.registry import engine_names
 
     everything = engine_modules()
     assert len(everything) == len(engine_names())

@@ -19,7 +19,7 @@ from typing import Any
 from reference.errors import ModelInputError
 
 from .base import EngineAdapter
-from .entry_points import GROUP, engine_modules  # noqa: F401 - re-exported
+from .entry_points import GROUP
 from .entry_points import entry_points as _entry_points
 
 
