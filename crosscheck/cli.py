@@ -344,6 +344,7 @@ def _main(argv) -> int:
             return code
         except ModelInputError as exc:
             print(f"crosscheck: error: {exc}", file=sys.stderr)
+            _stop_unused_server()
             return EXIT_USAGE
     except KeyboardInterrupt:
         return _interrupted(args)
@@ -357,6 +358,7 @@ def _main(argv) -> int:
         import traceback
 
         traceback.print_exc()
+        _stop_unused_server()
         print(
             "crosscheck: internal error (a bug, not a failed check; the traceback above "
             "says where)",
@@ -365,7 +367,17 @@ def _main(argv) -> int:
         return EXIT_INTERNAL
 
 
+def _stop_unused_server() -> None:
+    """A command that ends in an error hands nothing to workers: the server `run` may have
+    started early must not outlive it (crosscheck.workers.stop_server)."""
+    if "multiprocessing.forkserver" in sys.modules:  # else no server was started
+        from .workers import stop_server
+
+        stop_server()
+
+
 def _interrupted(args) -> int:
+    _stop_unused_server()
     print(
         f"crosscheck: interrupted; no new output written (a command's files are renamed "
         f"into place only once all are complete){_out_note(args)}",

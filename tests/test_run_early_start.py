@@ -4,8 +4,10 @@ workers, and from a module that stays light."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+import uuid
 
 import pytest
 
@@ -82,3 +84,45 @@ def test_resolving_the_engines_leaves_scipy_integrate_to_the_workers():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
     assert "crosscheck.trajectory" in WORKER_MODULES
+
+
+def _servers_with(marker: str) -> list[int]:
+    """The workers' servers (multiprocessing's forkserver) whose environment holds `marker`.
+    multiprocessing's resource tracker, started with the server, ends on its own as soon as
+    the command has (it reads the command's end from a pipe) and is not looked for."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/environ", "rb") as f:
+                ours = marker.encode() in f.read()
+            with open(f"/proc/{entry}/cmdline", "rb") as f:
+                server = b"multiprocessing.forkserver" in f.read()
+        except OSError:  # ended meanwhile, or not ours to read
+            continue
+        if ours and server:
+            found.append(int(entry))
+    return found
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads processes from /proc (Linux)")
+def test_an_early_server_ends_with_a_run_refused_for_bad_input(tmp_path):
+    """Two model names start the server before they are checked; an unknown one ends the
+    command with exit 2, and the server (still importing the engines) must end with it, not
+    hold the command's output pipe open for its imports' seconds."""
+    marker = f"CROSSCHECK_TEST_MARK={uuid.uuid4().hex}"
+    env = {**os.environ, marker.split("=")[0]: marker.split("=")[1]}
+    argv = ["run", "no_such_model", "pendulum_xy", "--jobs", "2", "--out", str(tmp_path)]
+    log = tmp_path / "stderr.txt"
+    with open(log, "w") as stderr:  # a file, not a pipe: the run returns at the command's exit
+        proc = subprocess.run(
+            [sys.executable, "-m", "crosscheck", *argv],
+            stdout=subprocess.DEVNULL,
+            stderr=stderr,
+            env=env,
+        )
+    left = _servers_with(marker)
+    assert proc.returncode == 2, log.read_text()
+    assert "unknown model 'no_such_model'" in log.read_text()
+    assert left == []
