@@ -17,6 +17,8 @@ from __future__ import annotations
 import io
 import math
 
+from .report_content import energy_series, method_label
+
 ZERO_AT = 1e-17  # below every double round-off figure of a quantity scaled to 1 (eps = 2.2e-16)
 
 # one colour per engine, the same in every figure of the report
@@ -367,8 +369,6 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
             n = min(len(t), len(v))
             t, v = t[:n], v[:n]
             if key == "energy":  # as the records judge it: drift, or work-energy balance
-                from .report_content import energy_series
-
                 v = energy_series(s)
                 n = min(len(t), len(v))
                 t, v = t[:n], v[:n]
@@ -445,12 +445,6 @@ WORK_PRECISION_PANELS = (
     ("residual", "constraint residual"),
     ("energy_drift", "energy drift"),
 )
-
-
-def method_label(r: dict) -> str:
-    """'projection/DOP853': the stabilisation method and the integrator carrying it."""
-    m = str(r.get("method", "?"))
-    return f"{m}/{r['integrator']}" if r.get("integrator") else m
 
 
 def work_precision_svg(rows: list[dict], title: str = "") -> str | None:

@@ -4,6 +4,7 @@ marked, and the side that disagrees with all others named."""
 
 from __future__ import annotations
 
+from .markdown_table import md_table
 from .report_content import fmt
 
 
@@ -59,7 +60,7 @@ def html(c, model: str) -> str:
     return "\n".join(out)
 
 
-def md(c, model: str, md_table) -> list[str]:
+def md(c, model: str) -> list[str]:
     out: list[str] = []
     for m in c.agreement_of(model):
         out += [f"Engine against engine, {m['quantity']}: {_verdict(m)}", ""]

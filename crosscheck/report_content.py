@@ -226,10 +226,14 @@ def named_items(section) -> list[tuple]:
     return out
 
 
+def method_label(r: dict) -> str:
+    """'projection/DOP853': the stabilisation method and the integrator carrying it."""
+    m = str(r.get("method", "?"))
+    return f"{m}/{r['integrator']}" if r.get("integrator") else m
+
+
 def wp_row(r: dict) -> list[str]:
     """A work-precision row as table cells: method/integrator, engine, setting, figures."""
-    from .plots import method_label
-
     setting = r.get("setting", "")
     setting = fmt_tol(setting) if isinstance(setting, (int, float)) else str(setting)
     if r.get("setting_kind"):

@@ -6,6 +6,7 @@ from . import (  # the section of sensitivity.json beside results.json
     report_agreement,
     report_sensitivity,
 )
+from .markdown_table import md_table
 from .report_content import (
     CHECK_HEADERS,
     SWEEP_HEADERS,
@@ -55,7 +56,7 @@ def _sweep_md(c: Content) -> list[str]:
         if rows:
             out += [
                 "",
-                *_md_table(
+                *md_table(
                     SWEEP_HEADERS,
                     [
                         [
@@ -79,7 +80,7 @@ def _sweep_md(c: Content) -> list[str]:
         out += [
             "### Faults",
             "",
-            *_md_table(
+            *md_table(
                 ["model", "engine", "stage", "type", "samples", "first reason"],
                 [
                     [
@@ -98,19 +99,6 @@ def _sweep_md(c: Content) -> list[str]:
 
 
 # ---- Markdown --------------------------------------------------------------------------------
-
-
-def _md_cell(x) -> str:
-    return str(x).replace("|", "\\|").replace("\n", " ")
-
-
-def _md_table(headers, rows) -> list[str]:
-    out = [
-        "| " + " | ".join(_md_cell(h) for h in headers) + " |",
-        "|" + "|".join("---" for _ in headers) + "|",
-    ]
-    out += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in rows]
-    return [*out, ""]
 
 
 def _checks_md(c: Content, m: str) -> list[str]:
@@ -143,7 +131,7 @@ def _checks_md(c: Content, m: str) -> list[str]:
                     "; ".join(x for x in (why, extra) if x),
                 ]
             )
-        out += _md_table(CHECK_HEADERS, rows)
+        out += md_table(CHECK_HEADERS, rows)
         out += [f"{i + 1}. {t}" for i, t in enumerate(notes)] + [""]
     return out
 
@@ -170,7 +158,7 @@ def _trajectories_md(c: Content, m: str) -> list[str]:
                     fmt(st["energy"]),
                 ]
             )
-        out += _md_table(
+        out += md_table(
             [
                 "series",
                 "points",
@@ -190,7 +178,7 @@ def _bench_md(c: Content, m: str) -> list[str]:
     wp = c.work_precision_of(m)
     if wp:
         out += ["Work-precision:", ""]
-        out += _md_table(
+        out += md_table(
             [
                 "method",
                 "engine",
@@ -212,7 +200,7 @@ def _bench_md(c: Content, m: str) -> list[str]:
         ]
         headers = ["engine", "path", "batch", "µs/state (median)", "µs/state (min)"]
         headers += [f"× {label}" for label, _ in anchors.values()]
-        out += _md_table(
+        out += md_table(
             headers,
             [
                 [
@@ -257,7 +245,7 @@ def render_md(c: Content) -> str:
         source, title = model_info(m)
         out += [f"## {m}" + (f" — {title} ({source})" if title or source else ""), ""]
         out += _checks_md(c, m)
-        out += report_agreement.md(c, m, _md_table)
+        out += report_agreement.md(c, m)
         out += _trajectories_md(c, m)
         if c.bench is not None:
             out += _bench_md(c, m)
@@ -265,7 +253,7 @@ def render_md(c: Content) -> str:
         out += ["## More from bench.json", ""]
         for key, section in c.other_bench.items():
             out += [f"### {key}", ""]
-            out += _md_table(
+            out += md_table(
                 ["name", "status", "what", "notes"],
                 [
                     [name, st, desc, "; ".join(notes)]

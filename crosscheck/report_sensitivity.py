@@ -15,6 +15,8 @@ import json
 import math
 from pathlib import Path
 
+from .markdown_table import md_table
+
 SENSITIVITY_FILE = "sensitivity.json"
 NOT_CAUGHT_AT = 1.0  # where the plot draws a parameter nothing caught (above every decade)
 
@@ -162,7 +164,6 @@ def html(c) -> str:
 
 def md(c) -> list[str]:
     """The Markdown section (empty without a sensitivity.json beside results.json)."""
-    from .report_md import _md_table
 
     doc = load(c)
     if doc is None:
@@ -192,7 +193,7 @@ def md(c) -> list[str]:
         ]
         for label, row in zip(labels, rows, strict=False)
     ]
-    return out + _md_table(["model / parameter", *engines], body)
+    return out + md_table(["model / parameter", *engines], body)
 
 
 def worst(doc: dict) -> float:
