@@ -277,11 +277,21 @@ def one_blas_thread() -> None:
         os.environ.setdefault(var, "1")
 
 
+# No command renders with MuJoCo, whose import otherwise loads its OpenGL context code and
+# with it the glfw package, which starts a Python subprocess to ask the GLFW library for its
+# version: 0.15-0.2 s of each process that imports MuJoCo (this one and the workers' server,
+# whose imports the first models wait for; docs/compiled.md). Set before MuJoCo loads; a
+# user's setting wins.
+def no_mujoco_rendering() -> None:
+    os.environ.setdefault("MUJOCO_GL", "disable")
+
+
 def main(argv=None) -> int:
     entry = argv is None  # the `crosscheck` program itself, not a caller in this process
     if entry:
         interrupts.install()
         one_blas_thread()
+        no_mujoco_rendering()
     code = _main(argv)
     if entry and (code == EXIT_INTERRUPTED or not (_running_threads() or _observed())):
         # CPython kills itself with SIGINT at exit (status -2, not 130) when the interrupt

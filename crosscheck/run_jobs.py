@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import threading
 import time
 import traceback
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -108,8 +109,8 @@ def run_models(
 ) -> tuple[list, list]:
     """run() over `jobs` on `workers` processes: (records, series) in the jobs' order;
     ``agreement`` receives the matrices as run() gives them; ``progress(name)`` is called as
-    each model completes; ``meanwhile()``, once the models are handed out, while this process
-    would only wait for them. Models go out longest first (run_order)."""
+    each model completes; ``meanwhile()`` runs while the models are handed out (_Meanwhile),
+    its exception raised here. Models go out longest first (run_order)."""
     outcomes: dict[int, tuple] = {}
     setting = jobs[0].setting if jobs else ""
     order = hand_out_order([j.name for j in jobs], known_times(setting))
@@ -119,11 +120,12 @@ def run_models(
         initializer=_start_worker,
         initargs=(os.getpid(), tuple(model_files)),
     )
+    side = _Meanwhile(meanwhile) if meanwhile is not None else None
     try:
         with interrupts.deferred():  # the first submit starts every worker (forkserver)
             futures: dict[Future, int] = {ex.submit(run_model, jobs[i]): i for i in order}
-        if meanwhile is not None:
-            meanwhile()
+        if side is not None:
+            side.join()
         first_fault = len(jobs)
         while not all(i in outcomes for i in range(first_fault)):
             done, _ = wait(list(futures), return_when=FIRST_COMPLETED)
@@ -155,6 +157,29 @@ def run_models(
         if agreement is not None:
             agreement += agr
     return records, series
+
+
+class _Meanwhile:
+    """`work()` on a thread of its own from before the hand-out: the first submit waits for
+    the workers' server to finish its imports (about 1 s after this process has finished its
+    own; docs/compiled.md), and `work` runs in that wait on the core the workers do not use
+    yet, not beside them. A daemon thread: Ctrl-C does not wait for it."""
+
+    def __init__(self, work):
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, args=(work,), daemon=True)
+        self._thread.start()
+
+    def _run(self, work) -> None:
+        try:
+            work()
+        except BaseException as exc:  # raised in the caller's thread by join
+            self._error = exc
+
+    def join(self) -> None:
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
 
 
 def _outcome(fut: Future, jobs: list[ModelJob], in_flight, i: int) -> tuple:

@@ -272,3 +272,29 @@ def test_a_profiled_program_still_writes_its_profile(tmp_path):
     )
     assert r.returncode == 0, r.stderr
     assert pstats.Stats(str(prof)).total_calls > 0
+
+
+@pytest.mark.parametrize(("setting", "rendering"), [(None, False), ("glfw", True)])
+def test_the_program_imports_mujoco_without_its_rendering(setting, rendering):
+    """The `crosscheck` program sets MUJOCO_GL=disable unless the user set it: no command
+    renders, and MuJoCo's OpenGL code brings the glfw package, which starts a Python process
+    of its own at import. `crosscheck engines` imports every engine."""
+    import os
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys, atexit\n"
+        "atexit.register(lambda: print('mujoco' in sys.modules, 'glfw' in sys.modules))\n"
+        "sys.argv = ['crosscheck', 'engines']\n"
+        "from crosscheck.cli import main\n"
+        "main()\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    if setting:
+        env["MUJOCO_GL"] = setting
+    r = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split()[-2:] == ["True", str(rendering)]

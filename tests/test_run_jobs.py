@@ -69,6 +69,26 @@ def test_results_come_back_in_the_models_order():
     assert models == sorted(models, key=["pendulum_xy", "pendulum_angle"].index)
 
 
+def test_the_meanwhile_work_runs_beside_the_hand_out_and_its_error_reaches_the_caller():
+    """run_models(meanwhile=...) runs the work on a thread of its own (the hand-out waits for
+    the workers' server meanwhile), once; an exception in it is the caller's."""
+    import threading
+
+    threads: list[bool] = []
+    jobs = [_job("pendulum_angle"), _job("pendulum_xy")]
+    records, _series = run_models(
+        jobs, 2, meanwhile=lambda: threads.append(threading.current_thread().name)
+    )
+    assert len(threads) == 1 and threads[0] != threading.main_thread().name
+    assert {r["model"] for r in records} == {"pendulum_angle", "pendulum_xy"}
+
+    def broken():
+        raise RuntimeError("the meta could not be read")
+
+    with pytest.raises(RuntimeError, match="the meta could not be read"):
+        run_models(jobs, 2, meanwhile=broken)
+
+
 def test_a_bug_in_a_worker_carries_its_traceback():
     with pytest.raises(WorkerError, match=r"(?s)checking pendulum_angle.*Traceback"):
         run_models([_job("pendulum_angle", n_states="two"), _job("pendulum_xy")], 2)
