@@ -354,7 +354,7 @@ def _main(argv) -> int:
             return code
         except ModelInputError as exc:
             print(f"crosscheck: error: {exc}", file=sys.stderr)
-            _stop_unused_server()
+            _stop_workers_server()
             return EXIT_USAGE
     except KeyboardInterrupt:
         return _interrupted(args)
@@ -368,7 +368,7 @@ def _main(argv) -> int:
         import traceback
 
         traceback.print_exc()
-        _stop_unused_server()
+        _stop_workers_server()
         print(
             "crosscheck: internal error (a bug, not a failed check; the traceback above "
             "says where)",
@@ -377,9 +377,10 @@ def _main(argv) -> int:
         return EXIT_INTERNAL
 
 
-def _stop_unused_server() -> None:
-    """A command that ends in an error hands nothing to workers: the server `run` may have
-    started early must not outlive it (crosscheck.workers.stop_server)."""
+def _stop_workers_server() -> None:
+    """A command that ends in an error or an interrupt hands nothing more to workers: the
+    server `run` started (early, or for its workers) must not outlive it
+    (crosscheck.workers.stop_server)."""
     if "multiprocessing.forkserver" in sys.modules:  # else no server was started
         from .workers import stop_server
 
@@ -387,7 +388,7 @@ def _stop_unused_server() -> None:
 
 
 def _interrupted(args) -> int:
-    _stop_unused_server()
+    _stop_workers_server()
     print(
         f"crosscheck: interrupted; no new output written (a command's files are renamed "
         f"into place only once all are complete){_out_note(args)}",

@@ -164,7 +164,6 @@ def html(c) -> str:
 
 def md(c) -> list[str]:
     """The Markdown section (empty without a sensitivity.json beside results.json)."""
-
     doc = load(c)
     if doc is None:
         return []

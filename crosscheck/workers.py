@@ -109,16 +109,18 @@ def stop_server() -> None:
     command that stops on bad input after the early start (start_workers_early) would
     otherwise leave the server finishing its imports (about 2 s) with the command's stdout and
     stderr open, and a reader of them through a pipe waits that long for their end. The
-    server ignores SIGINT (start_server), so SIGTERM; multiprocessing keeps the server's pid
-    in a private attribute (Python 3.8-3.14), and where it has none there is nothing to stop."""
+    server ignores SIGINT (start_server), so SIGTERM. multiprocessing keeps the server's pid
+    and its clean-up in private names (checked on Python 3.11); where they are missing, the
+    server is left to end by itself, as before."""
     from multiprocessing import forkserver
 
     server = forkserver._forkserver
     pid = getattr(server, "_forkserver_pid", None)
-    if pid is None:
+    clean_up = getattr(server, "_stop", None)
+    if pid is None or clean_up is None:
         return
     try:
         os.kill(pid, signal.SIGTERM)
     except ProcessLookupError:
         pass
-    server._stop()  # closes its pipe, removes its socket file and reaps it
+    clean_up()  # closes its pipe, removes its socket file and reaps it
