@@ -89,6 +89,23 @@ def test_the_meanwhile_work_runs_beside_the_hand_out_and_its_error_reaches_the_c
         run_models(jobs, 2, meanwhile=broken)
 
 
+def test_the_meta_of_a_run_on_workers_names_every_engine(tmp_path):
+    """In a fresh program, a run on workers reads its meta on a thread beside the hand-out
+    (run_jobs._Meanwhile): that thread imports the adapters of the engines the run did not
+    name, so every available engine's version is there, as in a serial run."""
+    from crosscheck.engines.registry import engine_distributions
+
+    args = ["run", "pendulum_angle", "pendulum_xy", "--engines", "pinocchio", "--jobs", "2"]
+    args += ["--instantaneous", "--no-report", "--out", str(tmp_path)]
+    r = subprocess.run(
+        [sys.executable, "-m", "crosscheck", *args], capture_output=True, text=True, timeout=300
+    )
+    assert r.returncode == 0, r.stderr
+    meta = _results(tmp_path)["meta"]
+    assert meta["jobs"] == 2
+    assert set(engine_distributions()) <= set(meta["versions"])
+
+
 def test_a_bug_in_a_worker_carries_its_traceback():
     with pytest.raises(WorkerError, match=r"(?s)checking pendulum_angle.*Traceback"):
         run_models([_job("pendulum_angle", n_states="two"), _job("pendulum_xy")], 2)
