@@ -74,7 +74,7 @@ def test_the_meanwhile_work_runs_beside_the_hand_out_and_its_error_reaches_the_c
     the workers' server meanwhile), once; an exception in it is the caller's."""
     import threading
 
-    threads: list[bool] = []
+    threads: list[str] = []
     jobs = [_job("pendulum_angle"), _job("pendulum_xy")]
     records, _series = run_models(
         jobs, 2, meanwhile=lambda: threads.append(threading.current_thread().name)
