@@ -32,7 +32,7 @@ class _Quiet(argparse.ArgumentParser):
 def start_workers_early(argv: list[str]) -> None:
     """Start the workers' server of a `crosscheck run` that will hand its models to workers,
     before the command line imports the models and engines (about 1 s, which the server
-    imports too): the server's own imports (2-3 s) then run on the other core from the start
+    imports too): the server's own imports (about 2 s) then run on the other core from the start
     (docs/compiled.md, "The workers' server starts first"). `argv` follows "run"; a run that
     will not use workers (one model named, `--jobs 1`, one core), a --model-file run without
     names (how many models is not known yet), a request for help or an argument the parser
@@ -131,7 +131,7 @@ def _checks(args, names, engine_names, perturb, jobs, progress, agreement):
         progress,
         agreement,
         # meta's engine versions import every engine's adapter, also those this run does
-        # not use: 0.5 s this process would otherwise spend after the last model
+        # not use (about 0.4 s): read while the hand-out waits for the workers' server
         meanwhile=lambda: provenance.update(meta(sys.argv[1:])),
     )
     return records, series, provenance
