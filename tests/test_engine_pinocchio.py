@@ -910,3 +910,47 @@ def test_trajectory_right_hand_side_keeps_quaternions_unit_and_maps_rates():
             )
         for iq, iv, n in lay.plain:
             assert np.array_equal(rates[iq : iq + n], ve[iv : iv + n])
+
+
+def test_right_hand_side_is_normalized_then_coordinate_rates_to_the_bit():
+    """ode.right_hand_side (its call and its `into`, which LeanDOP853 fills its stages with)
+    gives the same bits as coordinate_rates(normalized(q_e), v_e) and the accelerations at the
+    normalized q_e: its float path is a speed-up, not another formula. Layouts: a free flyer,
+    two ball joints, hinges only, and a hinge before a ball joint (built by hand)."""
+    from crosscheck.engines.pinocchio.ode import (
+        JointLayout,
+        coordinate_rates,
+        normalized,
+        right_hand_side,
+    )
+
+    mixed = JointLayout(
+        nq=5, nv=4, spherical=((1, 1),), free_flyer=(), plain=((0, 0, 1),), quaternions=(1,)
+    )
+    layouts = [
+        engine(n, v).layout
+        for n, v in (
+            ("top_cartesian", "free"),
+            ("double_pendulum_3d", "tree"),
+            ("slider_crank", None),
+        )
+    ]
+    rng = np.random.default_rng(17)
+    for lay in [*layouts, mixed]:
+        seen = []
+
+        def accelerations(qe, ve, t, lay=lay, seen=seen):
+            seen.append(np.array(qe))
+            return np.sin(np.arange(lay.nv) + t) * ve.sum() + qe.sum()
+
+        rhs = right_hand_side(lay, accelerations)
+        for _ in range(50):
+            y = 1.5 * rng.standard_normal(lay.nq + lay.nv)
+            qn = normalized(lay, y[: lay.nq])
+            expected = np.concatenate(
+                [coordinate_rates(lay, qn, y[lay.nq :]), accelerations(qn, y[lay.nq :], 0.3)]
+            )
+            out = np.full(lay.nq + lay.nv, np.nan)
+            rhs.into(0.3, y, out)
+            assert np.array_equal(out, expected) and np.array_equal(rhs(0.3, y), expected)
+            assert all(np.array_equal(s, qn) for s in seen[-3:])

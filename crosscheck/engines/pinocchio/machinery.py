@@ -14,7 +14,7 @@ import pinocchio as pin
 from ..base import EngineForward, EngineModel, EngineTrajectory, check_state
 from .ode import JointLayout, joint_layout, normalized, right_hand_side
 
-# scipy's error-controlled integrators the trajectories use (solve_ivp methods)
+# the error-controlled integrators the trajectories use (solve_ivp methods, see ivp_method)
 INTEGRATORS = ("DOP853",)
 
 # Proximal settings (absolute_accuracy, mu, max_iter).
@@ -61,6 +61,17 @@ def check_integrator(integrator: str, rtol: float | None) -> None:
         raise ValueError(f"unknown integrator {integrator!r}; valid: {', '.join(INTEGRATORS)}")
     if rtol is None or not rtol > 0:
         raise ValueError(f"{integrator} controls its error: give rtol > 0, got {rtol!r}")
+
+
+def ivp_method(integrator: str):
+    """The solve_ivp method for one of INTEGRATORS: DOP853 is the reference's LeanDOP853,
+    scipy's DOP853 (tableau, error control, steps, dense output) without scipy's Python around
+    each stage, which costs as much as Pinocchio's forward call on these models."""
+    # imported here: scipy.integrate is a second of imports the command line's process, which
+    # only checks the engine names before handing models to workers, does not need
+    from reference.integrate_rk import LeanDOP853
+
+    return {"DOP853": LeanDOP853}[integrator]
 
 
 def ivp_trajectory(sol, rows, integrator: str, rtol, t_start: float, raw: dict) -> EngineTrajectory:
@@ -443,9 +454,7 @@ class PinEngineModel(EngineModel):
         violation (position level) and velocity_violation record it per output time, energy
         the engine's K + V; wall_s is the whole call (integration and mapping).
         """
-        # imported here: scipy.integrate is a second of imports the command line's process,
-        # which only checks the engine names before handing models to workers, does not need
-        from scipy.integrate import solve_ivp
+        from scipy.integrate import solve_ivp  # imported here, as in ivp_method
 
         check_integrator(integrator, rtol)
         t_start = time.perf_counter()
@@ -459,7 +468,7 @@ class PinEngineModel(EngineModel):
             right_hand_side(self.layout, lambda qe, ve, t: self._engine_call(qe, ve, t)()),
             (0.0, float(t_eval[-1])),
             y0,
-            method=integrator,
+            method=ivp_method(integrator),
             rtol=rtol,
             atol=rtol,
             t_eval=t_eval,

@@ -124,15 +124,49 @@ def coordinate_rates(layout: JointLayout, qe, ve, out=None) -> np.ndarray:
 
 def right_hand_side(layout: JointLayout, accelerations):
     """F(t, y) = [q_e', v_e'] with v_e' = accelerations(q_e, v_e, t), the engine's forward call
-    returning only the accelerations (an array it may own: it is copied here)."""
+    returning only the accelerations (an array it may own: it is copied here).
+
+    F.into(t, y, out) writes F(t, y) into `out`: LeanDOP853 (reference.integrate_rk) fills each
+    stage's row of its stage matrix that way, with no fresh vector and no copy per call."""
     nq, size = layout.nq, layout.nq + layout.nv
 
-    def rhs(t, y):
-        qe = normalized(layout, y[:nq])
+    def into(t, y, out) -> None:
         ve = y[nq:]
-        out = np.empty(size)
-        coordinate_rates(layout, qe, ve, out[:nq])
+        if layout.quaternions:
+            qe, rates = _unit_state_and_rates(layout, y.tolist())
+            out[:nq] = rates
+        else:
+            qe = y[:nq]
+            out[:nq] = ve
         out[nq:] = accelerations(qe, ve, t)
+
+    def rhs(t, y):
+        out = np.empty(size)
+        into(t, y, out)
         return out
 
+    rhs.into = into  # type: ignore[attr-defined]
     return rhs
+
+
+def _unit_state_and_rates(layout: JointLayout, y: list[float]) -> tuple[np.ndarray, list[float]]:
+    """normalized(q_e) and coordinate_rates of it, from y = [q_e, v_e] as Python floats: the
+    same operations in the same order (so the same bits, tests/test_engine_pinocchio.py), with
+    one conversion in and one out instead of numpy's per-slice calls, which cost several times
+    the arithmetic on a quaternion."""
+    nq = layout.nq
+    q, v = y[:nq], y[nq:]
+    for iq in layout.quaternions:
+        x, y_, z, w = q[iq : iq + 4]
+        n = math.sqrt(x * x + y_ * y_ + z * z + w * w)
+        q[iq : iq + 4] = (x / n, y_ / n, z / n, w / n)
+    rates = [0.0] * nq
+    for iq, iv, size in layout.plain:
+        rates[iq : iq + size] = v[iv : iv + size]
+    for iq, iv in layout.spherical:
+        rates[iq : iq + 4] = _quat_rate(*q[iq : iq + 4], *v[iv : iv + 3])
+    for iq, iv in layout.free_flyer:
+        quat = q[iq + 3 : iq + 7]
+        rates[iq : iq + 3] = _quat_rotate(*quat, *v[iv : iv + 3])
+        rates[iq + 3 : iq + 7] = _quat_rate(*quat, *v[iv + 3 : iv + 6])
+    return np.array(q), rates

@@ -387,7 +387,7 @@ class UserFilePinModel(EngineModel):
         constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
         from scipy.integrate import solve_ivp
 
-        from .machinery import check_integrator, ivp_trajectory
+        from .machinery import check_integrator, ivp_method, ivp_trajectory
 
         check_integrator(integrator, rtol)
         t_start = time.perf_counter()
@@ -401,7 +401,7 @@ class UserFilePinModel(EngineModel):
             rhs,
             (0.0, float(t_eval[-1])),
             np.concatenate([q0, u0]),
-            method=integrator,
+            method=ivp_method(integrator),
             rtol=rtol,
             atol=rtol,
             t_eval=t_eval,
