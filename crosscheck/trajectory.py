@@ -141,23 +141,32 @@ class _Tolerances(NamedTuple):
     velocity: C.Tolerance  # velocity drift |A u + a0|
 
 
-def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E):
+def _adaptive_runs(em, integrator, q0, u0, grid, loose_err, loose_E, reference_stepper: bool):
     """An error-controlled engine integrator at ENGINE_RTOL, held to 10x the reference's own
     global error (and energy error) at that rtol, measured in this run. Returns the runs, their
     _Tolerances and the extra records (none)."""
     tr = em.simulate(q0, u0, grid, integrator=integrator, rtol=ENGINE_RTOL)
-    # the engine's own integrator need not share DOP853's error per rtol (Simbody's accuracy
-    # is a different norm): its own error, estimated against a run at 10x the rtol, is added
-    loose = em.simulate(q0, u0, grid, integrator=integrator, rtol=10 * ENGINE_RTOL)
-    own = float(np.max(state_error(loose.q, loose.u, tr.q, tr.u)))
-    label = f"{integrator} rtol={ENGINE_RTOL:g} (no stabilization)"
-    state_tol = C.Tolerance(
-        10 * loose_err + own + 1e-10,
+    why = (
         f"{integrator} at rtol {ENGINE_RTOL:g}: 10x the global error of the reference's "
         f"DOP853 at that rtol, measured in this run ({loose_err:.1e}; another choice of "
-        f"coordinates), plus the engine's own error estimated against its run at rtol "
-        f"{10 * ENGINE_RTOL:g} ({own:.1e})",
+        f"coordinates)"
     )
+    if reference_stepper:  # the reference's own DOP853 stepper: loose_err is its error per rtol
+        state_tol = C.Tolerance(
+            10 * loose_err + 1e-10, f"{why}; the engine is integrated by that same stepper"
+        )
+    else:
+        # the engine's own integrator need not share DOP853's error per rtol (Simbody's
+        # accuracy is a different norm): its own error, estimated against a run at 10x the
+        # rtol, is added
+        loose = em.simulate(q0, u0, grid, integrator=integrator, rtol=10 * ENGINE_RTOL)
+        own = float(np.max(state_error(loose.q, loose.u, tr.q, tr.u)))
+        state_tol = C.Tolerance(
+            10 * loose_err + own + 1e-10,
+            f"{why}, plus the engine's own error estimated against its run at rtol "
+            f"{10 * ENGINE_RTOL:g} ({own:.1e})",
+        )
+    label = f"{integrator} rtol={ENGINE_RTOL:g} (no stabilization)"
     energy_tol = C.Tolerance(
         10 * loose_E + 1e-10,
         f"10x the reference's energy drift at rtol "
@@ -422,7 +431,14 @@ def _engine_run(ctx: _Reference, adapter, em, variant):
     try:
         if integrator in adapter.capabilities.adaptive_integrators:
             runs, tols, more = _adaptive_runs(
-                em, integrator, ctx.q0, ctx.u0, ctx.grid, ctx.loose_err, ctx.loose_E
+                em,
+                integrator,
+                ctx.q0,
+                ctx.u0,
+                ctx.grid,
+                ctx.loose_err,
+                ctx.loose_E,
+                integrator in adapter.capabilities.reference_integrators,
             )
         else:
             runs, tols, more = _fixed_step_runs(

@@ -64,6 +64,10 @@ class Capabilities:
         has no trajectories in this suite. The first is the one `crosscheck run` uses.
     adaptive_integrators: the subset of ``integrators`` that control their error (they take
         ``rtol``); the others take a fixed ``timestep``.
+    reference_integrators: the subset of ``adaptive_integrators`` that are the reference's
+        own stepper (reference.integrate_rk.LeanDOP853, driven by solve_ivp): their error per
+        rtol is the reference's, which the trajectory check measures in the run, so it does
+        not integrate the engine a second time to estimate it.
     variants: some models have several engine models (``EngineAdapter.variants``).
     soft_prediction: built models predict their raw soft answer from the reference's rigid
         answer and the engine's documented regularization alone (``EngineModel.predict_soft``),
@@ -82,11 +86,17 @@ class Capabilities:
     adaptive_integrators: tuple[str, ...] = ()
     soft_prediction: bool = False
     soft_limit: bool = False
+    reference_integrators: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         extra = set(self.adaptive_integrators) - set(self.integrators)
         if extra:
             raise ValueError(f"adaptive_integrators {sorted(extra)} are not in integrators")
+        extra = set(self.reference_integrators) - set(self.adaptive_integrators)
+        if extra:
+            raise ValueError(
+                f"reference_integrators {sorted(extra)} are not in adaptive_integrators"
+            )
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -100,6 +110,7 @@ class Capabilities:
             "adaptive_integrators": list(self.adaptive_integrators),
             "soft_prediction": self.soft_prediction,
             "soft_limit": self.soft_limit,
+            "reference_integrators": list(self.reference_integrators),
         }
 
 

@@ -146,6 +146,7 @@ class PinocchioAdapter(TableAdapter):
         integrators=INTEGRATORS,
         variants=True,
         adaptive_integrators=INTEGRATORS,
+        reference_integrators=INTEGRATORS,  # machinery.ivp_method: the reference's LeanDOP853
     )
 
     model_table = _MODELS
