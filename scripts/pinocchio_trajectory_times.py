@@ -4,7 +4,14 @@ run's output grid; every variant of five models), with the number of right-hand-
 --save keeps the states, --compare reads another run's to give the largest state difference
 per run (to compare two commits, run it in each).
 
+Wall times drift on a shared machine; instruction counts do not. Under valgrind's cachegrind,
+the count of a run less the count of a run with --no-integrate (the same imports and model
+builds, no integration) is what the trajectories cost:
+
     PYTHONPATH=$PWD python scripts/pinocchio_trajectory_times.py [--save F.npz] [--compare F.npz]
+    PYTHONPATH=$PWD valgrind --tool=cachegrind --cache-sim=no --cachegrind-out-file=/dev/null \
+        $(python -c "import sys; print(sys.executable)") \
+        scripts/pinocchio_trajectory_times.py [--no-integrate]
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--save", help="write every run's (q, u) to this .npz")
     ap.add_argument("--compare", help="a --save file of another run: print max |difference|")
+    ap.add_argument("--no-integrate", action="store_true", help="build the models, integrate none")
     args = ap.parse_args()
     adapter = get_engine("pinocchio")
     t_eval = output_grid(T_END)
@@ -37,6 +45,8 @@ def main() -> None:
         q0, u0 = nm.project(model.initial_q, model.initial_u)  # as the run starts
         for variant in adapter.variants(name):
             em = adapter.build(name, nm.params, variant)
+            if args.no_integrate:
+                continue
             t0 = time.perf_counter()
             tr = em.simulate(q0, u0, t_eval, integrator="DOP853", rtol=ENGINE_RTOL)
             wall = time.perf_counter() - t0
