@@ -437,8 +437,9 @@ class PinEngineModel(EngineModel):
         rtol: float | None = None,
         timestep: float | None = None,
     ) -> EngineTrajectory:
-        """Integrate Pinocchio's forward dynamics with scipy's solve_ivp (method `integrator`,
-        rtol = atol = `rtol`) in engine coordinates from t = 0 to t_eval[-1].
+        """Integrate Pinocchio's forward dynamics with scipy's solve_ivp (on ivp_method's
+        stepper for `integrator`, rtol = atol = `rtol`) in engine coordinates from t = 0 to
+        t_eval[-1].
 
         The engine state is [q_e, v_e] (crosscheck/engines/pinocchio/ode.py: quaternions
         renormalized before every evaluation and in the output, since |q| is not a constraint
