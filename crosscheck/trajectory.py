@@ -4,7 +4,8 @@
   its own accuracy measured in the same run against rtol = atol = 1e-13;
 - each engine with the first of its integrators (Capabilities.integrators): an error-controlled
   one at rtol = atol = 1e-10 in the engine's own coordinates, no stabilization (index-1 drift
-  is part of what is measured; Pinocchio: scipy's DOP853 on its forward dynamics), a fixed-step
+  is part of what is measured), and again at 10x that rtol for its own error unless it is the
+  reference's stepper (Pinocchio: the reference's DOP853 on its forward dynamics), a fixed-step
   one on a time-step ladder h and h/2 (MuJoCo: its own RK4; h = 1 ms, or for a horizon that
   is not a whole number of ms the largest step below 1 ms that divides it, see step_ladder),
   every run recorded on the reference's output times (output_grid).
