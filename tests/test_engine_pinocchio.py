@@ -899,7 +899,7 @@ def test_trajectory_right_hand_side_keeps_quaternions_unit_and_maps_rates():
         for iq in lay.quaternions:
             rest[iq : iq + 4] = False
         assert np.array_equal(qn[rest], qe[rest])
-        rates = coordinate_rates(lay, qn, ve)
+        rates = np.array(coordinate_rates(lay, qn.tolist(), ve.tolist()))
         for iq, iv in lay.spherical:
             assert rates[iq : iq + 4].tolist() == quat_rate(qn[iq : iq + 4], ve[iv : iv + 3])
         for iq, iv in lay.free_flyer:
@@ -915,8 +915,9 @@ def test_trajectory_right_hand_side_keeps_quaternions_unit_and_maps_rates():
 def test_right_hand_side_is_normalized_then_coordinate_rates_to_the_bit():
     """ode.right_hand_side (its call and its `into`, which LeanDOP853 fills its stages with)
     gives the same bits as coordinate_rates(normalized(q_e), v_e) and the accelerations at the
-    normalized q_e: its float path is a speed-up, not another formula. Layouts: a free flyer,
-    two ball joints, hinges only, and a hinge before a ball joint (built by hand)."""
+    normalized q_e (the test above holds what those two compute), hinges-only layouts on their
+    shortcut q_e' = v_e included. Layouts: a free flyer, two ball joints, hinges only, and a
+    hinge before a ball joint (built by hand)."""
     from crosscheck.engines.pinocchio.ode import (
         JointLayout,
         coordinate_rates,
@@ -948,7 +949,10 @@ def test_right_hand_side_is_normalized_then_coordinate_rates_to_the_bit():
             y = 1.5 * rng.standard_normal(lay.nq + lay.nv)
             qn = normalized(lay, y[: lay.nq])
             expected = np.concatenate(
-                [coordinate_rates(lay, qn, y[lay.nq :]), accelerations(qn, y[lay.nq :], 0.3)]
+                [
+                    coordinate_rates(lay, qn.tolist(), y[lay.nq :].tolist()),
+                    accelerations(qn, y[lay.nq :], 0.3),
+                ]
             )
             out = np.full(lay.nq + lay.nv, np.nan)
             rhs.into(0.3, y, out)

@@ -96,30 +96,32 @@ def normalized(layout: JointLayout, qe) -> np.ndarray:
     """A copy of q_e with every quaternion scaled to unit length (q_e itself where none)."""
     if not layout.quaternions:
         return qe
-    qe = np.array(qe, float)
+    q = np.asarray(qe, float).tolist()
+    _unit_quaternions(layout, q)
+    return np.array(q)
+
+
+def _unit_quaternions(layout: JointLayout, q: list[float]) -> None:
+    """Scale every quaternion of q_e (a list of floats, changed in place) to unit length."""
     for iq in layout.quaternions:
-        x, y, z, w = qe[iq : iq + 4].tolist()
+        x, y, z, w = q[iq : iq + 4]
         n = math.sqrt(x * x + y * y + z * z + w * w)
-        qe[iq : iq + 4] = (x / n, y / n, z / n, w / n)
-    return qe
+        q[iq : iq + 4] = (x / n, y / n, z / n, w / n)
 
 
-def coordinate_rates(layout: JointLayout, qe, ve, out=None) -> np.ndarray:
-    """q_e' from (q_e, v_e), written into ``out`` (length nq) when given."""
-    if out is None:
-        out = np.empty(layout.nq)
-    if not layout.quaternions:
-        out[:] = ve
-        return out
+def coordinate_rates(layout: JointLayout, q: list[float], v: list[float]) -> list[float]:
+    """q_e' from q_e and v_e given as lists of floats (the integrator's path converts each
+    state once: numpy's call per 3- or 4-vector slice costs several times the arithmetic)."""
+    rates = [0.0] * layout.nq
     for iq, iv, n in layout.plain:
-        out[iq : iq + n] = ve[iv : iv + n]
+        rates[iq : iq + n] = v[iv : iv + n]
     for iq, iv in layout.spherical:
-        out[iq : iq + 4] = _quat_rate(*qe[iq : iq + 4].tolist(), *ve[iv : iv + 3].tolist())
+        rates[iq : iq + 4] = _quat_rate(*q[iq : iq + 4], *v[iv : iv + 3])
     for iq, iv in layout.free_flyer:
-        quat = qe[iq + 3 : iq + 7].tolist()
-        out[iq : iq + 3] = _quat_rotate(*quat, *ve[iv : iv + 3].tolist())
-        out[iq + 3 : iq + 7] = _quat_rate(*quat, *ve[iv + 3 : iv + 6].tolist())
-    return out
+        quat = q[iq + 3 : iq + 7]
+        rates[iq : iq + 3] = _quat_rotate(*quat, *v[iv : iv + 3])
+        rates[iq + 3 : iq + 7] = _quat_rate(*quat, *v[iv + 3 : iv + 6])
+    return rates
 
 
 def right_hand_side(layout: JointLayout, accelerations):
@@ -133,9 +135,12 @@ def right_hand_side(layout: JointLayout, accelerations):
     def into(t, y, out) -> None:
         ve = y[nq:]
         if layout.quaternions:
-            qe, rates = _unit_state_and_rates(layout, y.tolist())
-            out[:nq] = rates
-        else:
+            values = y.tolist()
+            q = values[:nq]
+            _unit_quaternions(layout, q)
+            out[:nq] = coordinate_rates(layout, q, values[nq:])
+            qe = np.array(q)
+        else:  # q_e' = v_e
             qe = y[:nq]
             out[:nq] = ve
         out[nq:] = accelerations(qe, ve, t)
@@ -147,26 +152,3 @@ def right_hand_side(layout: JointLayout, accelerations):
 
     rhs.into = into  # type: ignore[attr-defined]
     return rhs
-
-
-def _unit_state_and_rates(layout: JointLayout, y: list[float]) -> tuple[np.ndarray, list[float]]:
-    """normalized(q_e) and coordinate_rates of it, from y = [q_e, v_e] as Python floats: the
-    same operations in the same order (so the same bits, tests/test_engine_pinocchio.py), with
-    one conversion in and one out instead of numpy's per-slice calls, which cost several times
-    the arithmetic on a quaternion."""
-    nq = layout.nq
-    q, v = y[:nq], y[nq:]
-    for iq in layout.quaternions:
-        x, y_, z, w = q[iq : iq + 4]
-        n = math.sqrt(x * x + y_ * y_ + z * z + w * w)
-        q[iq : iq + 4] = (x / n, y_ / n, z / n, w / n)
-    rates = [0.0] * nq
-    for iq, iv, size in layout.plain:
-        rates[iq : iq + size] = v[iv : iv + size]
-    for iq, iv in layout.spherical:
-        rates[iq : iq + 4] = _quat_rate(*q[iq : iq + 4], *v[iv : iv + 3])
-    for iq, iv in layout.free_flyer:
-        quat = q[iq + 3 : iq + 7]
-        rates[iq : iq + 3] = _quat_rotate(*quat, *v[iv : iv + 3])
-        rates[iq + 3 : iq + 7] = _quat_rate(*quat, *v[iv + 3 : iv + 6])
-    return np.array(q), rates
