@@ -10,7 +10,7 @@ __all__ = ["assert_passes", "check"]
 
 def __getattr__(name):
     if name in __all__:
-        from . import api
+        from crosscheck import api
 
         return getattr(api, name)
     raise AttributeError(f"module 'crosscheck' has no attribute {name!r}")

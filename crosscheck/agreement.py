@@ -20,7 +20,7 @@ from itertools import combinations
 
 import numpy as np
 
-from .compare import Tolerance
+from crosscheck.compare import Tolerance
 
 # pairs of exact sides whose tolerances are tiny are still allowed round-off
 ROUND_OFF_FLOOR = 1e-13

@@ -20,10 +20,9 @@ API_ORIGIN = "Python API (crosscheck.check)"
 
 def _names(model) -> list[str]:
     """The registered model names `model` stands for (files and Model objects registered)."""
+    from crosscheck.user_models import load_model_file, register_all
     from reference import models
     from reference.system import Model
-
-    from .user_models import load_model_file, register_all
 
     if isinstance(model, Model):
         models.register(model, API_ORIGIN, None)
@@ -50,8 +49,8 @@ def check(
     """Cross-check a model (a built-in or registered name, an MJCF/Python file, or a Model)
     against the engines (default: every registered engine that imports here) at `states`
     consistent states, and, with trajectories=True, over t_end seconds; returns the records."""
-    from .arguments import resolve_engines
-    from .run import run
+    from crosscheck.arguments import resolve_engines
+    from crosscheck.run import run
 
     names = _names(model)
     # as the CLI: every registered engine that imports here unless some are named

@@ -133,7 +133,7 @@ def resolve_models(names: list[str], files: list[str] | None = None) -> list[str
 def resolve_engines(names: list[str] | None) -> list[str]:
     """The engines to compare: every registered engine that imports here when none is named;
     a named one must be registered (the error lists the registered ones) and import here."""
-    from .engines.registry import available_engines, get_engine
+    from crosscheck.engines.registry import available_engines, get_engine
 
     if not names:
         return list(available_engines())
@@ -173,9 +173,8 @@ def load_model_files(args: argparse.Namespace) -> list[str]:
     args.user_models = []
     if not files and not metadata.entry_points(group="crosscheck.models"):
         return []  # nothing to load: the commands stay as light as before (no MuJoCo import)
+    from crosscheck.user_models import load_all, register_all
     from reference import models
-
-    from .user_models import load_all, register_all
 
     found = load_all(files, builtin_names=models.names())
     names = register_all(found)

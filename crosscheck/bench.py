@@ -22,13 +22,12 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from crosscheck import jsonio
+from crosscheck.engines.base import EngineUnsupported
+from crosscheck.provenance import meta
+from crosscheck.timing import interleaved_seconds, per_call_seconds
 from reference import NumericModel, models
 from reference.formulations import derive
-
-from . import jsonio
-from .engines.base import EngineUnsupported
-from .provenance import meta
-from .timing import interleaved_seconds, per_call_seconds
 
 BATCH = 10_000
 
@@ -52,7 +51,7 @@ PATHS = {
 
 def _states(nm, n):
     """n seeded consistent states (the ones `crosscheck run` compares at) as (Q, U) arrays."""
-    from .sampling import consistent_states
+    from crosscheck.sampling import consistent_states
 
     states = consistent_states(nm, n)
     return np.array([q for q, _ in states]), np.array([u for _, u in states])
@@ -214,9 +213,8 @@ def _ratios(name, recs) -> dict:
     """Issue 13's ratios from this run's records: the reference's checked and raw single-state
     calls over each engine's call (targets <= 0.5 and <= 0.25 against every engine with exact
     multipliers), and each engine's loop over the batched reference per state (target >= 20)."""
+    from crosscheck.engines.registry import get_engine
     from reference import compiled
-
-    from .engines.registry import get_engine
 
     t = {r["path"]: r["us_per_state"] for r in recs if r.get("us_per_state") is not None}
     out: dict = {"model": name, "backend": compiled.backend()}
@@ -253,18 +251,18 @@ def _ratios(name, recs) -> dict:
 
 
 def _engines(requested):
-    from .engines.registry import get_engine
+    from crosscheck.engines.registry import get_engine
 
     return [get_engine(name) for name in requested]
 
 
 def cmd_bench(args) -> int:
-    from .arguments import output_dir, resolve_engines, resolve_models
-    from .output import write_atomic
-    from .skip_savings import skip_savings
-    from .stress import stress_records
-    from .targets import profile_for_missed, targets
-    from .workprecision import work_precision_records
+    from crosscheck.arguments import output_dir, resolve_engines, resolve_models
+    from crosscheck.output import write_atomic
+    from crosscheck.skip_savings import skip_savings
+    from crosscheck.stress import stress_records
+    from crosscheck.targets import profile_for_missed, targets
+    from crosscheck.workprecision import work_precision_records
 
     t_start = time.perf_counter()
     # the benchmark times the compiled kernels: build them here if the cache is cold (C where
@@ -313,7 +311,7 @@ def cmd_bench(args) -> int:
     result["targets"] = tg
     result["skips"] = skip_savings(args.quick)
     log("targets and skip measurements done")
-    from .stepper_bench import stepper_records
+    from crosscheck.stepper_bench import stepper_records
 
     # the compiled stepper against the Python one, each model's runs timed side by side
     result["stepper"] = stepper_records(names, args.quick)
@@ -444,7 +442,7 @@ def _print_targets(tg: dict) -> None:
 
 def register(sub):
     b = sub.add_parser("bench", help="benchmark forward dynamics (and work-precision)")
-    from .arguments import add_engines, add_models
+    from crosscheck.arguments import add_engines, add_models
 
     add_models(b)
     b.add_argument("--quick", action="store_true")

@@ -15,11 +15,11 @@ import os
 import re
 import sys
 
-from . import interrupts, jsonio  # standard library only
+from crosscheck import interrupts, jsonio  # standard library only
 
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
-from .arguments import OneLineParser, add_model_files, finite_float
+from crosscheck.arguments import OneLineParser, add_model_files, finite_float
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
@@ -339,14 +339,14 @@ def _main(argv) -> int:
 
         argv = list(sys.argv[1:] if argv is None else argv)
         if argv[:1] == ["run"]:  # its workers' server starts before the imports below
-            from .run_command import start_workers_early
+            from crosscheck.run_command import start_workers_early
 
             start_workers_early(argv[1:])
         parser = build_parser()
         args = parser.parse_args(_attach_negative_values(parser, argv))
         try:
             if hasattr(args, "model_file"):  # before any model name is resolved
-                from .arguments import load_model_files
+                from crosscheck.arguments import load_model_files
 
                 load_model_files(args)
             code = int(args.func(args) or 0)
@@ -382,7 +382,7 @@ def _stop_workers_server() -> None:
     server `run` started (early, or for its workers) must not outlive it
     (crosscheck.workers.stop_server)."""
     if "multiprocessing.forkserver" in sys.modules:  # else no server was started
-        from .workers import stop_server
+        from crosscheck.workers import stop_server
 
         stop_server()
 

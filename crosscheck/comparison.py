@@ -23,9 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import compare as C
-from .engines.base import Capabilities, EngineAdapter, EngineModel, EngineUnsupported
-from .engines.registry import engine_label
+from crosscheck import compare as C
+from crosscheck.engines.base import Capabilities, EngineAdapter, EngineModel, EngineUnsupported
+from crosscheck.engines.registry import engine_label
 
 NO_MASS_MATRIX = (
     "engine coordinates do not map one to one onto the reference's, so their "

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from .engines.registry import engine_status
+from crosscheck.engines.registry import engine_status
 
 
 def cmd_engines(args) -> int:

@@ -31,9 +31,9 @@ import shlex
 import sys
 from pathlib import Path
 
-from . import jsonio
-from .output import write_atomic
-from .results_io import ReportInputError, check_bench, check_results, load_json
+from crosscheck import jsonio
+from crosscheck.output import write_atomic
+from crosscheck.results_io import ReportInputError, check_bench, check_results, load_json
 
 # An accuracy figure may grow by this factor before it is a regression. The figures are worst
 # cases over a handful of states or a tolerance ladder; a real defect (a wrong sign, a missing
@@ -61,7 +61,7 @@ BASELINE_ANCHOR = "baseline-lambdify-solve"
 
 def timing_anchors() -> tuple[str, ...]:
     """Every available engine's forward path in the registry's order, then the baseline."""
-    from .engines.registry import available_engines
+    from crosscheck.engines.registry import available_engines
 
     return (*tuple(f"engine:{e}" for e in available_engines()), BASELINE_ANCHOR)
 
@@ -343,7 +343,7 @@ def _print_list(title: str, items: list[str], stream=None):
 
 def _update(args, results, bench, baseline_path: Path) -> int:
     """`--update`: write the baseline from these results, listing what changed against the old."""
-    from .arguments import output_dir
+    from crosscheck.arguments import output_dir
 
     if baseline_path.is_dir():
         raise GateInputError(

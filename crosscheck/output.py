@@ -14,7 +14,7 @@ import signal
 import threading
 from pathlib import Path
 
-from . import interrupts
+from crosscheck import interrupts
 
 TMP_PREFIX = ".crosscheck-tmp-"
 

@@ -6,9 +6,8 @@
 
 from __future__ import annotations
 
+from crosscheck.engines.registry import engine_names
 from reference.errors import ModelInputError
-
-from .engines.registry import engine_names
 
 
 def parse_perturb(specs: list[str]) -> dict[str, dict[str, float]]:
@@ -76,11 +75,10 @@ def check_perturb_changes(names, engine_names, perturb: dict) -> None:
     model is built at the defaults with and without each perturbed parameter and the two
     fingerprints (EngineModel.fingerprint: masses, inertias, geometry, gravity, loads) are
     compared; an engine whose models have no fingerprint is not checked."""
+    from crosscheck.comparison import build
+    from crosscheck.engines.base import EngineUnsupported
+    from crosscheck.engines.registry import get_engine
     from reference import models
-
-    from .comparison import build
-    from .engines.base import EngineUnsupported
-    from .engines.registry import get_engine
 
     for engine, ps in perturb.items():
         if engine not in engine_names:

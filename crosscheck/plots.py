@@ -17,7 +17,7 @@ from __future__ import annotations
 import io
 import math
 
-from .report_content import energy_series, method_label
+from crosscheck.report_content import energy_series, method_label
 
 ZERO_AT = 1e-17  # below every double round-off figure of a quantity scaled to 1 (eps = 2.2e-16)
 
@@ -54,7 +54,7 @@ FAIL_COLOR = "#d62728"
 def engine_color(engine: str, order: list[str] | None = None) -> str:
     if engine == "reference":
         return REFERENCE_COLOR
-    from .engines.registry import available_engines
+    from crosscheck.engines.registry import available_engines
 
     known = list(available_engines())
     seq = known + [e for e in (order or []) if e not in known and e != "reference"]

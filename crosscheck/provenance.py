@@ -20,7 +20,7 @@ def meta(argv) -> dict:
         "scipy": scipy.__version__,
         "sympy": sp.__version__,
     }
-    from .engines.registry import engine_versions
+    from crosscheck.engines.registry import engine_versions
 
     versions.update(engine_versions())  # keyed by distribution (e.g. "pin")
     import shlex

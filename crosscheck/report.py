@@ -22,7 +22,7 @@ import json
 import shlex
 from pathlib import Path
 
-from .report_content import (
+from crosscheck.report_content import (
     DEFAULT_RESULTS,
     Content,
     ReportInputError,
@@ -31,9 +31,9 @@ from .report_content import (
     check_sweep,
     load_json,
 )
-from .report_html import render_html
-from .report_junit import render_junit
-from .report_md import render_md
+from crosscheck.report_html import render_html
+from crosscheck.report_junit import render_junit
+from crosscheck.report_md import render_md
 
 __all__ = [
     "ReportInputError",
@@ -67,7 +67,7 @@ def write_report(
     The files are staged and renamed into place together (crosscheck.output), so an interrupt
     leaves the previous report or this one, never a mix; with `outputs` given (a run staging
     its results.json too) they are only staged, and the caller commits them all at once."""
-    from .output import Outputs
+    from crosscheck.output import Outputs
 
     c = Content(results, bench, command, results_path, bench_path, sweep, sweep_path)
     names = {"html": "index.html", "md": "report.md", "junit": "junit.xml"}
@@ -148,7 +148,7 @@ def cmd_report(args) -> int:
         if beside.is_file():
             sweep_path = str(beside)
     out_dir = args.out or str(Path(results_path or bench_path or sweep_path).parent)
-    from .arguments import output_dir
+    from crosscheck.arguments import output_dir
 
     output_dir(out_dir)
     paths = generate(results_path, bench_path, out_dir, sweep_path)

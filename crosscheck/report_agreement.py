@@ -4,8 +4,8 @@ marked, and the side that disagrees with all others named."""
 
 from __future__ import annotations
 
-from .markdown_table import md_table
-from .report_content import fmt
+from crosscheck.markdown_table import md_table
+from crosscheck.report_content import fmt
 
 
 def _cells(m: dict):
@@ -41,7 +41,7 @@ CAPTION = (
 
 
 def html(c, model: str) -> str:
-    from .html_parts import e, table
+    from crosscheck.html_parts import e, table
 
     out = []
     for m in c.agreement_of(model):

@@ -9,8 +9,14 @@ import math
 
 import numpy as np
 
-from .comparison import energy_error_series
-from .results_io import ReportInputError, check_bench, check_results, check_sweep, load_json  # noqa: F401
+from crosscheck.comparison import energy_error_series
+from crosscheck.results_io import (  # noqa: F401
+    ReportInputError,
+    check_bench,
+    check_results,
+    check_sweep,
+    load_json,
+)
 
 DEFAULT_RESULTS = "out/results.json"
 BASE_VERSION_KEYS = ("python", "numpy", "scipy", "sympy")
@@ -18,14 +24,14 @@ BASE_VERSION_KEYS = ("python", "numpy", "scipy", "sympy")
 
 def version_keys() -> tuple[str, ...]:
     """The versions results record: the numerical stack and every available engine's package."""
-    from .engines.registry import engine_distributions
+    from crosscheck.engines.registry import engine_distributions
 
     return BASE_VERSION_KEYS + engine_distributions()
 
 
 def engine_anchors() -> tuple[tuple[str, str], ...]:
     """(engine, label) of every available engine, in the registry's order."""
-    from .engines.registry import available_engines, engine_label
+    from crosscheck.engines.registry import available_engines, engine_label
 
     return tuple((e, engine_label(e)) for e in available_engines())
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import json
 
-from . import (
+from crosscheck import (
     report_agreement,  # engine against engine
     report_sensitivity,  # the section of sensitivity.json beside results.json
     report_sweep,  # the section of sweep.json
 )
-from .html_parts import anchor, e, img, table
-from .report_content import (
+from crosscheck.html_parts import anchor, e, img, table
+from crosscheck.report_content import (
     CHECK_HEADERS,
     Content,
     ReportInputError,
@@ -198,7 +198,7 @@ def _timing_html(c: Content, model: str) -> str:
 
 
 def _work_precision_html(c: Content, model: str) -> str:
-    from . import plots
+    from crosscheck import plots
 
     rows = c.work_precision_of(model)
     if not rows:
@@ -227,7 +227,7 @@ def _work_precision_html(c: Content, model: str) -> str:
 
 
 def _trajectory_html(c: Content, model: str) -> str:
-    from . import plots
+    from crosscheck import plots
 
     note = c.series_note(model)
     if note:
@@ -283,7 +283,7 @@ _BALANCE_TEXT = (
 
 def _trajectory_caption(series: list[dict]) -> str:
     """Names exactly the panels drawn; a quantity exactly 0 in every line has no panel."""
-    from . import plots
+    from crosscheck import plots
 
     drawn = [k for k, _ in plots.trajectory_panels(series)]
     texts = [
@@ -302,7 +302,7 @@ def _trajectory_caption(series: list[dict]) -> str:
 def _model_html(c: Content, model: str) -> str:
     """One model's section: a <details> whose summary is its heading and verdict, folded on a
     long page unless a check failed (no script needed; one opens it on a link, below)."""
-    from . import plots
+    from crosscheck import plots
 
     source, title = model_info(model)
     recs = c.records_of(model)

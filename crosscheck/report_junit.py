@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
-from .report_content import (
+from crosscheck.report_content import (
     Content,
     details,
     fmt,

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from . import (  # the section of sensitivity.json beside results.json
+from crosscheck import (  # the section of sensitivity.json beside results.json
     report_agreement,
     report_sensitivity,
 )
-from .markdown_table import md_table
-from .report_content import (
+from crosscheck.markdown_table import md_table
+from crosscheck.report_content import (
     CHECK_HEADERS,
     SWEEP_HEADERS,
     Content,
@@ -146,7 +146,7 @@ def _trajectories_md(c: Content, m: str) -> list[str]:
         rows = []
         for s in c.series_of(m):
             st = series_stats(s)
-            from .plots import series_label
+            from crosscheck.plots import series_label
 
             rows.append(
                 [

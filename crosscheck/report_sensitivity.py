@@ -15,7 +15,7 @@ import json
 import math
 from pathlib import Path
 
-from .markdown_table import md_table
+from crosscheck.markdown_table import md_table
 
 SENSITIVITY_FILE = "sensitivity.json"
 NOT_CAUGHT_AT = 1.0  # where the plot draws a parameter nothing caught (above every decade)
@@ -70,7 +70,7 @@ def _caught_text(t: dict) -> str:
 
 def plot_svg(doc: dict) -> str | None:
     """Thresholds per parameter (x) and engine (marker colour), log y; not caught: red x."""
-    from .plots import FAIL_COLOR, _figure, _style, _svg, engine_color
+    from crosscheck.plots import FAIL_COLOR, _figure, _style, _svg, engine_color
 
     engines, rows, labels = table(doc)
     if not rows:
@@ -115,9 +115,9 @@ def plot_svg(doc: dict) -> str | None:
 
 def html(c) -> str:
     """The section (empty without a sensitivity.json beside results.json)."""
-    from .html_parts import e as _e
-    from .html_parts import img as _img
-    from .html_parts import table as _table
+    from crosscheck.html_parts import e as _e
+    from crosscheck.html_parts import img as _img
+    from crosscheck.html_parts import table as _table
 
     doc = load(c)
     if doc is None:

@@ -3,8 +3,8 @@ in report_md)."""
 
 from __future__ import annotations
 
-from .html_parts import anchor, e, img, table
-from .report_content import (
+from crosscheck.html_parts import anchor, e, img, table
+from crosscheck.report_content import (
     SWEEP_HEADERS,
     fmt,
     fmt_tol,
@@ -36,7 +36,7 @@ def html(c) -> str:
 
 def _model(sw: dict, m: str) -> list[str]:
     """One model's quantile table, histogram and the worst samples' commands."""
-    from . import plots
+    from crosscheck import plots
 
     out = []
     out.append(f'<h3 id="sweep-{anchor(m)}">{e(m)}</h3>')

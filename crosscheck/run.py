@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from crosscheck import compare as C
+from crosscheck.agreement import reference_answers
+from crosscheck.comparison import engine_records, reference_answer
+from crosscheck.engines.registry import get_engine
+from crosscheck.perturb import parse_perturb, perturbed
+from crosscheck.sampling import consistent_states
 from reference import NumericModel, cbuild, models
 from reference.generic import generic_parameters
-
-from . import compare as C
-from .agreement import reference_answers
-from .comparison import engine_records, reference_answer
-from .engines.registry import get_engine
-from .perturb import parse_perturb, perturbed
-from .sampling import consistent_states
 
 __all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
 
@@ -154,7 +153,7 @@ def run(
 ):
     """All records (and trajectory series) for the models; see the module docstring.
     ``agreement``, when given, receives the agreement matrices (crosscheck.agreement)."""
-    from .trajectory import trajectory_records
+    from crosscheck.trajectory import trajectory_records
 
     perturb = perturb or {}
     adapters = [get_engine(e) for e in engine_names]

@@ -17,9 +17,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import jsonio
-from .run_jobs import WORKER_MODULES
-from .workers import default_workers, process_context
+from crosscheck import jsonio
+from crosscheck.run_jobs import WORKER_MODULES
+from crosscheck.workers import default_workers, process_context
 
 
 class _Quiet(argparse.ArgumentParser):
@@ -56,9 +56,9 @@ def _start_server(engines) -> None:
 
 
 def cmd_run(args) -> int:
-    from . import compare as C
-    from .arguments import output_dir, resolve_engines, resolve_models
-    from .perturb import check_perturb, check_perturb_changes, parse_perturb
+    from crosscheck import compare as C
+    from crosscheck.arguments import output_dir, resolve_engines, resolve_models
+    from crosscheck.perturb import check_perturb, check_perturb_changes, parse_perturb
 
     # unknown or repeated names fail before any work; none named: the --model-file models
     names = resolve_models(args.models, getattr(args, "user_models", None))
@@ -101,10 +101,10 @@ def cmd_run(args) -> int:
 
 def _checks(args, names, engine_names, perturb, jobs, progress, agreement):
     """(records, series, meta) of the run: on `jobs` worker processes or in this one."""
-    from .provenance import meta
+    from crosscheck.provenance import meta
 
     if jobs <= 1:
-        from .run import run
+        from crosscheck.run import run
 
         records, series = run(
             names,
@@ -117,7 +117,7 @@ def _checks(args, names, engine_names, perturb, jobs, progress, agreement):
             agreement=agreement,
         )
         return records, series, meta(sys.argv[1:])
-    from .run_jobs import ModelJob, run_models
+    from crosscheck.run_jobs import ModelJob, run_models
 
     work = [
         ModelJob(n, tuple(engine_names), args.states, perturb, not args.instantaneous, args.t_end)
@@ -162,12 +162,12 @@ def _write_outputs(out: Path, results_text: str, report: bool) -> None:
     """results.json and the report, staged and renamed into place together: an interrupt leaves
     the previous run's files or this run's, never a mix; without the report, an old one is
     removed (it would describe other results)."""
-    from .output import Outputs
+    from crosscheck.output import Outputs
 
     with Outputs(out) as staged:
         staged.stage("results.json", results_text)
         if report:  # the main job leaves a report a person can open
-            from .report import generate
+            from crosscheck.report import generate
 
             bench = out / "bench.json"
             generate(
@@ -181,7 +181,7 @@ def _write_outputs(out: Path, results_text: str, report: bool) -> None:
 
 
 def register(sub):
-    from .arguments import MAX_T_END, add_engines, add_models, horizon, positive_int
+    from crosscheck.arguments import MAX_T_END, add_engines, add_models, horizon, positive_int
 
     r = sub.add_parser("run", help="cross-check the reference against the engines")
     add_models(r)

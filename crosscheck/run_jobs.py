@@ -22,11 +22,10 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
+from crosscheck import interrupts
+from crosscheck.run_order import hand_out_order, known_times, remember_times, setting_key
+from crosscheck.workers import process_context, start_worker, stop_workers
 from reference.errors import ModelInputError
-
-from . import interrupts
-from .run_order import hand_out_order, known_times, remember_times, setting_key
-from .workers import process_context, start_worker, stop_workers
 
 # what the workers' server imports before forking them: this module and the checks it runs
 # (the trajectories' with scipy.integrate, which the engines' modules leave to their first use)
@@ -66,7 +65,7 @@ def _start_worker(parent: int, model_files: tuple[str, ...]) -> None:
     """workers.start_worker, then register the user's models (their files, the
     `crosscheck.models` entry points) as the parent did: a worker is a fresh process."""
     start_worker(parent)
-    from .arguments import load_model_files
+    from crosscheck.arguments import load_model_files
 
     load_model_files(argparse.Namespace(model_file=list(model_files)))
 
@@ -75,7 +74,7 @@ def run_model(job: ModelJob) -> tuple:
     """("ok", records, series, agreement, seconds), ("input", message) or ("internal",
     traceback). Errors travel as text: an exception class with its own constructor arguments
     does not survive pickling back to the parent."""
-    from .run import run
+    from crosscheck.run import run
 
     start = time.perf_counter()
     for key in [k for k in os.environ if k.startswith(SETTINGS)]:

@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from .sensitivity import DECADES, Threshold, search
+from crosscheck.sensitivity import DECADES, Threshold, search
 
 DEFAULT_MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d")
 # "caught" means the suite's own verdict: some instantaneous record fails its tolerance
@@ -25,8 +25,8 @@ STATES = 3
 
 def _engine_figures(name, nm, states, adapter, perturb) -> tuple[str, dict[str, float]]:
     """(first failing record, every record's error) of one engine at the states."""
-    from .comparison import engine_records  # the one comparison of `crosscheck run`
-    from .perturb import perturbed
+    from crosscheck.comparison import engine_records  # the one comparison of `crosscheck run`
+    from crosscheck.perturb import perturbed
 
     params = perturbed(name, nm.params, perturb)
     recs = [
@@ -52,9 +52,9 @@ def _first_failing(recs, engine: str) -> str:
 
 def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Threshold]:
     """One threshold per parameter of the model, for one engine."""
-    from .engines.base import EngineUnsupported
-    from .engines.registry import get_engine
-    from .run import consistent_states, generic_model
+    from crosscheck.engines.base import EngineUnsupported
+    from crosscheck.engines.registry import get_engine
+    from crosscheck.run import consistent_states, generic_model
 
     adapter = get_engine(engine)
     nm = generic_model(name)
@@ -107,8 +107,8 @@ def engine_thresholds(name: str, engine: str, n_states: int = STATES) -> list[Th
 
 def _changes_model(name, nm, adapter, p, rel) -> bool:
     """A change `rel` of `p` alters the engine's model (its fingerprint) in some variant."""
-    from .comparison import build
-    from .perturb import perturbed
+    from crosscheck.comparison import build
+    from crosscheck.perturb import perturbed
 
     try:
         return any(
@@ -135,10 +135,9 @@ def _trajectory_threshold(name, adapter, p, sign, k, base: dict) -> Threshold:
     its T_END (a run costs ~0.4 s, so no shorter horizon is needed); "caught" means one of the
     engine's trajectory records fails. `base` caches the unperturbed run's verdict per
     model and engine (computed on first use)."""
+    from crosscheck.perturb import perturbed
+    from crosscheck.trajectory import T_END, trajectory_records
     from reference import NumericModel, models
-
-    from .perturb import perturbed
-    from .trajectory import T_END, trajectory_records
 
     nm = NumericModel(models.get(name))  # the parameters of `crosscheck run`'s trajectories
 
@@ -178,8 +177,8 @@ def _largest_change(name, nm, states, adapter, p):
 
 
 def cmd_sensitivity(args) -> int:
-    from .arguments import name_list, resolve_models
-    from .engines.registry import available_engines
+    from crosscheck.arguments import name_list, resolve_models
+    from crosscheck.engines.registry import available_engines
 
     names = resolve_models(args.models) if args.models else list(DEFAULT_MODELS)
     engines = name_list(args.engines) if args.engines else list(available_engines())

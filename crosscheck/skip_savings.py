@@ -31,11 +31,10 @@ import time
 
 import numpy as np
 
+from crosscheck.workprecision import horizon
 from reference import NumericModel, models
 from reference.integrate import simulate
 from reference.minimal import reference_final_state
-
-from .workprecision import horizon
 
 # the models of no_kkt_without_constraints: one and two constraint rows
 KKT_MODELS = ("pendulum_xy", "slider_crank")

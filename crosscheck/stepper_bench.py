@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from crosscheck.workprecision import QUICK_MODELS, horizon
 from reference import NumericModel, models
 from reference.integrate import simulate
-
-from .workprecision import QUICK_MODELS, horizon
 
 RTOL = 1e-10
 METHODS = ("index1", "projection", "baumgarte")

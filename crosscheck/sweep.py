@@ -74,14 +74,12 @@ import shlex
 import sys
 from pathlib import Path
 
-from reference.errors import ModelInputError
-
-from . import jsonio
-from .perturb import parse_perturb
-from .sweep_aggregate import reproduce_commands  # noqa: F401 - re-exported
-from .sweep_bench import _print_bench, bench
-from .sweep_campaign import campaign
-from .sweep_config import (  # noqa: F401 - re-exported
+from crosscheck import jsonio
+from crosscheck.perturb import parse_perturb
+from crosscheck.sweep_aggregate import reproduce_commands  # noqa: F401 - re-exported
+from crosscheck.sweep_bench import _print_bench, bench
+from crosscheck.sweep_campaign import campaign
+from crosscheck.sweep_config import (  # noqa: F401 - re-exported
     DASK_MAX_CHUNK,
     DASK_MIN_CHUNK,
     LOCAL_CHUNK_MAX,
@@ -89,8 +87,8 @@ from .sweep_config import (  # noqa: F401 - re-exported
     WORST_CASES,
     Campaign,
 )
-from .sweep_exec import dask_chunk, default_workers, local_chunk  # noqa: F401 - re-exported
-from .sweep_worker import (  # noqa: F401 - re-exported
+from crosscheck.sweep_exec import dask_chunk, default_workers, local_chunk  # noqa: F401 - re-exported
+from crosscheck.sweep_worker import (  # noqa: F401 - re-exported
     ChunkSpec,
     _adapter,
     base_model,
@@ -98,6 +96,7 @@ from .sweep_worker import (  # noqa: F401 - re-exported
     reference_batch,
     run_chunk,
 )
+from reference.errors import ModelInputError
 
 
 # ---- command line ---------------------------------------------------------------------------
@@ -151,9 +150,9 @@ def _user_models_here(args, names) -> None:
 
 
 def cmd_sweep(args) -> int:
-    from .arguments import output_dir, resolve_engines, resolve_models
-    from .output import write_atomic
-    from .sweep_store import ChunkStore
+    from crosscheck.arguments import output_dir, resolve_engines, resolve_models
+    from crosscheck.output import write_atomic
+    from crosscheck.sweep_store import ChunkStore
 
     if args.workers is not None and args.dask is not None:
         raise ModelInputError("give --workers or --dask, not both")
@@ -228,8 +227,8 @@ _CAMPAIGN_OPTIONS = {
 
 def _resumed_campaign(args):
     """The campaign stored in --resume DIR; options that contradict it are refused."""
-    from .arguments import output_dir
-    from .sweep_store import stored_settings
+    from crosscheck.arguments import output_dir
+    from crosscheck.sweep_store import stored_settings
 
     if args.bench:
         raise ModelInputError(
@@ -262,7 +261,7 @@ def _resumed_campaign(args):
 
 
 def _cmd_bench(args, names, engines, out) -> int:
-    from .output import write_atomic
+    from crosscheck.output import write_atomic
 
     cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
     cfg.validate()
@@ -278,7 +277,7 @@ def _cmd_bench(args, names, engines, out) -> int:
 def exit_code(status: dict) -> int:
     """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
     stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
-    from .cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+    from crosscheck.cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
 
     if status["stopped"] == "interrupted":
         return EXIT_INTERRUPTED
@@ -286,7 +285,7 @@ def exit_code(status: dict) -> int:
 
 
 def register(sub):
-    from .arguments import (
+    from crosscheck.arguments import (
         add_engines,
         add_models,
         nonnegative_int,

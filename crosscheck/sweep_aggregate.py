@@ -8,11 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import compare as C
-from .comparison import rigid_answer, tolerance
-from .perturb import perturbed
-from .sampling import draw_sample
-from .sweep_config import (
+from crosscheck import compare as C
+from crosscheck.comparison import rigid_answer, tolerance
+from crosscheck.perturb import perturbed
+from crosscheck.sampling import draw_sample
+from crosscheck.sweep_config import (
     FAULTS_KEPT,
     HIST_HI,
     HIST_LO,
@@ -24,7 +24,7 @@ from .sweep_config import (
     SOFT_ERROR_REASON,
     Campaign,
 )
-from .sweep_worker import _adapter, base_model
+from crosscheck.sweep_worker import _adapter, base_model
 
 
 # ---- the campaign (runs in the parent) ------------------------------------------------------

@@ -8,14 +8,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from crosscheck.engines.registry import available_engines
+from crosscheck.sampling import draw_sample
+from crosscheck.sweep_campaign import campaign
+from crosscheck.sweep_config import LOCAL_CHUNK_MAX, REFERENCE, Campaign
+from crosscheck.sweep_exec import _mp_context, default_workers
+from crosscheck.sweep_worker import base_model
 from reference import models
-
-from .engines.registry import available_engines
-from .sampling import draw_sample
-from .sweep_campaign import campaign
-from .sweep_config import LOCAL_CHUNK_MAX, REFERENCE, Campaign
-from .sweep_exec import _mp_context, default_workers
-from .sweep_worker import base_model
 
 
 # ---- throughput benchmark -------------------------------------------------------------------
@@ -154,7 +153,7 @@ def bench(
         for e in engines:
             rows += _one_engine_rows(name, e, samples, seed, log)
     scaling = _scaling(names, samples, seed, engines, scaling_workers, log)
-    from .provenance import meta
+    from crosscheck.provenance import meta
 
     return {
         "meta": {

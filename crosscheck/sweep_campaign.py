@@ -6,14 +6,12 @@ from __future__ import annotations
 import sys
 import time
 
-from reference.errors import ModelInputError
-
-from . import interrupts
-from .comparison import build
-from .engines.base import EngineUnsupported
-from .sweep_aggregate import _campaign_meta, _ModelAgg, _ranges, _summarize, _timing
-from .sweep_config import Campaign
-from .sweep_exec import (
+from crosscheck import interrupts
+from crosscheck.comparison import build
+from crosscheck.engines.base import EngineUnsupported
+from crosscheck.sweep_aggregate import _campaign_meta, _ModelAgg, _ranges, _summarize, _timing
+from crosscheck.sweep_config import Campaign
+from crosscheck.sweep_exec import (
     _Dask,
     _dask_client,
     _Pool,
@@ -22,7 +20,8 @@ from .sweep_exec import (
     default_workers,
     local_chunk,
 )
-from .sweep_worker import ChunkSpec, _adapter, _first_line, base_model
+from crosscheck.sweep_worker import ChunkSpec, _adapter, _first_line, base_model
+from reference.errors import ModelInputError
 
 
 def _plan(cfg: Campaign):
@@ -151,7 +150,7 @@ def campaign(
     called after each chunk is merged (tests use it to interrupt); store: a
     sweep_store.ChunkStore that keeps every finished chunk on disk, and with resume=True
     supplies the chunks an interrupted run of the same campaign finished (not recomputed)."""
-    from .provenance import meta
+    from crosscheck.provenance import meta
 
     cfg.validate()
     if max_seconds is not None and not max_seconds > 0:

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from crosscheck.engines.registry import available_engines
+from crosscheck.perturb import check_parameters, check_perturb
 from reference import models
 from reference.errors import ModelInputError
-
-from .engines.registry import available_engines
-from .perturb import check_parameters, check_perturb
 
 # ---- named settings, each with its reason ---------------------------------------------------
 QUANTILES = (0.5, 0.9, 0.99, 0.999)
@@ -63,7 +62,7 @@ class Campaign:
     out: str | None = None
 
     def validate(self) -> None:
-        from .arguments import resolve_engines, resolve_models
+        from crosscheck.arguments import resolve_engines, resolve_models
 
         if not self.models:
             raise ModelInputError("no models given")

@@ -8,11 +8,10 @@ import os
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
+from crosscheck.sweep_config import DASK_MAX_CHUNK, DASK_MIN_CHUNK, LOCAL_CHUNK_MAX
+from crosscheck.sweep_worker import _first_line, run_chunk
+from crosscheck.workers import default_workers, process_context, start_worker
 from reference.errors import ModelInputError
-
-from .sweep_config import DASK_MAX_CHUNK, DASK_MIN_CHUNK, LOCAL_CHUNK_MAX
-from .sweep_worker import _first_line, run_chunk
-from .workers import default_workers, process_context, start_worker
 
 
 def _mp_context():

@@ -15,7 +15,7 @@ import math
 import shutil
 from pathlib import Path
 
-from .output import TMP_PREFIX, write_atomic
+from crosscheck.output import TMP_PREFIX, write_atomic
 
 STORE = "sweep.chunks"
 FORMAT = 1

@@ -10,14 +10,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from crosscheck.comparison import ReferenceAnswer, build, compare_at_state
+from crosscheck.engines.registry import get_engine
+from crosscheck.perturb import perturbed
+from crosscheck.sampling import draw_sample, sample_seed
+from crosscheck.sweep_config import REFERENCE
 from reference import NumericModel, models
 from reference.errors import SingularSystemError
-
-from .comparison import ReferenceAnswer, build, compare_at_state
-from .engines.registry import get_engine
-from .perturb import perturbed
-from .sampling import draw_sample, sample_seed
-from .sweep_config import REFERENCE
 
 
 # ---- one chunk of samples (runs on a worker) ------------------------------------------------

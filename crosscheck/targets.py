@@ -11,11 +11,10 @@ import statistics
 
 import numpy as np
 
+from crosscheck.engines.registry import available_engines, get_engine
+from crosscheck.workprecision import QUICK_MODELS, _adapter, horizon
 from reference import NumericModel, models
 from reference.integrate import simulate
-
-from .engines.registry import available_engines, get_engine
-from .workprecision import QUICK_MODELS, _adapter, horizon
 
 TARGET_ERROR, TARGET_RESIDUAL, TARGET_MUJOCO_ERROR = 1e-8, 1e-10, 1e-4
 TARGET_BATCH_SPEEDUP = 10.0
@@ -286,7 +285,7 @@ def forward_pair(name: str, engine: str | None = None, rounds: int = 3) -> dict:
     """Reference forward (checked and raw) and Pinocchio's engine call timed back to back, in
     interleaved rounds (medians), at the model's initial state: a ratio from the same moment of
     this noisy machine. Also what bounds the reference: the straight-line Python it runs."""
-    from .timing import per_call_seconds
+    from crosscheck.timing import per_call_seconds
 
     engine = engine or _target_engine(exact=True)
     a, _why = _adapter(engine) if engine else (None, "no exact engine")

@@ -26,24 +26,26 @@ from typing import NamedTuple
 
 import numpy as np
 
-from reference import NumericModel
-from reference.integrate import simulate
-
-from . import compare as C
-from . import interrupts
-from .comparison import build, energy_drift, work_energy_balance
-from .engines.base import EngineUnsupported
-from .engines.registry import engine_label
-from .trajectory_horizon import crossed, horizon_before, horizon_reason, singular_time
-from .trajectory_measures import energy_measure, energy_series, residual_series, state_error
-from .trajectory_soft import (
+from crosscheck import compare as C
+from crosscheck import interrupts
+from crosscheck.comparison import build, energy_drift, work_energy_balance
+from crosscheck.engines.base import EngineUnsupported
+from crosscheck.engines.registry import engine_label
+from crosscheck.trajectory_horizon import crossed, horizon_before, horizon_reason, singular_time
+from crosscheck.trajectory_measures import (
+    energy_measure,
+    energy_series,
+    residual_series,
+    state_error,
+)
+from crosscheck.trajectory_soft import (
     SOFT_DRIFT,
     SOFT_ENERGY,
     SOFT_STATE,
     SOFT_VELOCITY_DRIFT,
     soft_limit,
 )
-from .trajectory_tolerances import (
+from crosscheck.trajectory_tolerances import (
     EXACT_ROWS_DRIFT,
     INDEX1_DRIFT,
     INDEX1_VELOCITY_DRIFT,
@@ -52,6 +54,8 @@ from .trajectory_tolerances import (
     projected_velocity_drift,
     ref_energy,
 )
+from reference import NumericModel
+from reference.integrate import simulate
 
 T_END = 5.0
 N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots

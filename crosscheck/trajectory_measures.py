@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from crosscheck.comparison import constraint_residual, energy_drift, work_energy_balance
 from reference import NumericModel
-
-from .comparison import constraint_residual, energy_drift, work_energy_balance
 
 
 def state_error(q, u, ref_q, ref_u) -> np.ndarray:

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compare as C
-from .trajectory_measures import energy_measure, state_error
+from crosscheck import compare as C
+from crosscheck.trajectory_measures import energy_measure, state_error
 
 SOFT_STATE = C.Tolerance(
     5e-2,

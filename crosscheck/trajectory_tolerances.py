@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from crosscheck import compare as C
 from reference.integrate import PROJECTION_TOL
-
-from . import compare as C
 
 REFERENCE_ACCURACY = C.Tolerance(
     1e-8,

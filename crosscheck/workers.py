@@ -10,7 +10,7 @@ import threading
 import time
 from collections.abc import Sequence
 
-from .engines.entry_points import engine_modules
+from crosscheck.engines.entry_points import engine_modules
 
 
 def default_workers() -> int:

@@ -43,14 +43,13 @@ import time
 
 import numpy as np
 
+from crosscheck.comparison import constraint_residual, energy_drift
+from crosscheck.engines.base import EngineAdapter, EngineUnsupported
+from crosscheck.engines.registry import available_engines, engine_label, get_engine
 from reference import NumericModel, models
 from reference.errors import ModelInputError
 from reference.integrate import METHODS, simulate
 from reference.minimal import reference_final_state
-
-from .comparison import constraint_residual, energy_drift
-from .engines.base import EngineAdapter, EngineUnsupported
-from .engines.registry import available_engines, engine_label, get_engine
 
 # benchmark horizons [s]: the pendulum over ~6 periods (the exploratory study's 10 s), the
 # slider-crank over ~2.5 crank revolutions, the 3-D models over 1-2 s

@@ -7,17 +7,17 @@ line can start its worker processes before it pays for them (crosscheck/run_comm
 
 from typing import TYPE_CHECKING
 
-from .errors import ModelInputError
+from reference.errors import ModelInputError
 
 if TYPE_CHECKING:
-    from .numeric import NumericModel
+    from reference.numeric import NumericModel
 
 __all__ = ["ModelInputError", "NumericModel"]
 
 
 def __getattr__(name: str):
     if name == "NumericModel":
-        from .numeric import NumericModel
+        from reference.numeric import NumericModel
 
         return NumericModel
     raise AttributeError(f"module 'reference' has no attribute {name!r}")

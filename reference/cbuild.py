@@ -27,8 +27,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from functools import cache
 from pathlib import Path
 
-from .ckernels import HEADERS, MODULE_NAME, RUNTIME, UnsupportedExpression, c_source
-from .compiled import TIMINGS, Kernels, import_file
+from reference.ckernels import HEADERS, MODULE_NAME, RUNTIME, UnsupportedExpression, c_source
+from reference.compiled import TIMINGS, Kernels, import_file
 
 # -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
 # -fno-math-errno: sqrt compiles to the instruction (the result is the same; only errno,
@@ -82,7 +82,7 @@ def openmp() -> bool:
     """Whether the compiler builds -fopenmp into a shared object (gcc does; Apple's clang does
     not). Without it the batch loops are serial (the pragma is ignored) instead of every
     module failing to build. Tried once per compiler, the answer kept in the cache directory."""
-    from .codegen import cache_dir
+    from reference.codegen import cache_dir
 
     return _openmp(tuple(compiler()), cache_dir())
 
@@ -236,9 +236,9 @@ def prebuild_model(model, formulations=None) -> None:
     (crosscheck run calls this with the first formulation before it builds the model's
     NumericModels). Does nothing off the C backend; a module the printer refuses is left to
     NumericModel, which records why."""
-    from . import codegen, compiled
-    from .formulations import derive
-    from .numeric import PIVOT_RATIO_MIN, resolve_parameters
+    from reference import codegen, compiled
+    from reference.formulations import derive
+    from reference.numeric import PIVOT_RATIO_MIN, resolve_parameters
 
     if compiled.backend() != "c":
         return

@@ -24,7 +24,7 @@ import ast
 import math
 from pathlib import Path
 
-from .compiled import NOT_DEFINED, OK, SINGULAR, output_groups
+from reference.compiled import NOT_DEFINED, OK, SINGULAR, output_groups
 
 RUNTIME = Path(__file__).with_name("ckernel_runtime.h")
 LANES = Path(__file__).with_name("ckernel_lanes.h")

@@ -33,8 +33,8 @@ import numpy as np
 import sympy as sp
 from sympy.printing.lambdarepr import LambdaPrinter
 
-from .eom import EquationsOfMotion
-from .formulations.lagrange import kinetic_energy, potential_energy
+from reference.eom import EquationsOfMotion
+from reference.formulations.lagrange import kinetic_energy, potential_energy
 
 # The derivation cache must miss whenever any source that shapes the derived equations or the
 # generated code changes (a hand-bumped version number was forgotten: issue 14 item 1). These

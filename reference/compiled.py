@@ -55,7 +55,7 @@ def setting() -> str:
     ends), 'c', 'numba' (compile here when needed) or 'python' (the fallback only)."""
     want = os.environ.get("CROSSCHECK_BACKEND", "").strip().lower() or "auto"
     if want not in ("auto", "c", "numba", "python"):
-        from .errors import ModelInputError
+        from reference.errors import ModelInputError
 
         raise ModelInputError(
             f"CROSSCHECK_BACKEND={want!r}: valid values are auto, c, numba, python"
@@ -71,12 +71,12 @@ def backend() -> str:
     error naming the way out; 'auto' then takes numba."""
     want = setting()
     if want in ("auto", "c"):
-        from . import cbuild
+        from reference import cbuild
 
         if cbuild.available():
             return "c"
         if want == "c":
-            from .errors import ModelInputError
+            from reference.errors import ModelInputError
 
             raise ModelInputError(
                 f"CROSSCHECK_BACKEND=c: no working C compiler ({' '.join(cbuild.compiler())}) "
@@ -94,7 +94,7 @@ def threads() -> int:
     try:
         return max(1, int(os.environ.get("CROSSCHECK_THREADS", "1")))
     except ValueError:
-        from .errors import ModelInputError
+        from reference.errors import ModelInputError
 
         raise ModelInputError("CROSSCHECK_THREADS must be a whole number >= 1") from None
 

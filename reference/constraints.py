@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .errors import RedundantConstraintError
-from .system import Model
+from reference.errors import RedundantConstraintError
+from reference.system import Model
 
 
 @dataclass(frozen=True)

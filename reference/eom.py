@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .constraints import ConstraintSet
-from .system import Model
+from reference.constraints import ConstraintSet
+from reference.system import Model
 
 
 @dataclass(frozen=True)

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .errors import ModelInputError
-from .system import Force, Torque, rate, vec
+from reference.errors import ModelInputError
+from reference.system import Force, Torque, rate, vec
 
 T_SYM = sp.Symbol("t", real=True)  # the Model's default time symbol
 

@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 import sympy as sp
 
-from .system import Model
+from reference.system import Model
 
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 FACTOR_RANGE = (0.85, 1.22)

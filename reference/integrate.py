@@ -85,9 +85,9 @@ import time
 
 import numpy as np
 
-from . import integrate_compiled as stepping
-from .errors import ModelInputError
-from .integrate_common import (  # noqa: F401 - re-exported
+from reference import integrate_compiled as stepping
+from reference.errors import ModelInputError
+from reference.integrate_common import (  # noqa: F401 - re-exported
     BAUMGARTE_ALPHA,
     BAUMGARTE_BETA,
     INTEGRATORS,
@@ -106,10 +106,10 @@ from .integrate_common import (  # noqa: F401 - re-exported
     Trajectory,
     consistent_initial_state,
 )
-from .integrate_index1 import _Baumgarte, _Index1
-from .integrate_nullspace import _Nullspace
-from .integrate_projection import _Projection
-from .numeric import NumericModel
+from reference.integrate_index1 import _Baumgarte, _Index1
+from reference.integrate_nullspace import _Nullspace
+from reference.integrate_projection import _Projection
+from reference.numeric import NumericModel
 
 _PROBLEMS = {
     "index1": _Index1,
@@ -352,7 +352,7 @@ class _Run:
         if self.rows is None:
             import scipy.linalg
 
-            from .redundant import RANK_RTOL
+            from reference.redundant import RANK_RTOL
 
             _, R, piv = scipy.linalg.qr(Am.T, mode="economic", pivoting=True)
             d = np.abs(np.diag(R))

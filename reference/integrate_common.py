@@ -12,9 +12,9 @@ from typing import NoReturn
 import numpy as np
 import scipy.integrate as si
 
-from .errors import ModelInputError, OffManifoldError, SingularSystemError
-from .integrate_rk import LeanDOP853
-from .numeric import MANIFOLD_TOL, NumericModel
+from reference.errors import ModelInputError, OffManifoldError, SingularSystemError
+from reference.integrate_rk import LeanDOP853
+from reference.numeric import MANIFOLD_TOL, NumericModel
 
 METHODS = ("index1", "baumgarte", "projection", "nullspace")
 INTEGRATORS = {
@@ -171,7 +171,7 @@ def _min_norm_correction(
     `redundant` (a model that allows dependent rows) the pseudo-inverse step -J^+ r at
     reference.redundant's rank tolerance."""
     if redundant:
-        from .redundant import RANK_RTOL
+        from reference.redundant import RANK_RTOL
 
         Jm = np.array(J, float).reshape(rows, cols)
         return (np.linalg.lstsq(Jm, -np.asarray(r, float), rcond=RANK_RTOL)[0]).tolist()
@@ -194,7 +194,7 @@ def _facts(nm: NumericModel) -> dict:
     model = nm.model
     hit = _FACTS.get(id(model))
     if hit is None or hit[0] is not model:
-        from .constraints import is_rheonomic
+        from reference.constraints import is_rheonomic
 
         facts = {
             "rates": model.speeds_are_coordinate_rates,

@@ -31,8 +31,8 @@ from functools import cache
 import numpy as np
 import scipy.integrate as si
 
-from .errors import ModelInputError
-from .integrate_common import (
+from reference.errors import ModelInputError
+from reference.integrate_common import (
     PROJECTION_FAIL,
     PROJECTION_MAX_ITER,
     PROJECTION_TOL,

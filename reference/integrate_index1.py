@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ModelInputError
-from .integrate_common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _floats, _Problem
-from .numeric import PIVOT_RATIO_MIN
+from reference.errors import ModelInputError
+from reference.integrate_common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _floats, _Problem
+from reference.numeric import PIVOT_RATIO_MIN
 
 
 class _Index1(_Problem):

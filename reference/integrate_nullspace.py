@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from .errors import ModelInputError, SingularSystemError
-from .integrate_common import (
+from reference.errors import ModelInputError, SingularSystemError
+from reference.integrate_common import (
     NEWTON_MAX_ITER,
     NEWTON_TOL,
     PROJECTION_FAIL,
@@ -16,7 +16,7 @@ from .integrate_common import (
     IntegrationError,
     _Problem,
 )
-from .numeric import PIVOT_RATIO_MIN
+from reference.numeric import PIVOT_RATIO_MIN
 
 
 class _Nullspace(_Problem):

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ModelInputError, SingularSystemError
-from .integrate_common import (
+from reference.errors import ModelInputError, SingularSystemError
+from reference.integrate_common import (
     PROJECTABLE,
     PROJECTION_FAIL,
     PROJECTION_MAX_ITER,
@@ -14,7 +14,7 @@ from .integrate_common import (
     _floats,
     _min_norm_correction,
 )
-from .integrate_index1 import _Index1
+from reference.integrate_index1 import _Index1
 
 
 class _Projection(_Index1):

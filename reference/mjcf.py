@@ -33,9 +33,9 @@ import mujoco
 import numpy as np
 import sympy as sp
 
-from .errors import ModelFileError, OffManifoldError
-from .forces import ForceElements, combine, joint_damper, joint_spring
-from .system import Body, Model, Torque, rate, skew, vec
+from reference.errors import ModelFileError, OffManifoldError
+from reference.forces import ForceElements, combine, joint_damper, joint_spring
+from reference.system import Body, Model, Torque, rate, skew, vec
 
 T_SYM = sp.Symbol("t", real=True)
 JNT = mujoco.mjtJoint
@@ -250,7 +250,7 @@ def _bodies(m, pos, rot, omega, coords, kin) -> tuple[Body, ...]:
 # ---- passive elements ---------------------------------------------------------------------------
 def _passive(m, joints) -> tuple[tuple[Body, ...], ForceElements]:
     """Armature as massless rotors, damping as joint dampers, hinge/slide springs."""
-    from .mjcf_checks import disabled
+    from reference.mjcf_checks import disabled
 
     rotors, elements = [], []
     for ji in joints:
@@ -303,7 +303,7 @@ def _eq_point_and_frame(m, e: int, side: int, pos, rot, weld: bool):
 
 def _equalities(m, pos, rot, joints):
     """Configuration constraints and their names, MuJoCo's row order and sign."""
-    from .mjcf_checks import disabled
+    from reference.mjcf_checks import disabled
 
     rows, names = [], []
     if disabled(m, "mjDSBL_EQUALITY") or disabled(m, "mjDSBL_CONSTRAINT"):
@@ -397,7 +397,7 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
     project: an initial state (keyframe 0 or qpos0) off the constraint manifold is refused
     with its size unless this is True; then it is projected (MuJoCo's own equality rows).
     """
-    from .mjcf_checks import check_supported, disabled, project_state, violation
+    from reference.mjcf_checks import check_supported, disabled, project_state, violation
 
     m = compile_file(path)
     notes = check_supported(m, str(path))

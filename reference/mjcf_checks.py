@@ -16,7 +16,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .errors import OffManifoldError, UnsupportedModelError
+from reference.errors import OffManifoldError, UnsupportedModelError
 
 OBJ = mujoco.mjtObj
 EQ = mujoco.mjtEq

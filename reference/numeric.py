@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import codegen, compiled, redundant
-from .constraints import check_independent
-from .errors import ModelInputError, SingularSystemError
-from .formulations import derive
-from .numeric_batch import BatchedForward
-from .numeric_manifold import MANIFOLD_TOL, ManifoldProjection  # noqa: F401  (MANIFOLD_TOL: public here)
-from .system import Model
+from reference import codegen, compiled, redundant
+from reference.constraints import check_independent
+from reference.errors import ModelInputError, SingularSystemError
+from reference.formulations import derive
+from reference.numeric_batch import BatchedForward
+from reference.numeric_manifold import MANIFOLD_TOL, ManifoldProjection  # noqa: F401  (MANIFOLD_TOL: public here)
+from reference.system import Model
 
 # A pivot of M or of the Schur complement S below this fraction of its original diagonal entry
 # means the KKT matrix is singular to working precision: 1e-12 leaves 4 digits of a double's 16
@@ -146,7 +146,7 @@ class NumericModel(BatchedForward, ManifoldProjection):
         path = self._scalar["__cache_path__"]
         args = (self.source, path.stem, path.parent, self.nq, self.n, len(self.p), self.m)
         if which == "c":
-            from . import cbuild, ckernels
+            from reference import cbuild, ckernels
 
             try:
                 return cbuild.load_kernels(*args, PIVOT_RATIO_MIN)

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from . import compiled
-from .errors import ModelInputError, SingularSystemError
+from reference import compiled
+from reference.errors import ModelInputError, SingularSystemError
 
 
 class BatchedForward:
@@ -61,7 +61,7 @@ class BatchedForward:
             UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
         else:
             UD, LAM, piv = self._forward_batch_python(Q, U, t)
-        from .numeric import PIVOT_RATIO_MIN  # defined beside the single-state pivot test
+        from reference.numeric import PIVOT_RATIO_MIN  # defined beside the single-state pivot test
 
         bad = ~(piv > PIVOT_RATIO_MIN)
         if bad.any():

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .errors import OffManifoldError
+from reference.errors import OffManifoldError
 
 # A consistent state satisfies its constraints to round-off of the expressions (entries of size
 # ~1 in SI): 1e-9 absolute (scaled by the state size) separates "consistent" from "off manifold"

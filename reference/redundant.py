@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InconsistentConstraintError, SingularSystemError
+from reference.errors import InconsistentConstraintError, SingularSystemError
 
 # A singular value of A below RANK_RTOL times the largest counts as zero. Structurally dependent
 # rows give exactly 0 (tests/data/fourbar_connect.xml: a zero row) or round-off, 7e-18 relative

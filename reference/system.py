@@ -22,7 +22,7 @@ from typing import Any, Literal
 
 import sympy as sp
 
-from .errors import ModelDefinitionError
+from reference.errors import ModelDefinitionError
 
 Frame = Literal["inertial", "body"]
 FORMULATIONS = ("lagrange", "dalembert", "kane")

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..compare import EXACT_KKT, Tolerance
+from crosscheck.compare import EXACT_KKT, Tolerance
 
 __all__ = [
     "Capabilities",

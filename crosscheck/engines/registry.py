@@ -16,11 +16,10 @@ from functools import cache
 from importlib import metadata
 from typing import Any
 
+from crosscheck.engines.base import EngineAdapter
+from crosscheck.engines.entry_points import GROUP
+from crosscheck.engines.entry_points import entry_points as _entry_points
 from reference.errors import ModelInputError
-
-from .base import EngineAdapter
-from .entry_points import GROUP
-from .entry_points import entry_points as _entry_points
 
 
 class UnknownEngineError(ModelInputError):

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from ..errors import ModelInputError
-from .dalembert import dalembert
-from .kane import kane
-from .lagrange import lagrange
+from reference.errors import ModelInputError
+from reference.formulations.dalembert import dalembert
+from reference.formulations.kane import kane
+from reference.formulations.lagrange import lagrange
 
 FORMULATIONS = {"lagrange": lagrange, "dalembert": dalembert, "kane": kane}
 

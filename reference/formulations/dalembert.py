@@ -8,10 +8,10 @@ the agreement with Lagrange's equations a real check of both.
 
 from __future__ import annotations
 
-from ..constraints import constraint_set
-from ..eom import EquationsOfMotion, acceleration_symbols, multiplier_symbols, split_linear
-from ..system import Model
-from .projection import generalized_inertia_minus_active
+from reference.constraints import constraint_set
+from reference.eom import EquationsOfMotion, acceleration_symbols, multiplier_symbols, split_linear
+from reference.formulations.projection import generalized_inertia_minus_active
+from reference.system import Model
 
 
 def dalembert(model: Model) -> EquationsOfMotion:

@@ -7,10 +7,10 @@ and the kinematic differential equations q' = N(q, u, t) closing the system.
 
 from __future__ import annotations
 
-from ..constraints import constraint_set
-from ..eom import EquationsOfMotion, acceleration_symbols, multiplier_symbols, split_linear
-from ..system import Model
-from .projection import generalized_inertia_minus_active
+from reference.constraints import constraint_set
+from reference.eom import EquationsOfMotion, acceleration_symbols, multiplier_symbols, split_linear
+from reference.formulations.projection import generalized_inertia_minus_active
+from reference.system import Model
 
 
 def kane(model: Model) -> EquationsOfMotion:

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..constraints import constraint_set
-from ..eom import EquationsOfMotion, acceleration_symbols, multiplier_symbols, split_linear
-from ..system import Force, Model
+from reference.constraints import constraint_set
+from reference.eom import EquationsOfMotion, acceleration_symbols, multiplier_symbols, split_linear
+from reference.system import Force, Model
 
 
 def kinetic_energy(model: Model) -> sp.Expr:

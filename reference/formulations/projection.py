@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..system import Force, Model
+from reference.system import Force, Model
 
 
 def generalized_inertia_minus_active(model: Model, ud) -> sp.Matrix:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from functools import cache
 from importlib import import_module
 
-from ..errors import ModelInputError
+from reference.errors import ModelInputError
 
 # name -> "module:factory"; modules are imported on first use (sympy construction costs time)
 _FACTORIES = {

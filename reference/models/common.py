@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..system import Body, rate, rot_z, vec
+from reference.system import Body, rate, rot_z, vec
 
 T_SYM = sp.Symbol("t", real=True)
 

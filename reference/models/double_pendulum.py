@@ -44,7 +44,7 @@ import math
 import numpy as np
 import sympy as sp
 
-from ..system import Body, Model, Parameter, symbols, vec
+from reference.system import Body, Model, Parameter, symbols, vec
 
 L1, L2, M1, M2, RADIUS = 1.0, 0.7, 1.0, 0.5, 0.02
 PARAMETERS = (

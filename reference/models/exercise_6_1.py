@@ -42,8 +42,8 @@ import math
 
 import sympy as sp
 
-from ..system import Force, Model, Parameter, symbols, vec
-from .common import particle, planar_body
+from reference.models.common import particle, planar_body
+from reference.system import Force, Model, Parameter, symbols, vec
 
 L_BAR = 1.0
 PARAMETERS = (

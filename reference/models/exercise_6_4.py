@@ -37,8 +37,8 @@ import math
 
 import sympy as sp
 
-from ..system import Body, Model, Parameter, Torque, rate, rot_x, rot_z, symbols, vec
-from .common import T_SYM
+from reference.models.common import T_SYM
+from reference.system import Body, Model, Parameter, Torque, rate, rot_x, rot_z, symbols, vec
 
 R_DISK, L_BAR = 0.5, 0.6
 PARAMETERS = (

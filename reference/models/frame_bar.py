@@ -41,7 +41,7 @@ import math
 
 import sympy as sp
 
-from ..system import Body, Model, Parameter, Torque, rot_z, symbols, vec
+from reference.system import Body, Model, Parameter, Torque, rot_z, symbols, vec
 
 BAR_M, BAR_LEN, BAR_B, BAR_H = 2.0, 0.5, 0.04, 0.02
 PARAMETERS = (

@@ -25,8 +25,8 @@ import math
 
 import sympy as sp
 
-from ..system import Body, Force, Model, Parameter, Torque, rate, rot_z, symbols, vec
-from .common import T_SYM
+from reference.models.common import T_SYM
+from reference.system import Body, Force, Model, Parameter, Torque, rate, rot_z, symbols, vec
 
 PARAMETERS = (
     Parameter("m", 2.0, "kg", "mass of the sled", positive=True),

@@ -21,8 +21,8 @@ import math
 
 import sympy as sp
 
-from ..system import Model, Parameter, symbols, vec
-from .common import T_SYM, particle
+from reference.models.common import T_SYM, particle
+from reference.system import Model, Parameter, symbols, vec
 
 L_ROD, A_SUPPORT, OMEGA = 0.8, 0.1, 4.0
 PARAMETERS = (

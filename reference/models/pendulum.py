@@ -11,8 +11,8 @@ import math
 
 import sympy as sp
 
-from ..system import Model, Parameter, symbols, vec
-from .common import particle
+from reference.models.common import particle
+from reference.system import Model, Parameter, symbols, vec
 
 PARAMETERS = (
     Parameter("m", 1.5, "kg", "mass of the bob", positive=True),

@@ -16,8 +16,8 @@ import math
 
 import sympy as sp
 
-from ..system import Model, Parameter, Torque, symbols, vec
-from .common import particle, planar_body
+from reference.models.common import particle, planar_body
+from reference.system import Model, Parameter, Torque, symbols, vec
 
 L1, L2 = 0.3, 0.8
 M1, M2 = 1.0, 2.0

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from ..system import Body, Model, Parameter, symbols, vec
+from reference.system import Body, Model, Parameter, symbols, vec
 
 PARAMETERS = (
     Parameter("m", 0.5, "kg", "mass of the top", positive=True),

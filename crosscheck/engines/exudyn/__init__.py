@@ -1,5 +1,5 @@
 """Exudyn engine (registered as ``exudyn`` in pyproject.toml's ``crosscheck.engines``)."""
 
-from .adapter import ExudynAdapter
+from crosscheck.engines.exudyn.adapter import ExudynAdapter
 
 __all__ = ["ExudynAdapter"]

@@ -11,19 +11,19 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ...compare import Tolerance
-from ..base import Capabilities, TableAdapter
-from .base import INTEGRATORS, ExudynModel
-from .exercises import Exercise61, Exercise62, Exercise64
-from .planar import (
+from crosscheck.compare import Tolerance
+from crosscheck.engines.base import Capabilities, TableAdapter
+from crosscheck.engines.exudyn.base import INTEGRATORS, ExudynModel
+from crosscheck.engines.exudyn.exercises import Exercise61, Exercise62, Exercise64
+from crosscheck.engines.exudyn.planar import (
     PendulumAngle,
     PendulumXY,
     SliderCrank,
     SliderCrankFree,
     SliderCrankSplit,
 )
-from .spatial import DoublePendulum3D, FrameBar, TopCartesian, TopEuler
-from .special import KnifeEdge, MovingSupport
+from crosscheck.engines.exudyn.spatial import DoublePendulum3D, FrameBar, TopCartesian, TopEuler
+from crosscheck.engines.exudyn.special import KnifeEdge, MovingSupport
 
 __all__ = ["EXUDYN_EXACT", "ExudynAdapter"]
 

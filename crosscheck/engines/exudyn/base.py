@@ -40,8 +40,13 @@ from collections.abc import Sequence
 import numpy as np
 
 import exudyn as exu
-
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
+from crosscheck.engines.base import (
+    EngineForward,
+    EngineModel,
+    EngineTrajectory,
+    EngineUnsupported,
+    check_state,
+)
 
 __all__ = ["DEFAULT_EPSILON", "INTEGRATORS", "RICHARDSON_EPSILON", "ExudynModel"]
 
@@ -59,7 +64,7 @@ VELOCITY_STEP = 1e-6  # Exudyn's default relativeEpsilon (the "plain" answer in 
 # Exudyn's implicit solvers accepted by simulate() (fixed step: pass ``timestep``):
 # generalized-alpha on the index-3 constraints (spectral radius 0.9, Exudyn's default) and the
 # trapezoidal rule on index-2 (velocity-level) constraints.
-from .trajectory import INTEGRATORS  # noqa: E402 - its own module, imported by both
+from crosscheck.engines.exudyn.trajectory import INTEGRATORS  # noqa: E402 - its own module, imported by both
 
 
 def _settings() -> exu.SimulationSettings:
@@ -267,7 +272,7 @@ class ExudynModel(EngineModel):
         rtol: float | None = None,
         timestep: float | None = None,
     ) -> EngineTrajectory:
-        from .trajectory import simulate
+        from crosscheck.engines.exudyn.trajectory import simulate
 
         if integrator not in INTEGRATORS:
             raise EngineUnsupported(

@@ -25,8 +25,8 @@ import warnings
 
 import numpy as np
 
-from ...sampling import random_consistent_state, random_params
-from .adapter import ExudynAdapter
+from crosscheck.engines.exudyn.adapter import ExudynAdapter
+from crosscheck.sampling import random_consistent_state, random_params
 
 
 def _scaled(value, ref) -> float:
@@ -82,11 +82,10 @@ def measure(name: str, samples: int, seed: int) -> dict:
 
 
 def trajectories(name: str) -> None:
+    from crosscheck.engines.exudyn.trajectory import ExudynIntegrationError
     from reference.integrate import simulate
     from reference.models import get
     from reference.numeric import NumericModel
-
-    from .trajectory import ExudynIntegrationError
 
     model = get(name)
     t_eval = np.linspace(0.0, 1.0, 11)

@@ -12,15 +12,14 @@ import math
 
 import numpy as np
 
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.base import ExudynModel
 from exudyn.itemInterface import (
     LoadTorqueVector,
     MarkerBodyRigid,
     ObjectConnectorCoordinate,
     ObjectConnectorDistance,
 )
-
-from . import items
-from .base import ExudynModel
 
 __all__ = ["PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
 

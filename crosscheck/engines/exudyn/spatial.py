@@ -18,16 +18,15 @@ import math
 
 import numpy as np
 
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.base import ExudynModel
+from crosscheck.engines.kinematics import R313, angles313
 from exudyn.itemInterface import NodeRigidBodyEP, ObjectJointSpherical, ObjectRigidBody
 from exudyn.rigidBodyUtilities import (
     EulerParameters2GLocal,
     EulerParameters2RotationMatrix,
     RotationMatrix2EulerParameters,
 )
-
-from ..kinematics import R313, angles313
-from . import items
-from .base import ExudynModel
 
 __all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
 

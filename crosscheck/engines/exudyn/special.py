@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.base import ExudynModel
 from exudyn.itemInterface import (
     LoadForceVector,
     LoadTorqueVector,
@@ -38,9 +40,6 @@ from exudyn.itemInterface import (
     ObjectConnectorDistance,
     ObjectMass1D,
 )
-
-from . import items
-from .base import ExudynModel
 
 __all__ = ["KnifeEdge", "MovingSupport"]
 

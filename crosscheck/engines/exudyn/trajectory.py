@@ -17,9 +17,8 @@ from contextlib import contextmanager
 import numpy as np
 
 import exudyn as exu
+from crosscheck.engines.base import EngineTrajectory, EngineUnsupported
 from exudyn.itemInterface import SensorNode
-
-from ..base import EngineTrajectory, EngineUnsupported
 
 # Exudyn's own integrators for simulate() (the first is the one `crosscheck run` uses)
 INTEGRATORS = {

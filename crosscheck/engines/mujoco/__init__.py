@@ -1,5 +1,5 @@
 """MuJoCo engine (registered as ``mujoco`` in pyproject.toml's ``crosscheck.engines``)."""
 
-from .adapter import MujocoAdapter
+from crosscheck.engines.mujoco.adapter import MujocoAdapter
 
 __all__ = ["MujocoAdapter"]

@@ -84,8 +84,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ...compare import Tolerance
-from ..base import (
+from crosscheck.compare import Tolerance
+from crosscheck.engines.base import (
     Capabilities,
     EngineUnsupported,
     TableAdapter,
@@ -95,8 +95,8 @@ from ..base import (
     single_variant,
     table_variants,
 )
-from .exercises import Exercise61, Exercise62, Exercise64
-from .machinery import (
+from crosscheck.engines.mujoco.exercises import Exercise61, Exercise62, Exercise64
+from crosscheck.engines.mujoco.machinery import (
     INTEGRATORS,
     LIGHT,
     MJCF_DIR,
@@ -105,7 +105,7 @@ from .machinery import (
     SOLIMP,
     SOLREF,
 )
-from .planar import (
+from crosscheck.engines.mujoco.planar import (
     FrameBar,
     PendulumAngle,
     PendulumXY,
@@ -113,7 +113,12 @@ from .planar import (
     SliderCrankFree,
     SliderCrankSplit,
 )
-from .spatial import DoublePendulumFree, DoublePendulumTree, TopCartesian, TopEuler
+from crosscheck.engines.mujoco.spatial import (
+    DoublePendulumFree,
+    DoublePendulumTree,
+    TopCartesian,
+    TopEuler,
+)
 
 __all__ = [
     "INTEGRATORS",
@@ -231,7 +236,7 @@ class MujocoAdapter(TableAdapter):
         self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
     ):
         if is_user_model(_MODELS, model_name):
-            from .user_file import UserFileModel
+            from crosscheck.engines.mujoco.user_file import UserFileModel
 
             single_variant(self.name, model_name, variant, "a user's file")
             return UserFileModel(model_name, params)

@@ -8,8 +8,7 @@ import math
 import numpy as np
 
 import mujoco
-
-from .machinery import LIGHT, MjEngineModel, document, lamina, num, vec
+from crosscheck.engines.mujoco.machinery import LIGHT, MjEngineModel, document, lamina, num, vec
 
 _SQRT_HALF = math.sqrt(0.5)
 

@@ -12,10 +12,15 @@ from pathlib import Path
 import numpy as np
 
 import mujoco
-
-from ...compare import Tolerance
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
-from .soft_recovery import full_M, predict_soft, soft_recovery
+from crosscheck.compare import Tolerance
+from crosscheck.engines.base import (
+    EngineForward,
+    EngineModel,
+    EngineTrajectory,
+    EngineUnsupported,
+    check_state,
+)
+from crosscheck.engines.mujoco.soft_recovery import full_M, predict_soft, soft_recovery
 
 SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
 SOLREF = (0.02, 1.0)

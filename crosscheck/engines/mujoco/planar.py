@@ -8,9 +8,8 @@ import math
 import numpy as np
 
 import mujoco
-
-from ..kinematics import IdentityMaps, frame_bar_from_engine, frame_bar_to_engine
-from .machinery import LIGHT, MjEngineModel, document, lamina, num, vec
+from crosscheck.engines.kinematics import IdentityMaps, frame_bar_from_engine, frame_bar_to_engine
+from crosscheck.engines.mujoco.machinery import LIGHT, MjEngineModel, document, lamina, num, vec
 
 
 def _xml_pendulum_angle(p, **kw) -> str:

@@ -28,8 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import mujoco
-
-from ..base import EngineUnsupported
+from crosscheck.engines.base import EngineUnsupported
 
 
 @dataclass(frozen=True)

@@ -11,9 +11,8 @@ from typing import NamedTuple
 import numpy as np
 
 import mujoco
-
-from ..base import EngineUnsupported
-from .soft_prediction import documented_R, predict
+from crosscheck.engines.base import EngineUnsupported
+from crosscheck.engines.mujoco.soft_prediction import documented_R, predict
 
 
 def dense_efc_J(m, d) -> np.ndarray:

@@ -6,9 +6,15 @@ from __future__ import annotations
 import numpy as np
 
 import mujoco
-
-from ..kinematics import R313, E, angles313, eps_ddot
-from .machinery import MjEngineModel, R_to_quat, document, num, quat_to_R, vec
+from crosscheck.engines.kinematics import R313, E, angles313, eps_ddot
+from crosscheck.engines.mujoco.machinery import (
+    MjEngineModel,
+    R_to_quat,
+    document,
+    num,
+    quat_to_R,
+    vec,
+)
 
 
 def _xml_double_pendulum(p, variant="free", **kw) -> str:

@@ -25,10 +25,9 @@ from __future__ import annotations
 import numpy as np
 
 import mujoco
-
-from ..base import EngineUnsupported
-from .machinery import SOLIMP, SOLREF, MjEngineModel
-from .soft_recovery import dense_efc_J
+from crosscheck.engines.base import EngineUnsupported
+from crosscheck.engines.mujoco.machinery import SOLIMP, SOLREF, MjEngineModel
+from crosscheck.engines.mujoco.soft_recovery import dense_efc_J
 
 JNT = mujoco.mjtJoint
 # MuJoCo's constraint solver on a user's file: the built-in files' setting (machinery.document),

@@ -1,5 +1,5 @@
 """OpenSim engine (registered as ``opensim`` in pyproject.toml's ``crosscheck.engines``)."""
 
-from .adapter import OpenSimAdapter
+from crosscheck.engines.opensim.adapter import OpenSimAdapter
 
 __all__ = ["OpenSimAdapter"]

@@ -17,11 +17,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ...compare import EXACT_KKT, Tolerance
-from ..base import Capabilities, TableAdapter
-from .common import FIXED_STEP, INTEGRATORS, OsimModel
-from .exercises import Exercise61, Exercise62, Exercise64
-from .planar import (
+from crosscheck.compare import EXACT_KKT, Tolerance
+from crosscheck.engines.base import Capabilities, TableAdapter
+from crosscheck.engines.opensim.common import FIXED_STEP, INTEGRATORS, OsimModel
+from crosscheck.engines.opensim.exercises import Exercise61, Exercise62, Exercise64
+from crosscheck.engines.opensim.planar import (
     MovingSupport,
     PendulumAngle,
     PendulumXY,
@@ -29,7 +29,13 @@ from .planar import (
     SliderCrankFree,
     SliderCrankSplit,
 )
-from .spatial import DoublePendulum3D, DoublePendulum3DFree, FrameBar, TopCartesian, TopEuler
+from crosscheck.engines.opensim.spatial import (
+    DoublePendulum3D,
+    DoublePendulum3DFree,
+    FrameBar,
+    TopCartesian,
+    TopEuler,
+)
 
 __all__ = ["OpenSimAdapter"]
 

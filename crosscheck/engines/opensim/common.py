@@ -31,8 +31,13 @@ from xml.etree import ElementTree
 import numpy as np
 
 import opensim as osim
-
-from ..base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported, check_state
+from crosscheck.engines.base import (
+    EngineForward,
+    EngineModel,
+    EngineTrajectory,
+    EngineUnsupported,
+    check_state,
+)
 
 __all__ = ["FIXED_STEP", "INTEGRATORS", "OsimModel", "custom_joint", "point_body", "vec3"]
 

@@ -14,9 +14,8 @@ import math
 import numpy as np
 
 import opensim as osim
-
-from ..kinematics import IdentityMaps
-from .common import OsimModel, custom_joint, lamina, point_body, vec3
+from crosscheck.engines.kinematics import IdentityMaps
+from crosscheck.engines.opensim.common import OsimModel, custom_joint, lamina, point_body, vec3
 
 __all__ = ["Exercise61", "Exercise62", "Exercise64"]
 

@@ -13,9 +13,8 @@ import math
 import numpy as np
 
 import opensim as osim
-
-from ..kinematics import IdentityMaps, LinearMaps
-from .common import OsimModel, custom_joint, lamina, point_body, vec3
+from crosscheck.engines.kinematics import IdentityMaps, LinearMaps
+from crosscheck.engines.opensim.common import OsimModel, custom_joint, lamina, point_body, vec3
 
 __all__ = [
     "MovingSupport",

@@ -1,5 +1,5 @@
 """Pinocchio engine (registered as ``pinocchio`` in pyproject.toml's ``crosscheck.engines``)."""
 
-from .adapter import PinocchioAdapter
+from crosscheck.engines.pinocchio.adapter import PinocchioAdapter
 
 __all__ = ["PinocchioAdapter"]

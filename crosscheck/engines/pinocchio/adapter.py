@@ -73,7 +73,7 @@ Pinocchio call, shared with forward through ``_engine_call``).
 
 from __future__ import annotations
 
-from ..base import (
+from crosscheck.engines.base import (
     Capabilities,
     TableAdapter,
     is_user_model,
@@ -81,9 +81,9 @@ from ..base import (
     resolve_params,
     single_variant,
 )
-from .exercises import Exercise61, Exercise62, Exercise64
-from .machinery import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
-from .planar import (
+from crosscheck.engines.pinocchio.exercises import Exercise61, Exercise62, Exercise64
+from crosscheck.engines.pinocchio.machinery import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
+from crosscheck.engines.pinocchio.planar import (
     FrameBar,
     KnifeEdge,
     MovingSupport,
@@ -93,7 +93,7 @@ from .planar import (
     SliderCrankFree,
     SliderCrankSplit,
 )
-from .spatial import (
+from crosscheck.engines.pinocchio.spatial import (
     DoublePendulumFree,
     DoublePendulumTree,
     TopCartesianFree,
@@ -156,11 +156,10 @@ class PinocchioAdapter(TableAdapter):
     def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
         """A user's MJCF file: each record says which Pinocchio model answered, and one more
         record (reported, not judged) lists what pin's own MJCF parser lost."""
+        from crosscheck.compare import record
+        from crosscheck.engines.pinocchio.parser_findings import findings_isolated, summary
+        from crosscheck.engines.pinocchio.user_file import BUILT_FROM
         from reference import models
-
-        from ...compare import record
-        from .parser_findings import findings_isolated, summary
-        from .user_file import BUILT_FROM
 
         src = models.user_source(model_name)
         if not records or not hasattr(src, "mj"):
@@ -187,7 +186,7 @@ class PinocchioAdapter(TableAdapter):
         self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
     ):
         if is_user_model(_MODELS, model_name):
-            from .user_file import UserFilePinModel
+            from crosscheck.engines.pinocchio.user_file import UserFilePinModel
 
             single_variant(self.name, model_name, variant, "a user's file")
             return UserFilePinModel(model_name, params)

@@ -6,9 +6,14 @@ from __future__ import annotations
 import numpy as np
 
 import pinocchio as pin
-
-from ..kinematics import R313, E, angles313, eps_ddot, eps_rates
-from .machinery import PROX_EXACT, PinEngineModel, R_to_quat, at, quat_to_R
+from crosscheck.engines.kinematics import R313, E, angles313, eps_ddot, eps_rates
+from crosscheck.engines.pinocchio.machinery import (
+    PROX_EXACT,
+    PinEngineModel,
+    R_to_quat,
+    at,
+    quat_to_R,
+)
 
 # ======================================================================================
 # Example 4: the 3-D double pendulum (N2 up in the reference and in the engine)

@@ -36,9 +36,8 @@ import numpy as np
 import scipy.linalg
 
 import pinocchio as pin
-
-from ..base import EngineForward, EngineModel, EngineTrajectory
-from ..mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
+from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory
+from crosscheck.engines.mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
 
 JNT = mujoco.mjtJoint
 EQ = mujoco.mjtEq
@@ -387,7 +386,11 @@ class UserFilePinModel(EngineModel):
         constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
         from scipy.integrate import solve_ivp
 
-        from .machinery import check_integrator, ivp_method, ivp_trajectory
+        from crosscheck.engines.pinocchio.machinery import (
+            check_integrator,
+            ivp_method,
+            ivp_trajectory,
+        )
 
         check_integrator(integrator, rtol)
         t_start = time.perf_counter()
