@@ -4,7 +4,7 @@
     records = crosscheck.check("my_mechanism.xml")              # or a .py file, a name, a Model
     crosscheck.assert_passes("my_mechanism.xml", engines=["mujoco"])   # in a pytest test
 
-The records are the same dicts `crosscheck run` writes to results.json (crosscheck.compare
+The records are the same dicts `crosscheck run` writes to results.json (crosscheck.checks.tolerances
 .record): model, engine, check, quantity, error, tolerance, passed (None: reported or skipped,
 with the reason).
 """
@@ -49,8 +49,8 @@ def check(
     """Cross-check a model (a built-in or registered name, an MJCF/Python file, or a Model)
     against the engines (default: every registered engine that imports here) at `states`
     consistent states, and, with trajectories=True, over t_end seconds; returns the records."""
-    from crosscheck.arguments import resolve_engines
-    from crosscheck.run import run
+    from crosscheck.commands.arguments import resolve_engines
+    from crosscheck.run.checks import run
 
     names = _names(model)
     # as the CLI: every registered engine that imports here unless some are named

@@ -15,11 +15,13 @@ import os
 import re
 import sys
 
-from crosscheck import interrupts, jsonio  # standard library only
-
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
-from crosscheck.arguments import OneLineParser, add_model_files, finite_float
+from crosscheck.commands.arguments import OneLineParser, add_model_files, finite_float
+from crosscheck.runtime import (
+    interrupts,  # standard library only
+    jsonio,
+)
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
@@ -221,16 +223,8 @@ def _optional_commands():
     from importlib import import_module
 
     return [
-        import_module(f"crosscheck.{name}").register
-        for name in (
-            "run_command",
-            "bench",
-            "report",
-            "gate",
-            "sweep",
-            "engines_command",
-            "sensitivity_command",
-        )
+        import_module(f"crosscheck.commands.{name}").register
+        for name in ("run", "bench", "report", "gate", "sweep", "engines", "sensitivity")
     ]
 
 
@@ -339,14 +333,14 @@ def _main(argv) -> int:
 
         argv = list(sys.argv[1:] if argv is None else argv)
         if argv[:1] == ["run"]:  # its workers' server starts before the imports below
-            from crosscheck.run_command import start_workers_early
+            from crosscheck.commands.run import start_workers_early
 
             start_workers_early(argv[1:])
         parser = build_parser()
         args = parser.parse_args(_attach_negative_values(parser, argv))
         try:
             if hasattr(args, "model_file"):  # before any model name is resolved
-                from crosscheck.arguments import load_model_files
+                from crosscheck.commands.arguments import load_model_files
 
                 load_model_files(args)
             code = int(args.func(args) or 0)
@@ -380,9 +374,9 @@ def _main(argv) -> int:
 def _stop_workers_server() -> None:
     """A command that ends in an error or an interrupt hands nothing more to workers: the
     server `run` started (early, or for its workers) must not outlive it
-    (crosscheck.workers.stop_server)."""
+    (crosscheck.runtime.workers.stop_server)."""
     if "multiprocessing.forkserver" in sys.modules:  # else no server was started
-        from crosscheck.workers import stop_server
+        from crosscheck.runtime.workers import stop_server
 
         stop_server()
 

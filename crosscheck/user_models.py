@@ -1,7 +1,7 @@
 """Users' own models: from an MJCF file, a Python file, or an installed package.
 
 - ``.xml``: an MJCF file, compiled by MuJoCo and turned into a reference Model in its own joint
-  coordinates (reference.mjcf; what is supported: docs/user_models.md).
+  coordinates (reference.mjcf.loader; what is supported: docs/user_models.md).
 - ``.py``: a Python file that defines a function ``models()`` returning a Model or a list of
   Models built with the public API (reference.system, reference.forces). The file is run as a
   module of its own; nothing else in it is called.
@@ -25,7 +25,7 @@ from importlib import metadata
 from pathlib import Path
 
 from reference.errors import ModelFileError, ModelInputError
-from reference.mjcf import MjcfImport, import_mjcf
+from reference.mjcf.loader import MjcfImport, import_mjcf
 from reference.system import Model
 
 ENTRY_POINT_GROUP = "crosscheck.models"
@@ -105,7 +105,7 @@ def _safe(s: str) -> str:
 
 def load_model_file(path, *, project: bool = False) -> list[UserModel]:
     """The models a file defines, each with its origin: an MJCF file (.xml) gives one, a
-    Python file (.py) what its models() hook returns. project: see reference.mjcf.import_mjcf
+    Python file (.py) what its models() hook returns. project: see reference.mjcf.loader.import_mjcf
     (an initial state off the constraint manifold is refused unless projected)."""
     path = Path(path)
     if not path.is_file():

@@ -31,7 +31,7 @@ from scipy.integrate import solve_ivp
 
 from reference import models
 from reference.errors import ModelInputError
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 TIGHT_RTOL = 1e-13
 TIGHT_ATOL = 1e-13
@@ -212,7 +212,7 @@ def reference_final_state(
             "accuracy: 2 x |rtol 1e-13 - rtol 1e-12 run| (the map's gain <= 2)",
         )
     # a converged tight run of the model itself
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     method = "index1" if nm.m == 0 else "projection"
 

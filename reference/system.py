@@ -126,7 +126,8 @@ class Model:
     # Dependent constraint rows are allowed (user models: a planar loop closed by a 3-D MJCF
     # `connect` has a row that repeats the others). NumericModel then solves on the independent
     # rows, gives the unique u' and A^T lambda and the minimum-norm lambda with the rank
-    # (reference.redundant); False keeps the unit's rule that rank(A) = m (Eq. 4 discussion).
+    # (reference.numeric.redundant); False keeps the unit's rule that rank(A) = m (Eq. 4
+    # discussion).
     redundant_constraints: bool = False
     t: sp.Symbol = field(default_factory=lambda: sp.Symbol("t", real=True))
 

@@ -17,9 +17,9 @@ import numpy as np
 
 os.environ.setdefault("CROSSCHECK_BACKEND", "c")
 
-from crosscheck.sampling import consistent_states
+from crosscheck.checks.sampling import consistent_states
 from reference import models
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 N = 10_000
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")

@@ -14,9 +14,11 @@ from pathlib import Path
 
 os.environ["CROSSCHECK_BACKEND"] = "python"  # derive (or read) only; the builds are timed here
 
-from reference import cbuild, codegen, models
-from reference.ckernels import c_source
-from reference.numeric import PIVOT_RATIO_MIN, NumericModel
+from reference import models
+from reference.backends import c_build as cbuild
+from reference.backends import codegen
+from reference.backends.c_source import c_source
+from reference.numeric.model import PIVOT_RATIO_MIN, NumericModel
 
 
 def main() -> None:

@@ -19,9 +19,11 @@ import numpy as np
 
 os.environ["CROSSCHECK_BACKEND"] = "python"  # the generated source only; builds are made here
 
-from reference import cbuild, ckernels, models
-from reference.compiled import import_file
-from reference.numeric import PIVOT_RATIO_MIN, NumericModel
+from reference import models
+from reference.backends import c_build as cbuild
+from reference.backends import c_source as ckernels
+from reference.backends.numba_backend import import_file
+from reference.numeric.model import PIVOT_RATIO_MIN, NumericModel
 
 # each set replaces only the optimization level or adds one flag to the backend's own flags
 VARIANTS = (["-O2"], ["-O3"], ["-O2", "-fno-trapping-math"], ["-O2", "-mavx2"], ["-O1"])

@@ -1,5 +1,5 @@
 """The C stepper against the Python stepper (docs/compiled.md, "The compiled stepper"), the
-records `crosscheck bench` writes to bench.json "stepper" (crosscheck/stepper_bench.py), for
+records `crosscheck bench` writes to bench.json "stepper" (crosscheck/bench/stepper.py), for
 the given models (default: four) with seven interleaved rounds, as a table; "/ tol" is the
 largest output difference in units of rtol (1 + max |q|, |u|). With --profile: cProfile of 200
 C-stepper runs of the slider-crank (index1, rtol 1e-10, every step recorded), what the run
@@ -16,7 +16,7 @@ import sys
 
 os.environ.setdefault("CROSSCHECK_BACKEND", "c")
 
-from crosscheck.stepper_bench import RTOL, stepper_records
+from crosscheck.bench.stepper import RTOL, stepper_records
 
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
 
@@ -44,7 +44,7 @@ def profile() -> None:
     import pstats
 
     from reference import NumericModel, models
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     nm = NumericModel(models.get("slider_crank"))
     q0, u0 = nm.model.initial_q, nm.model.initial_u

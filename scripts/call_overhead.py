@@ -30,8 +30,8 @@ def _min_us(stmts: dict, env: dict) -> dict:
 
 
 def calls(names) -> None:
+    from crosscheck.checks.sampling import consistent_states
     from crosscheck.engines.registry import get_engine
-    from crosscheck.sampling import consistent_states
     from reference import NumericModel, models
 
     f64, s8, nd = np.dtype(np.float64), (8,), np.ndarray

@@ -4,7 +4,7 @@ For every constrained model: the 5 s reference run with coordinate projection an
 (index1), both at rtol = atol = 1e-12, and per output time the ratios
     |f(q, t)| / (PROJECTION_TOL (1 + |q|_inf))   and   |A u + a0| / (eps max(|u|_inf, 1)).
 With projection the first is <= 1 by construction (Gauss-Newton's stopping test) and the second
-is round-off; crosscheck/trajectory.py's drift tolerances are built from these bounds.
+is round-off; crosscheck/checks/trajectory/check.py's drift tolerances are built from these bounds.
 
     PYTHONPATH=$PWD python scripts/drift_guarantee.py [MODEL ...]
 """
@@ -15,9 +15,9 @@ import sys
 
 import numpy as np
 
-from crosscheck.trajectory import REF_RTOL, output_grid
+from crosscheck.checks.trajectory.check import REF_RTOL, output_grid
 from reference import NumericModel, models
-from reference.integrate import PROJECTION_TOL, simulate
+from reference.integrate.driver import PROJECTION_TOL, simulate
 
 EPS = float(np.finfo(float).eps)
 

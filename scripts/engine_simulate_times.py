@@ -42,7 +42,7 @@ def _subclasses(cls):
 def main() -> None:
     cli.one_blas_thread()  # as the `crosscheck` program sets them, before numpy and MuJoCo load
     cli.no_mujoco_rendering()
-    from crosscheck import trajectory
+    from crosscheck.checks.trajectory import check as trajectory
     from crosscheck.engines.base import EngineModel
     from crosscheck.engines.registry import available_engines, get_engine
 
@@ -51,7 +51,9 @@ def main() -> None:
     for cls in set(_subclasses(EngineModel)):
         if "simulate" in cls.__dict__:
             cls.simulate = _timed(f"{cls.__module__}.{cls.__qualname__}", cls.simulate)
-    trajectory.simulate = _timed("reference (crosscheck.trajectory.simulate)", trajectory.simulate)
+    trajectory.simulate = _timed(
+        "reference (crosscheck.checks.trajectory.check.simulate)", trajectory.simulate
+    )
     t0 = time.perf_counter()
     try:
         cli.main(["run", *sys.argv[1:], "--jobs", "1"])

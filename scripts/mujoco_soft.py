@@ -4,8 +4,8 @@ PYTHONPATH=$PWD python scripts/mujoco_soft.py limit [models...]
     per model with equality rows, 5 s of RK4 from the initial state: the soft effect
     S(tc) = max state error against the reference at solref tc = 0.02, 0.01, 0.005 s, the
     ratio r = S(tc) / S(tc/2), the rigid limit's error (runs at tc and tc/2 extrapolated
-    to tc -> 0, crosscheck.trajectory.SOFT_LIMIT_*) and its ratio to the correction, and
-    the step-halving difference at tc = 0.02 s.
+    to tc -> 0, crosscheck.checks.trajectory.check.SOFT_LIMIT_*) and its ratio to the correction,
+    and the step-halving difference at tc = 0.02 s.
 PYTHONPATH=$PWD python scripts/mujoco_soft.py energy
     slider_crank_split, 0.5 s: max |E - E0| for Euler, implicitfast, RK4 at h = 2, 1, 0.5,
     0.25 ms and solref tc = 0.02, 0.01 s (tests/test_mujoco_bounds.py's energy bounds).
@@ -20,16 +20,16 @@ import sys
 
 import numpy as np
 
-from crosscheck.compare import scaled_error, soft_prediction
+from crosscheck.checks.sampling import consistent_states
+from crosscheck.checks.tolerances import scaled_error, soft_prediction
+from crosscheck.checks.trajectory.check import T_END, output_grid
+from crosscheck.checks.trajectory.measures import state_error
+from crosscheck.checks.trajectory.soft import SOFT_LIMIT_FACTOR, SOFT_LIMIT_ORDER
 from crosscheck.engines.mujoco.adapter import MujocoAdapter
-from crosscheck.sampling import consistent_states
-from crosscheck.trajectory import T_END, output_grid
-from crosscheck.trajectory_measures import state_error
-from crosscheck.trajectory_soft import SOFT_LIMIT_FACTOR, SOFT_LIMIT_ORDER
 from reference import models
-from reference.integrate import simulate
+from reference.integrate.driver import simulate
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 
 def _limit(names) -> None:
@@ -86,7 +86,7 @@ def _energy() -> None:
 
 def _predict_agreement(n_states: int = 200, names=None) -> list[dict]:
     """MuJoCo's raw soft answer against EngineModel.predict_soft over the run's consistent
-    states (the initial state and n_states - 1 seeded random ones, crosscheck.sampling) of
+    states (the initial state and n_states - 1 seeded random ones, crosscheck.checks.sampling) of
     every MuJoCo model with soft rows: the worst miss max |raw - predicted| (scaled as
     compare.scaled_error), the predicted soft effect's range and the judged ratio
     (compare.soft_prediction), of the accelerations and (lam_*) the multipliers."""

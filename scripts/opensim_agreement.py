@@ -4,7 +4,7 @@ multipliers over N consistent states per model (every formulation), and the time
     PYTHONPATH=$PWD python scripts/opensim_agreement.py [N] [SEED]
 
 States as tests/test_engine_opensim.py draws them (the model's sampler for the 3-D models,
-else crosscheck.sampling.random_consistent_state at t ~ U(0, 2)); relative errors divide by
+else crosscheck.checks.sampling.random_consistent_state at t ~ U(0, 2)); relative errors divide by
 max(|ref|_inf, 1). Times: the median of 300 calls of timed_forward (realizeAcceleration only,
 the state already set) and of forward() (mapping, solve and multiplier map).
 """
@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
+from crosscheck.checks.sampling import random_consistent_state
 from crosscheck.engines.opensim import OpenSimAdapter
-from crosscheck.sampling import random_consistent_state
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 PARAMS = {
     "slider_crank": {"T": 0.7},

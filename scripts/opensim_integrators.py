@@ -15,8 +15,8 @@ import argparse
 import dataclasses
 import time
 
+from crosscheck.checks.trajectory.check import ENGINE_RTOL, output_grid, trajectory_records
 from crosscheck.engines.registry import get_engine
-from crosscheck.trajectory import ENGINE_RTOL, output_grid, trajectory_records
 from reference import NumericModel, models
 
 

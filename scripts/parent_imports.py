@@ -1,7 +1,7 @@
 """What `crosscheck run` does in its own process before it hands the models to the workers, by
 phase, in a fresh interpreter: the command line's parser (it imports every command's module),
 the model names, the engine names (importing the named engines' adapters) and the checks'
-module. The workers' server starts before all of it (crosscheck/run_command.py), so the
+module. The workers' server starts before all of it (crosscheck/commands/run.py), so the
 first models start when both this and the server's own imports are done
 (docs/compiled.md, "The workers' server starts first").
 
@@ -25,13 +25,13 @@ def main() -> None:
 
     build_parser()
     t1 = time.perf_counter()
-    from crosscheck.arguments import resolve_engines, resolve_models
+    from crosscheck.commands.arguments import resolve_engines, resolve_models
 
     resolve_models([], None)
     t2 = time.perf_counter()
     resolve_engines(args.engines.split(",") if args.engines else None)
     t3 = time.perf_counter()
-    import crosscheck.run  # noqa: F401 - what the serial path would import
+    import crosscheck.run.checks  # noqa: F401 - what the serial path would import
 
     t4 = time.perf_counter()
     print(

@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
+from crosscheck.checks.trajectory.check import ENGINE_RTOL, T_END, output_grid
 from crosscheck.engines.registry import get_engine
-from crosscheck.trajectory import ENGINE_RTOL, T_END, output_grid
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 MODELS = ("double_pendulum_3d", "top_cartesian", "slider_crank", "exercise_6_1", "top_euler")
 

@@ -9,7 +9,8 @@ acceleration the dropped rows ask for (|U_d^T b| / sigma_d) against the largest 
 
     PYTHONPATH=$PWD python scripts/rank_drop_passage.py            # N = 1, 2, 5; CUT 1e-6, 1e-4
 
-The solve here is an experiment, not the reference's (reference.redundant refuses the state).
+The solve here is an experiment, not the reference's (reference.numeric.redundant refuses the
+state).
 """
 
 from __future__ import annotations
@@ -23,9 +24,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples" / "a02"))
 from nfourbar import mjcf
 
-from reference.integrate import simulate
-from reference.mjcf import import_mjcf
-from reference.numeric import NumericModel
+from reference.integrate.driver import simulate
+from reference.mjcf.loader import import_mjcf
+from reference.numeric.model import NumericModel
 
 
 def dropping_solve(nm: NumericModel, cut: float, seen: dict):

@@ -1,7 +1,7 @@
 """Where a `crosscheck run` on workers spends its wall time, as seen from its own process: when
 the hand-out starts (the parent's imports done), when the meta work (results.json's versions)
 starts and ends, when the last model is back, and when results.json is written. The models'
-own times are in `<cache dir>/run_times.json` after the run (crosscheck/run_order.py).
+own times are in `<cache dir>/run_times.json` after the run (crosscheck/run/order.py).
 
 The program's entry (crosscheck.cli.main) runs unchanged, with timestamps around three of its
 functions; run it in a warm cache, on a machine otherwise idle:
@@ -23,7 +23,8 @@ def _stamp(what: str) -> None:
 
 
 def _instrument() -> None:
-    from crosscheck import run_command, run_jobs
+    from crosscheck.commands import run as run_command
+    from crosscheck.run import jobs as run_jobs
 
     run_models = run_jobs.run_models
 

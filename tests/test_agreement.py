@@ -7,9 +7,9 @@ import math
 
 import pytest
 
-from crosscheck.agreement import odd_one_out, pair_error
+from crosscheck.checks.agreement import odd_one_out, pair_error
 from crosscheck.engines.registry import available_engines
-from crosscheck.run import run
+from crosscheck.run.checks import run
 
 
 def test_pair_error_is_symmetric_and_relative_to_the_larger_answer():

@@ -6,7 +6,14 @@ import argparse
 
 import pytest
 
-from crosscheck.arguments import MAX_T_END, horizon, name_list, positive_int, resolve_models, unique
+from crosscheck.commands.arguments import (
+    MAX_T_END,
+    horizon,
+    name_list,
+    positive_int,
+    resolve_models,
+    unique,
+)
 from reference.errors import ModelInputError
 
 

@@ -6,11 +6,12 @@ import os
 import subprocess
 import sys
 
-from reference import codegen, models
+from reference import models
+from reference.backends import codegen
 
 SCRIPT = """
 import sys
-import reference.numeric as numeric
+import reference.numeric.model as numeric
 if sys.argv[1] == "forbid":
     def refuse(*a, **k):
         raise SystemExit("derivation attempted although the cache holds this model")
@@ -59,7 +60,7 @@ def test_renamed_model_reuses_the_derivation(tmp_path):
 def test_mjcf_reimport_under_another_name_has_the_same_key(tmp_path):
     import shutil
 
-    from reference.mjcf import import_mjcf
+    from reference.mjcf.loader import import_mjcf
 
     src = os.path.join(os.path.dirname(__file__), "data", "fourbar_connect.xml")
     copy = tmp_path / "my_copy_of_the_fourbar.xml"
@@ -84,7 +85,8 @@ def test_cache_key_follows_model_content():
 
 
 KEY_SCRIPT = """
-from reference import codegen, models
+from reference import models
+from reference.backends import codegen
 print(codegen.__file__)
 print(codegen.cache_key(models.get("slider_crank"), "kane"))
 """

@@ -1,6 +1,6 @@
-"""The C backend's own behaviour (reference.ckernels, reference.cbuild; issue 13): its choice
-and refusal, its build cache, its fallback when the printer cannot translate a model, the
-bound calls' lifetime and parameters, and the four-lane batch against the scalar kernel.
+"""The C backend's own behaviour (reference.backends.c_source, reference.backends.c_build; issue
+13): its choice and refusal, its build cache, its fallback when the printer cannot translate a
+model, the bound calls' lifetime and parameters, and the four-lane batch against the scalar kernel.
 Equality with the Python path is tests/test_compiled.py's, bad inputs tests/test_fast_paths.py's
 (both run on this backend too)."""
 
@@ -13,12 +13,16 @@ import shutil
 import subprocess
 import sys
 import weakref
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from crosscheck.run import consistent_states
-from reference import NumericModel, cbuild, ckernels, compiled, models
+from crosscheck.run.checks import consistent_states
+from reference import NumericModel, models
+from reference.backends import c_build as cbuild
+from reference.backends import c_source as ckernels
+from reference.backends import numba_backend as compiled
 from reference.errors import ModelInputError, SingularSystemError
 
 pytestmark = pytest.mark.skipif(not cbuild.available(), reason="no working C compiler")
@@ -57,12 +61,12 @@ def test_a_checkout_elsewhere_finds_the_same_built_module(tmp_path):
     package in another directory (a git worktree, a CI cache restored elsewhere) names the
     same module, so a shared cache loads it instead of building every module again."""
     shutil.copytree(
-        os.path.dirname(cbuild.__file__),
+        Path(cbuild.__file__).parents[1],
         tmp_path / "reference",
         ignore=shutil.ignore_patterns("__pycache__"),
     )
     code = (
-        "import sys; from pathlib import Path; from reference import cbuild\n"
+        "import sys; from pathlib import Path; from reference.backends import c_build as cbuild\n"
         f"assert cbuild.__file__.startswith({str(tmp_path)!r}), cbuild.__file__\n"
         "print(cbuild._target('double f(double x) { return x; }', 's', Path('.'))[1])\n"
     )

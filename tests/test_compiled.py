@@ -1,9 +1,9 @@
 """The compiled backends (C and numba) against the pure-Python path they replace (issue 13).
 
-All run the same generated straight-line code (reference.ckernels prints it as C,
-reference.compiled rewrites it for numba), so they must agree to the last bit. Measured: bit-
-identical on every output of forward, matrices, residuals, energy and kinematics at 16
-consistent states of pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and
+All run the same generated straight-line code (reference.backends.c_source prints it as C,
+reference.backends.numba_backend rewrites it for numba), so they must agree to the last bit.
+Measured: bit- identical on every output of forward, matrices, residuals, energy and kinematics at
+16 consistent states of pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and
 knife_edge (docs/compiled.md). EQUAL_REL leaves room for one reason they could part: an integer
 power x**k, which CPython computes with libm's pow and numba by repeated multiplication (k - 1
 roundings instead of one).
@@ -16,8 +16,10 @@ import math
 import numpy as np
 import pytest
 
-from crosscheck.run import consistent_states
-from reference import NumericModel, cbuild, compiled, models
+from crosscheck.run.checks import consistent_states
+from reference import NumericModel, models
+from reference.backends import c_build as cbuild
+from reference.backends import numba_backend as compiled
 from reference.errors import ModelInputError, SingularSystemError
 
 NEEDS_NUMBA = pytest.mark.skipif(not compiled.numba_available(), reason="numba not installed")

@@ -10,8 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from crosscheck import compare as C
-from crosscheck.comparison import build, engine_records
+from crosscheck.checks import tolerances as C
+from crosscheck.checks.instantaneous import build, engine_records
+from crosscheck.checks.sampling import consistent_states
 from crosscheck.engines.base import (
     EngineAdapter,
     EngineForward,
@@ -20,7 +21,6 @@ from crosscheck.engines.base import (
     EngineUnsupported,
 )
 from crosscheck.engines.registry import available_engines, get_engine
-from crosscheck.sampling import consistent_states
 from reference import NumericModel, models
 from reference.constraints import classify
 
@@ -192,7 +192,7 @@ def test_registry_order_labels_and_unknown_names():
 
 
 def test_perturbation_is_parsed_checked_and_applied_in_one_place():
-    from crosscheck.perturb import check_parameters, parse_perturb, perturbed
+    from crosscheck.checks.perturb import check_parameters, parse_perturb, perturbed
     from reference.errors import ModelInputError
 
     assert parse_perturb(["mujoco:m2=1e-6", "mujoco:l1=-0.5"]) == {

@@ -1,7 +1,7 @@
 """The Exudyn adapter against the reference, with the real Exudyn 1.13 (no mocks).
 
 Checked model by model: the state map both ways, accelerations and multipliers against the
-reference's KKT solve at random consistent states and parameters (crosscheck.sampling), the
+reference's KKT solve at random consistent states and parameters (crosscheck.checks.sampling), the
 finite-difference floor of Exudyn's plain answer and its removal, the physical sign of the
 constraint forces on poses done by hand, energy, that a 1e-6 parameter fault is caught, the
 two gaps of Exudyn's initial-acceleration solve the special models work around, short
@@ -19,16 +19,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crosscheck.comparison import build
+from crosscheck.checks.instantaneous import build
+from crosscheck.checks.perturb import check_perturb_changes
+from crosscheck.checks.sampling import random_consistent_state, random_params
 from crosscheck.engines.base import EngineAdapter, EngineUnsupported, resolve_params
 from crosscheck.engines.exudyn import ExudynAdapter
 from crosscheck.engines.exudyn.trajectory import ExudynIntegrationError
-from crosscheck.perturb import check_perturb_changes
-from crosscheck.sampling import random_consistent_state, random_params
 from reference.errors import ModelInputError
-from reference.integrate import simulate as reference_simulate
+from reference.integrate.driver import simulate as reference_simulate
 from reference.models import get, names
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 warnings.filterwarnings("ignore", category=DeprecationWarning)
 
@@ -54,7 +54,7 @@ def scaled_error(value, ref) -> float:
 
 
 def _instances(name: str, n: int, seed: int = 3):
-    """(params, t, q, u) drawn as the sweeps draw them (crosscheck.sampling)."""
+    """(params, t, q, u) drawn as the sweeps draw them (crosscheck.checks.sampling)."""
     m = get(name)
     rng = np.random.default_rng(seed)
     out = []

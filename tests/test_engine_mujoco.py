@@ -34,7 +34,7 @@ from hypothesis import strategies as st
 from crosscheck.engines.base import EngineUnsupported
 from crosscheck.engines.mujoco.adapter import MJCF_DIR, SOLIMP, MujocoAdapter, mjcf, write_mjcf
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 TOL_RIGID = 1e-9
 TOL_MAP = 1e-12
@@ -808,7 +808,7 @@ def test_simulate_exercises_against_reference(name, limit):
     (projection method, tolerance 1e-12). The trees (6.2, 6.4: springs and dampers as joint
     stiffness/damping, motor torques as qfrc_applied) stay within RK4's ~1e-11; the ladder's
     error follows its connect drift (solref 0.02: ~1e-6 here), so its bound is 1e-5."""
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     nm = reference(name)
     q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)

@@ -6,7 +6,7 @@ against the forces the constraint applies (Constraint.calcConstraintForces, an i
 OpenSim route), energies, Simbody's own residuals, that a 1e-6 parameter fault is caught, the
 unsupported models' reasons, the timing hook, and short Manager trajectories.
 
-States: crosscheck.sampling.random_consistent_state (initial state + noise, projected by
+States: crosscheck.checks.sampling.random_consistent_state (initial state + noise, projected by
 NumericModel.project) from a seeded numpy Generator, so every run draws the same states.
 """
 
@@ -22,15 +22,15 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from crosscheck.comparison import build
+from crosscheck.checks.instantaneous import build
+from crosscheck.checks.perturb import check_perturb_changes
+from crosscheck.checks.sampling import random_consistent_state
 from crosscheck.engines.base import EngineAdapter, EngineUnsupported, resolve_params
 from crosscheck.engines.opensim import OpenSimAdapter
-from crosscheck.engines.opensim.common import INTEGRATORS
-from crosscheck.perturb import check_perturb_changes
-from crosscheck.sampling import random_consistent_state
+from crosscheck.engines.opensim.engine_model import INTEGRATORS
 from reference.errors import ModelInputError
 from reference.models import get, names
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 ADAPTER = OpenSimAdapter()
 # Accelerations and multipliers: both sides solve the same KKT system with backward-stable

@@ -35,7 +35,7 @@ from crosscheck.engines.pinocchio.adapter import PROX_EXACT, PROX_REDUNDANT, Pin
 from reference.errors import ModelInputError
 from reference.formulations.lagrange import kinetic_energy, potential_energy
 from reference.models import get
-from reference.numeric import NumericModel, resolve_parameters
+from reference.numeric.model import NumericModel, resolve_parameters
 
 EPS = np.finfo(float).eps
 
@@ -864,7 +864,7 @@ def test_quaternion_rotation_is_eigens_matrix_row_by_row():
     """ode.quat_rotate on floats against Pinocchio's (Eigen's) rotation matrix applied to v one
     row at a time, in order: equal to the bit; numpy's R @ v may fuse multiply-adds, so it is
     held to a few units in the last place only."""
-    from crosscheck.engines.pinocchio.machinery import quat_to_R
+    from crosscheck.engines.pinocchio.engine_model import quat_to_R
     from crosscheck.engines.pinocchio.ode import quat_rotate
 
     rng = np.random.default_rng(11)
@@ -881,7 +881,7 @@ def test_trajectory_right_hand_side_keeps_quaternions_unit_and_maps_rates():
     """ode.normalized scales only the quaternions to unit length, and coordinate_rates gives
     q' = v on hinges, the quaternion product on ball joints, R v and the product on a free
     flyer (top_cartesian's free body, double_pendulum_3d's ball-joint tree)."""
-    from crosscheck.engines.pinocchio.machinery import quat_to_R
+    from crosscheck.engines.pinocchio.engine_model import quat_to_R
     from crosscheck.engines.pinocchio.ode import coordinate_rates, normalized, quat_rate
 
     rng = np.random.default_rng(5)

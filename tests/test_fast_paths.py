@@ -17,9 +17,11 @@ import math
 import numpy as np
 import pytest
 
-from reference import NumericModel, cbuild, compiled, models
+from reference import NumericModel, models
+from reference.backends import c_build as cbuild
+from reference.backends import numba_backend as compiled
 from reference.errors import ModelInputError
-from reference.numeric import Forward
+from reference.numeric.model import Forward
 
 MODELS = ("slider_crank", "top_cartesian")
 NEEDS = {
@@ -212,7 +214,7 @@ def test_forward_record_keeps_the_dataclass_behaviour(nm):
 
 
 def test_bench_names_every_reference_call_and_the_out_ratio(monkeypatch):
-    from crosscheck import bench
+    from crosscheck.commands import bench
     from crosscheck.engines.registry import get_engine
 
     monkeypatch.setenv("CROSSCHECK_BACKEND", "c" if cbuild.available() else "numba")

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from crosscheck.sampling import random_consistent_state
+from crosscheck.checks.sampling import random_consistent_state
 from reference import NumericModel, models
 from reference.formulations import derive
 from reference.minimal import slider_crank_one_coordinate

@@ -1,4 +1,4 @@
-"""reference.integrate: each method keeps its stated guarantee; errors against exact or
+"""reference.integrate.driver: each method keeps its stated guarantee; errors against exact or
 minimal-coordinate references shrink at the integrator's order; energy and work balance hold;
 bad starts and singular poses give clear errors.
 
@@ -20,7 +20,12 @@ import sympy as sp
 
 from reference import NumericModel, models
 from reference.errors import ModelInputError, OffManifoldError, SingularSystemError
-from reference.integrate import METHODS, IntegrationTimeout, consistent_initial_state, simulate
+from reference.integrate.driver import (
+    METHODS,
+    IntegrationTimeout,
+    consistent_initial_state,
+    simulate,
+)
 from reference.minimal import (
     TIGHT_RTOL,
     _ode_run,

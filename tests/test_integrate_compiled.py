@@ -1,4 +1,4 @@
-"""reference.integrate_compiled: the C stepper runs what the Python stepper runs.
+"""reference.integrate.compiled: the C stepper runs what the Python stepper runs.
 
 Tolerances and why:
 - SAME_OUTPUT (relative to the run's rtol): the C loops sum the stages, the error estimate and
@@ -19,7 +19,7 @@ import pytest
 
 from reference import NumericModel, models
 from reference.errors import ModelInputError, SingularSystemError
-from reference.integrate import IntegrationTimeout, simulate
+from reference.integrate.driver import IntegrationTimeout, simulate
 
 RTOL = 1e-9
 SAME_OUTPUT = 1.0  # in units of rtol * (1 + max |y|), see the module docstring
@@ -133,7 +133,7 @@ def test_the_environment_sets_the_default(monkeypatch):
 def test_the_bench_records_both_steppers_side_by_side():
     """bench.json "stepper": one record per model, method and output kind; the figures are
     timings (not judged here), the record says what ran and how far the two runs are apart."""
-    from crosscheck.stepper_bench import stepper_record
+    from crosscheck.bench.stepper import stepper_record
 
     nm = _nm("pendulum_xy")
     rec = stepper_record(nm, "projection", "grid", rounds=1)
@@ -149,7 +149,7 @@ def test_a_scipy_without_the_tableau_takes_the_python_stepper(monkeypatch):
     gets the Python stepper (and a reason), not a crash or a wrong table."""
     import scipy.integrate as si
 
-    from reference import integrate_compiled
+    from reference.integrate import compiled as integrate_compiled
 
     nm = _nm("pendulum_xy")
     m = nm.model

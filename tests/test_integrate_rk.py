@@ -1,4 +1,4 @@
-"""reference.integrate_rk.LeanDOP853: scipy's DOP853 with a leaner step takes scipy's steps.
+"""reference.integrate.rk.LeanDOP853: scipy's DOP853 with a leaner step takes scipy's steps.
 
 Tolerances and why:
 - SAME_STATE: the stage sums are formed in another order ((h a_s) . K[:s] against scipy's
@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 import scipy.integrate as si
 
-from crosscheck import workprecision
+from crosscheck.bench import workprecision
 from reference import NumericModel, models
-from reference import integrate_common as ic
-from reference.integrate import simulate
-from reference.integrate_rk import LeanDOP853
+from reference.integrate import common as ic
+from reference.integrate.driver import simulate
+from reference.integrate.rk import LeanDOP853
 from reference.minimal import reference_final_state
 
 SAME_STATE = 1e-11

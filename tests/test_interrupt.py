@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-import crosscheck.report as report
+import crosscheck.commands.report as report
 from crosscheck.cli import main
-from crosscheck.output import TMP_PREFIX
-from crosscheck.sweep_store import chunk_files
+from crosscheck.runtime.output import TMP_PREFIX
+from crosscheck.sweep.store import chunk_files
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN_FILES = ["index.html", "junit.xml", "report.md", "results.json"]
@@ -147,7 +147,7 @@ def test_an_interrupt_the_engine_swallowed_still_interrupts(previous_run, monkey
     """An engine that catches the KeyboardInterrupt raised inside its solve (Exudyn: the solve
     reports failure, or the interrupt vanishes) must not turn Ctrl-C into a failed record or a
     finished run: the remembered signal stops the command before its files are committed."""
-    from crosscheck import interrupts
+    from crosscheck.runtime import interrupts
 
     before = _snapshot(previous_run)
     monkeypatch.setattr(interrupts, "_seen", [signal.SIGINT])  # as if swallowed mid-run
@@ -184,7 +184,7 @@ def test_a_deferred_interrupt_arrives_after_the_block(monkeypatch):
     block is done, and remembered for interrupts.check."""
     import os as _os
 
-    from crosscheck import interrupts
+    from crosscheck.runtime import interrupts
 
     monkeypatch.setattr(interrupts, "_seen", [])
     before = signal.getsignal(signal.SIGINT)

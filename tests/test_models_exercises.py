@@ -21,7 +21,7 @@ import pytest
 import sympy as sp
 from scipy.integrate import solve_ivp
 
-from crosscheck.sampling import random_consistent_state
+from crosscheck.checks.sampling import random_consistent_state
 from reference import NumericModel, models
 from reference.constraints import classify
 from reference.formulations import derive

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from crosscheck.compare import scaled_error
+from crosscheck.checks.sampling import consistent_states
+from crosscheck.checks.tolerances import scaled_error
 from crosscheck.engines.mujoco.adapter import LIGHT, MujocoAdapter
-from crosscheck.sampling import consistent_states
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 
 def maxabs(x) -> float:

@@ -11,7 +11,7 @@ import pytest
 from crosscheck.engines.mujoco.adapter import MujocoAdapter
 from crosscheck.engines.mujoco.soft_prediction import documented_R, impedance
 from reference import models
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 SOFT_MODELS = [
     "slider_crank",

@@ -1,4 +1,4 @@
-"""MuJoCo's soft trajectories are judged against the rigid limit (crosscheck.trajectory_soft,
+"""MuJoCo's soft trajectories are judged against the rigid limit (crosscheck.checks.trajectory.soft,
 SOFT_LIMIT_*): its runs at solref tc and tc/2 extrapolated to tc -> 0 agree with the reference
 within the extrapolation's own bound, and a 1 % mass error, which the soft effect used to hide
 (state error 2.8e-4 under a one-size tolerance of 5e-2), fails there."""
@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import json
 
+from crosscheck.checks.trajectory.check import trajectory_records
 from crosscheck.cli import main
 from crosscheck.engines.mujoco.adapter import MujocoAdapter
-from crosscheck.trajectory import trajectory_records
 from reference import models
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 
 def _mujoco_trajectory(records):

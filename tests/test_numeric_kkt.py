@@ -1,8 +1,8 @@
 """The numeric KKT path for large models (issue 11 item 9): the IFToMM A02 N-four-bar.
 
 Past codegen.UNROLL_KKT_MAX rows the reference does not unroll its KKT solve; it solves the
-generated M, A, f, b per state with reference.redundant. Checked against MuJoCo's rigid answer
-(crosscheck.engines.mujoco.mjcf_rigid) at TOL_MJCF of tests/test_user_models.py: 1e-9
+generated M, A, f, b per state with reference.numeric.redundant. Checked against MuJoCo's rigid
+answer (crosscheck.engines.mujoco.mjcf_rigid) at TOL_MJCF of tests/test_user_models.py: 1e-9
 relative, the issue's bar (measured: 6e-15 at these states for N = 5, printed by
 `python -m crosscheck.engines.mujoco.mjcf_rigid FILE`; 1.9e-14 at the parallelogram states of
 docs/scaling.md).
@@ -14,9 +14,10 @@ import sys
 from pathlib import Path
 
 from crosscheck.engines.mujoco.mjcf_rigid import agreement
-from reference import codegen, models
-from reference.mjcf import import_mjcf
-from reference.numeric import NumericModel
+from reference import models
+from reference.backends import codegen
+from reference.mjcf.loader import import_mjcf
+from reference.numeric.model import NumericModel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples" / "a02"))
 from nfourbar import mjcf

@@ -42,7 +42,7 @@ import pytest
 from crosscheck.engines.mujoco.adapter import MJCF_DIR, MujocoAdapter, mjcf
 from crosscheck.engines.pinocchio.adapter import PROX_REDUNDANT, PinocchioAdapter
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric.model import NumericModel
 
 TOL_SAME_FILE = 1e-11
 TOL_RIGID = 1e-9

@@ -19,7 +19,7 @@ import scipy.linalg
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from crosscheck.sampling import draw_instance
+from crosscheck.checks.sampling import draw_instance
 from reference import NumericModel, models
 from reference.constraints import is_rheonomic
 from reference.errors import SingularSystemError
@@ -46,8 +46,8 @@ def _numeric(name, formulation=None):
 
 
 def _instance(name, formulation, seed):
-    """The sweeps' seeded draw (crosscheck.sampling): tests/test_sweep.py checks a sweep sample
-    is this instance, so a worst case it reports can be replayed here."""
+    """The sweeps' seeded draw (crosscheck.checks.sampling): tests/test_sweep.py checks a sweep
+    sample is this instance, so a worst case it reports can be replayed here."""
     nm, t, q, u = draw_instance(_numeric(name, formulation), np.random.default_rng(seed))
     return nm, q, u, t
 

@@ -338,7 +338,7 @@ def test_junit_has_one_case_per_record_with_reasons(full_report):
 
 
 def test_report_is_deterministic(full_report):
-    from crosscheck.report import generate
+    from crosscheck.commands.report import generate
 
     site, root = full_report["dir"], full_report["root"]
     before = {p.name: p.read_bytes() for p in site.iterdir()}
@@ -525,7 +525,7 @@ def _details_open(html: str) -> dict[str, bool]:
 def test_long_pages_fold_passing_models_and_never_a_failing_one(runs, tmp_path):
     """More than UNFOLDED_MODELS models: a passing model's section is folded to its summary
     line (name, verdict), a model with a failing check stays open."""
-    from crosscheck.report_html import UNFOLDED_MODELS
+    from crosscheck.report.html import UNFOLDED_MODELS
 
     faulty = json.loads(runs["faulty"].read_text())
     clean = json.loads(runs["clean"].read_text())["records"]
@@ -540,9 +540,9 @@ def test_long_pages_fold_passing_models_and_never_a_failing_one(runs, tmp_path):
 
 
 def test_trajectory_caption_names_only_the_panels_drawn_and_the_balance_where_not_conserved():
-    from crosscheck import plots
-    from crosscheck.report_content import energy_heading
-    from crosscheck.report_html import _trajectory_caption
+    from crosscheck.report import plots
+    from crosscheck.report.content import energy_heading
+    from crosscheck.report.html import _trajectory_caption
 
     ss = synthetic_series("pendulum_angle")
     for s in ss:
@@ -564,8 +564,8 @@ def test_trajectory_caption_names_only_the_panels_drawn_and_the_balance_where_no
 
 def test_series_energy_error_is_the_records_definition():
     """The report's energy column and the records use one definition (comparison.py)."""
-    from crosscheck.comparison import energy_drift, work_energy_balance
-    from crosscheck.report_content import series_stats
+    from crosscheck.checks.instantaneous import energy_drift, work_energy_balance
+    from crosscheck.report.content import series_stats
 
     s = synthetic_series("slider_crank")[1]
     assert series_stats(s)["energy"] == energy_drift(s["energy"])

@@ -1,5 +1,5 @@
 """`crosscheck run` starts its workers' server before it imports the models and engines
-(crosscheck/run_command.py start_workers_early): only where the run will hand models to
+(crosscheck/commands/run.py start_workers_early): only where the run will hand models to
 workers, and from a module that stays light."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import pytest
 PROBE = """
 import sys
 from multiprocessing import forkserver
-from crosscheck.run_command import start_workers_early
+from crosscheck.commands.run import start_workers_early
 start_workers_early(sys.argv[1:])
 print(forkserver._forkserver._forkserver_pid is not None)
 """
@@ -64,8 +64,8 @@ def test_the_command_module_imports_no_numerics():
     """What the command line imports before the early start: sympy and numpy (1.2 s with the
     models) would delay the server by as much."""
     code = (
-        "import sys, crosscheck.cli, crosscheck.run_command; "
-        "print(sorted(m for m in ('numpy', 'sympy', 'scipy', 'reference.numeric') "
+        "import sys, crosscheck.cli, crosscheck.commands.run; "
+        "print(sorted(m for m in ('numpy', 'sympy', 'scipy', 'reference.numeric.model') "
         "if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -75,15 +75,16 @@ def test_the_command_module_imports_no_numerics():
 def test_resolving_the_engines_leaves_scipy_integrate_to_the_workers():
     """The command line imports the adapters of the engines it checks the names of; the
     trajectories' scipy.integrate (a second of imports) loads in the workers' server."""
-    from crosscheck.run_jobs import WORKER_MODULES
+    from crosscheck.run.jobs import WORKER_MODULES
 
     code = (
-        "import sys; from crosscheck.arguments import resolve_engines; resolve_engines(None); "
+        "import sys; from crosscheck.commands.arguments import resolve_engines; "
+        "resolve_engines(None); "
         "print('scipy.integrate' in sys.modules)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
-    assert "crosscheck.trajectory" in WORKER_MODULES
+    assert "crosscheck.checks.trajectory.check" in WORKER_MODULES
 
 
 def _servers_with(marker: str) -> list[int]:

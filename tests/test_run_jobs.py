@@ -1,4 +1,4 @@
-"""`crosscheck run --jobs N` (crosscheck/run_jobs.py): the models on worker processes give the
+"""`crosscheck run --jobs N` (crosscheck/run/jobs.py): the models on worker processes give the
 serial run's results record for record; bad input, a worker's bug and a dying worker keep
 their meaning; an interrupt leaves no worker behind."""
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from crosscheck.cli import main
-from crosscheck.run_jobs import ModelJob, WorkerError, run_models
+from crosscheck.run.jobs import ModelJob, WorkerError, run_models
 from reference.errors import ModelInputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -230,7 +230,7 @@ def test_models_go_out_longest_first_and_their_times_are_kept(tmp_path, monkeypa
     """With one worker the models complete in the order they were handed out: the longer
     one by the times on file first; the results still come back in the models' order, and
     the run's own times replace those on file (another setting's entry is kept)."""
-    from crosscheck import run_order
+    from crosscheck.run import order as run_order
 
     monkeypatch.setattr(run_order, "_path", lambda: tmp_path / run_order.FILE)
     jobs = [_job("pendulum_angle"), _job("pendulum_xy")]

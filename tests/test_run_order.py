@@ -1,11 +1,11 @@
-"""The hand-out order of `crosscheck run --jobs N` (crosscheck/run_order.py): models without a
+"""The hand-out order of `crosscheck run --jobs N` (crosscheck/run/order.py): models without a
 time first, then the longest; the times file survives damage and keeps other settings."""
 
 from __future__ import annotations
 
 import pytest
 
-from crosscheck import run_order
+from crosscheck.run import order as run_order
 
 
 @pytest.fixture

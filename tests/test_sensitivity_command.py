@@ -9,7 +9,7 @@ import json
 import pytest
 
 from crosscheck.cli import main
-from crosscheck.sensitivity_command import DEFAULT_MODELS, engine_thresholds
+from crosscheck.commands.sensitivity import DEFAULT_MODELS, engine_thresholds
 from reference import models
 
 CAUGHT_BY = 1e-8  # the bar: an error of 1e-8 in any used parameter must fail a record
@@ -78,7 +78,7 @@ def test_report_marks_a_parameter_caught_by_a_trajectory(tmp_path):
     import html
     from types import SimpleNamespace
 
-    from crosscheck import report_sensitivity
+    from crosscheck.report.sections import sensitivity as report_sensitivity
 
     out = str(tmp_path)
     args = ["sensitivity", "pendulum_xy", "--engines", "opensim", "--states", "1", "--out", out]

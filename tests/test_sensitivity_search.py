@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from crosscheck.sensitivity import DECADES, search, threshold
+from crosscheck.checks.sensitivity import DECADES, search, threshold
 
 
 @pytest.mark.parametrize("true_k", list(DECADES))

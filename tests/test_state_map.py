@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from crosscheck.comparison import build, whole_turns_removed
+from crosscheck.checks.instantaneous import build, whole_turns_removed
 from crosscheck.engines.registry import available_engines, get_engine
 from reference import NumericModel, models
 

@@ -1,5 +1,5 @@
-"""Stress scenes (crosscheck.stress) end flagged or within tolerance, never failed or hung; the
-work-precision records carry every field the benchmark promises. The full-length scenes and the
+"""Stress scenes (crosscheck.bench.stress) end flagged or within tolerance, never failed or hung;
+the work-precision records carry every field the benchmark promises. The full-length scenes and the
 whole `crosscheck bench --quick` are marked slow."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from crosscheck import stress, targets, workprecision
+from crosscheck.bench import stress, targets, workprecision
 
 
 def _statuses(rec):
@@ -153,7 +153,7 @@ def test_an_engine_refusal_is_a_listed_skip_and_a_broken_build_a_failure():
     broken = get_engine("mujoco", solref=("x", 1.0))
     em, (rec,) = workprecision._engine_model(broken, "slider_crank", nm, row)
     assert em is None and "skipped" not in rec and "ValueError" in rec["failed"], rec
-    from crosscheck.bench import failed_checks
+    from crosscheck.commands.bench import failed_checks
 
     assert failed_checks({"work_precision": [rec], "stress": []})  # the bench exits 1
 
@@ -274,7 +274,7 @@ def test_bench_quick_writes_every_section(tmp_path):
 
 
 def test_kkt_saving_compares_one_model_with_and_without_its_rows():
-    from crosscheck import skip_savings
+    from crosscheck.bench import skip_savings
     from reference import NumericModel, models
 
     model = models.get("pendulum_xy")

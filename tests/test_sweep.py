@@ -21,9 +21,9 @@ import shlex
 import numpy as np
 import pytest
 
-from crosscheck import sweep as S
+from crosscheck.checks.sampling import draw_sample, sample_seed, with_params
 from crosscheck.cli import main
-from crosscheck.sampling import draw_sample, sample_seed, with_params
+from crosscheck.commands import sweep as S
 from reference import NumericModel, models
 
 DETERMINISTIC = ("status", "series", "results", "faults")
@@ -124,7 +124,7 @@ def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
     """A sweep sample's values (compare_at_state) = run's records (engine_records) on that
     single state (these models are scleronomic, so run's t = 0 and the sample's t give the
     same numbers), each against the same tolerance."""
-    from crosscheck.comparison import (
+    from crosscheck.checks.instantaneous import (
         build,
         compare_at_state,
         engine_records,
@@ -303,7 +303,8 @@ def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monk
             raise OffManifoldError("projection did not converge (injected)")
         return real_draw(base, seed, index)
 
-    from crosscheck import sweep_campaign, sweep_worker
+    from crosscheck.sweep import campaign as sweep_campaign
+    from crosscheck.sweep import worker as sweep_worker
 
     for mod in (S, sweep_worker, sweep_campaign):  # the worker draws and builds; the plan builds
         monkeypatch.setattr(mod, "_adapter", adapter)
@@ -345,7 +346,7 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
     """A parameter set MuJoCo refuses at compile time (here Example 4's link 1 given
     I_33 > I_11 + I_22, against the triangle inequality) is a recorded build fault with
     MuJoCo's message; the campaign completes and does not pass."""
-    import crosscheck.sampling as sampling
+    import crosscheck.checks.sampling as sampling
 
     draw = sampling.random_params
 

@@ -10,10 +10,10 @@ import signal
 
 import pytest
 
-from crosscheck import sweep as S
 from crosscheck.cli import main
-from crosscheck.output import TMP_PREFIX
-from crosscheck.sweep_store import STORE, ChunkStore
+from crosscheck.commands import sweep as S
+from crosscheck.runtime.output import TMP_PREFIX
+from crosscheck.sweep.store import STORE, ChunkStore
 
 from .test_sweep import _same
 

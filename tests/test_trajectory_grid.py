@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from crosscheck.checks.trajectory.check import FIXED_STEPS, N_OUT, output_grid, step_ladder
 from crosscheck.cli import main
-from crosscheck.trajectory import FIXED_STEPS, N_OUT, output_grid, step_ladder
 
 
 @pytest.mark.parametrize("t_end", [5.0, 1.0, 0.13, 0.1, 0.01, 0.1234, 1.009, 1e-3, 1e-9, 999.9])

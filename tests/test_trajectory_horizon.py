@@ -9,14 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from crosscheck.cli import main
-from crosscheck.trajectory_horizon import (
+from crosscheck.checks.trajectory.horizon import (
     HORIZON_MARGIN,
     HORIZON_QUANTUM,
     crossed,
     horizon_before,
     singular_time,
 )
+from crosscheck.cli import main
 from reference.errors import ModelInputError, SingularSystemError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "examples" / "a02"))

@@ -9,12 +9,12 @@ import dataclasses
 
 import pytest
 
-from crosscheck import trajectory as T
+from crosscheck.checks.trajectory import check as T
 from crosscheck.engines.base import Capabilities
-from crosscheck.engines.pinocchio.machinery import INTEGRATORS, PinEngineModel, ivp_method
+from crosscheck.engines.pinocchio.engine_model import INTEGRATORS, PinEngineModel, ivp_method
 from crosscheck.engines.registry import get_engine
 from reference import NumericModel, models
-from reference.integrate_rk import LeanDOP853
+from reference.integrate.rk import LeanDOP853
 
 
 def _state_records_and_rtols(monkeypatch, adapter):

@@ -31,7 +31,6 @@ from crosscheck.user_models import (
     load_all,
     load_model_file,
 )
-from reference import redundant
 from reference.errors import (
     InconsistentConstraintError,
     ModelFileError,
@@ -39,9 +38,10 @@ from reference.errors import (
     RedundantConstraintError,
     UnsupportedModelError,
 )
-from reference.mjcf import import_mjcf, qvel_from_rates, rates_from_qvel
+from reference.mjcf.loader import import_mjcf, qvel_from_rates, rates_from_qvel
 from reference.models import get
-from reference.numeric import NumericModel
+from reference.numeric import redundant
+from reference.numeric.model import NumericModel
 
 DATA = Path(__file__).with_name("data")
 TOL_MJCF = 1e-9
@@ -395,7 +395,7 @@ def test_fourbar_trajectory_with_dependent_rows():
     nullspace method, which needs independent rows, says so. Measured over 2 s (projection):
     residuals 7e-16 / 3e-15, energy drift 5e-9 at rtol 1e-8 (the run's tolerances)."""
     from reference.errors import ModelInputError
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     imp, nm = imported("fourbar_connect"), numeric("fourbar_connect", "kane")
     tr = simulate(nm, imp.model.initial_q, imp.model.initial_u, 2.0, method="projection")
@@ -410,7 +410,7 @@ def test_fourbar_trajectory_with_dependent_rows():
 def test_contact_pairs_are_the_ones_mujoco_collides(flags):
     """Every geom overlaps every other, so MuJoCo's contacts are exactly the pairs its broad
     phase keeps: contype/conaffinity, same weld body, parent filter, <exclude>."""
-    from reference.mjcf_checks import _contact_pairs
+    from reference.mjcf.checks import _contact_pairs
 
     xml = f"""<mujoco>{flags}<worldbody><geom name="w" size="1"/>
       <body name="a"><joint/><geom name="ga" size="1"/>

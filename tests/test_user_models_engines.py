@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from crosscheck.comparison import engine_records
+from crosscheck.checks.instantaneous import engine_records
 from crosscheck.engines.registry import get_engine
-from crosscheck.run import consistent_states
+from crosscheck.run.checks import consistent_states
 from crosscheck.user_models import load_model_file, register_all
 from reference import NumericModel, models
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crosscheck.sampling import physical, random_params
+from crosscheck.checks.sampling import physical, random_params
 from reference import models
 
 
@@ -30,7 +30,7 @@ def test_sampler_draws_inertias_apart_and_physical(name):
 def test_run_checks_the_generic_parameter_set_as_records_of_their_own():
     """`run` repeats the instantaneous checks at reference.generic's parameter set, under
     check names of their own (the gate sees them as new records, not as changed ones)."""
-    from crosscheck.run import generic_model, run
+    from crosscheck.run.checks import generic_model, run
 
     records, _ = run(["pendulum_xy"], ["pinocchio"], n_states=2, trajectories=False)
     checks = {r["check"] for r in records if r["engine"] == "pinocchio"}
@@ -75,9 +75,9 @@ def test_perturbation_changes_the_physics_not_the_maps(engine, name, param):
     """With the nominal values given, a perturbed engine model maps states and multipliers
     exactly as the nominal one does (every variant: the free-body double pendulum's state map
     reads l1, the slider-crank's multiplier map m3 g), and its fingerprint differs."""
-    from crosscheck.comparison import build
+    from crosscheck.checks.instantaneous import build
     from crosscheck.engines.registry import get_engine
-    from crosscheck.run import consistent_states
+    from crosscheck.run.checks import consistent_states
     from reference import NumericModel
 
     adapter = get_engine(engine)
@@ -108,11 +108,11 @@ def test_reference_drift_is_held_to_the_projection_guarantee():
     """The reference's drift records carry the projection's own bounds, so a run without
     stabilization fails them: the same model integrated without projection (index1) exceeds
     both, with projection it stays inside."""
-    from crosscheck.trajectory import REF_RTOL, output_grid
-    from crosscheck.trajectory_measures import residual_series
-    from crosscheck.trajectory_tolerances import projected_drift, projected_velocity_drift
+    from crosscheck.checks.trajectory.check import REF_RTOL, output_grid
+    from crosscheck.checks.trajectory.measures import residual_series
+    from crosscheck.checks.trajectory.tolerances import projected_drift, projected_velocity_drift
     from reference import NumericModel
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     nm = NumericModel(models.get("pendulum_xy"))
     q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
@@ -129,9 +129,9 @@ def test_projection_runs_after_every_accepted_step():
     recorded state lies on the manifold and `crosscheck run pendulum_xy slider_crank` passes
     (reference state error 9.5e-12 and 3.2e-12, drift 5.8e-15 and 5.6e-15 over 5 s,
     docs/validation_power.md); the integrator's own count of projections shows it."""
-    from crosscheck.trajectory import REF_RTOL
+    from crosscheck.checks.trajectory.check import REF_RTOL
     from reference import NumericModel
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     nm = NumericModel(models.get("slider_crank"))
     q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
@@ -142,9 +142,9 @@ def test_projection_runs_after_every_accepted_step():
 def test_failed_integration_is_a_failed_record_and_the_run_goes_on(monkeypatch):
     """A reference run that raises (here: a step-size underflow) gives a failed record with the
     reason, the engines' trajectory records are skipped with why, and nothing is raised."""
-    import crosscheck.trajectory as T
+    import crosscheck.checks.trajectory.check as T
     from reference import NumericModel
-    from reference.integrate import IntegrationError
+    from reference.integrate.driver import IntegrationError
 
     def underflow(*a, **k):
         raise IntegrationError("pendulum_xy: step size underflow at t = 0.31")

@@ -25,7 +25,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from crosscheck.compare import EXACT_KKT, Tolerance
+from crosscheck.checks.tolerances import EXACT_KKT, Tolerance
 
 __all__ = [
     "Capabilities",
@@ -65,7 +65,7 @@ class Capabilities:
     adaptive_integrators: the subset of ``integrators`` that control their error (they take
         ``rtol``); the others take a fixed ``timestep``.
     reference_integrators: the subset of ``adaptive_integrators`` that are the reference's
-        own stepper (reference.integrate_rk.LeanDOP853, driven by solve_ivp): their error per
+        own stepper (reference.integrate.rk.LeanDOP853, driven by solve_ivp): their error per
         rtol is the reference's, which the trajectory check measures in the run, so it does
         not integrate the engine a second time to estimate it.
     variants: some models have several engine models (``EngineAdapter.variants``).
@@ -248,9 +248,9 @@ class EngineModel(ABC):
         return lambda: self.forward(q, u)
 
     # the parameter values the adapter's maps (state, acceleration and multiplier maps, raw
-    # figures) read: the nominal (unperturbed) set, given by crosscheck.comparison.build, so
-    # that a perturbation (crosscheck.perturb) changes only the engine's physics; None: the
-    # build's own values
+    # figures) read: the nominal (unperturbed) set, given by crosscheck.checks.instantaneous.build,
+    # so that a perturbation (crosscheck.checks.perturb) changes only the engine's physics; None:
+    # the build's own values
     nominal: dict[str, float] | None = None
 
     @property
@@ -318,7 +318,7 @@ ModelTable = dict[str, Any]
 def resolve_params(model_name: str, params: dict | None) -> dict[str, float]:
     """The reference model's parameter values (defaults filled in, names and signs checked)."""
     from reference.models import get
-    from reference.numeric import resolve_parameters
+    from reference.numeric.model import resolve_parameters
 
     return resolve_parameters(get(model_name), params)
 

@@ -1,6 +1,6 @@
 """The engines' entry points, read from the installed packages' metadata without importing any
 engine (standard library only): what the workers' server preloads is known before this
-process has imported numpy (crosscheck/workers.py)."""
+process has imported numpy (crosscheck/runtime/workers.py)."""
 
 from __future__ import annotations
 

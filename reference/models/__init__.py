@@ -38,7 +38,7 @@ def names() -> list[str]:
 def register(model, origin: str, source=None) -> None:
     """Make a user's Model available to `get` under its name (a built-in name is refused).
     `source`: what the engines may need beside the Model (an MJCF import: the compiled MuJoCo
-    model and the state maps, reference.mjcf.MjcfImport)."""
+    model and the state maps, reference.mjcf.loader.MjcfImport)."""
     if model.name in _FACTORIES:
         raise ModelInputError(
             f"model name {model.name!r} ({origin}) is a built-in model's name; rename it"

@@ -25,8 +25,9 @@ eps . eps' = 0 (the fourth row of its kinematical differential equations).
   (m x'' = lambda - m g N3). lambda4 is again formulation-dependent: with d'Alembert (and
   Kane) eps times the Euler-parameter rows gives lambda4 = 2 x . (lambda1, lambda2, lambda3).
 
-M is singular in the Euler parameters (4 E^T I_O E has rank 3); reference.codegen solves with
-M + rho A^T A, which leaves the solution unchanged because M is definite on the null space of A.
+M is singular in the Euler parameters (4 E^T I_O E has rank 3); reference.backends.codegen solves
+with M + rho A^T A, which leaves the solution unchanged because M is definite on the null space of
+A.
 
 Default top: m = 0.5 kg, L = 0.05 m, I = 2.5e-4 kg m^2, I3 = 4e-4 kg m^2 (a disk-like top of
 radius ~4 cm), spun at 60 rad/s about e3 with its axis tilted ~0.5 rad from the vertical.

@@ -9,9 +9,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from crosscheck.engines.exudyn import items
-from crosscheck.engines.exudyn.base import ExudynModel
 from exudyn.itemInterface import (
     LoadCoordinate,
     MarkerBodyRigid,
@@ -20,6 +17,9 @@ from exudyn.itemInterface import (
     ObjectConnectorCoordinateSpringDamper,
     ObjectJointPrismatic2D,
 )
+
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.engine_model import ExudynModel
 
 __all__ = ["Exercise61", "Exercise62", "Exercise64"]
 
@@ -239,12 +239,13 @@ class Exercise64(ExudynModel):
     nq_ref = n_ref = 4
 
     def _build(self):
-        from crosscheck.engines.exudyn.spatial import _rigid_body_ep
         from exudyn.itemInterface import (
             LoadTorqueVector,
             ObjectConnectorTorsionalSpringDamper,
             ObjectJointRevoluteZ,
         )
+
+        from crosscheck.engines.exudyn.spatial import _rigid_body_ep
 
         p = self.params
         self.gravity = (0.0, 0.0, -p["g"])

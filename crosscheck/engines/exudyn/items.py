@@ -3,9 +3,8 @@ coordinates, so every ODE2 coordinate is an absolute position or angle)."""
 
 from __future__ import annotations
 
-import numpy as np
-
 import exudyn as exu
+import numpy as np
 from exudyn.itemInterface import (
     LoadMassProportional,
     MarkerBodyMass,

@@ -5,7 +5,7 @@ the adapter's tolerances quote.
     PYTHONPATH=$PWD python -m crosscheck.engines.exudyn.measure --trajectories [MODEL ...]
 
 For every model (default: all the adapter builds), N instances drawn as the sweeps draw them
-(crosscheck.sampling: random parameters, a random time, a random consistent state): the worst
+(crosscheck.checks.sampling: random parameters, a random time, a random consistent state): the worst
 scaled error (max |x - x_ref| / max(max |x_ref|, 1)) of the accelerations and multipliers of
 forward() (the extrapolated answer) and of Exudyn's plain answer (default relativeEpsilon
 1e-7), and the median wall time per state of the engine call alone: the three InitializeSolver
@@ -25,8 +25,8 @@ import warnings
 
 import numpy as np
 
+from crosscheck.checks.sampling import random_consistent_state, random_params
 from crosscheck.engines.exudyn.adapter import ExudynAdapter
-from crosscheck.sampling import random_consistent_state, random_params
 
 
 def _scaled(value, ref) -> float:
@@ -48,7 +48,7 @@ def _median_us(call, repeat: int = 20) -> float:
 
 def measure(name: str, samples: int, seed: int) -> dict:
     from reference.models import get
-    from reference.numeric import NumericModel
+    from reference.numeric.model import NumericModel
 
     adapter = ExudynAdapter()
     model = get(name)
@@ -83,9 +83,9 @@ def measure(name: str, samples: int, seed: int) -> dict:
 
 def trajectories(name: str) -> None:
     from crosscheck.engines.exudyn.trajectory import ExudynIntegrationError
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
     from reference.models import get
-    from reference.numeric import NumericModel
+    from reference.numeric.model import NumericModel
 
     model = get(name)
     t_eval = np.linspace(0.0, 1.0, 11)

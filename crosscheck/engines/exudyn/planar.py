@@ -11,15 +11,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from crosscheck.engines.exudyn import items
-from crosscheck.engines.exudyn.base import ExudynModel
 from exudyn.itemInterface import (
     LoadTorqueVector,
     MarkerBodyRigid,
     ObjectConnectorCoordinate,
     ObjectConnectorDistance,
 )
+
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.engine_model import ExudynModel
 
 __all__ = ["PendulumAngle", "PendulumXY", "SliderCrank", "SliderCrankFree", "SliderCrankSplit"]
 

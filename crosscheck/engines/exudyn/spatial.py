@@ -17,16 +17,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from crosscheck.engines.exudyn import items
-from crosscheck.engines.exudyn.base import ExudynModel
-from crosscheck.engines.kinematics import R313, angles313
 from exudyn.itemInterface import NodeRigidBodyEP, ObjectJointSpherical, ObjectRigidBody
 from exudyn.rigidBodyUtilities import (
     EulerParameters2GLocal,
     EulerParameters2RotationMatrix,
     RotationMatrix2EulerParameters,
 )
+
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.engine_model import ExudynModel
+from crosscheck.engines.kinematics import R313, angles313
 
 __all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
 

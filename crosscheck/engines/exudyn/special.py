@@ -25,9 +25,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from crosscheck.engines.exudyn import items
-from crosscheck.engines.exudyn.base import ExudynModel
 from exudyn.itemInterface import (
     LoadForceVector,
     LoadTorqueVector,
@@ -40,6 +37,9 @@ from exudyn.itemInterface import (
     ObjectConnectorDistance,
     ObjectMass1D,
 )
+
+from crosscheck.engines.exudyn import items
+from crosscheck.engines.exudyn.engine_model import ExudynModel
 
 __all__ = ["KnifeEdge", "MovingSupport"]
 

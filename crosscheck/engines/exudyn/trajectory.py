@@ -14,11 +14,11 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
-import numpy as np
-
 import exudyn as exu
-from crosscheck.engines.base import EngineTrajectory, EngineUnsupported
+import numpy as np
 from exudyn.itemInterface import SensorNode
+
+from crosscheck.engines.base import EngineTrajectory, EngineUnsupported
 
 # Exudyn's own integrators for simulate() (the first is the one `crosscheck run` uses)
 INTEGRATORS = {

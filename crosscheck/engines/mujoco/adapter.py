@@ -84,7 +84,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crosscheck.compare import Tolerance
+from crosscheck.checks.tolerances import Tolerance
 from crosscheck.engines.base import (
     Capabilities,
     EngineUnsupported,
@@ -95,8 +95,7 @@ from crosscheck.engines.base import (
     single_variant,
     table_variants,
 )
-from crosscheck.engines.mujoco.exercises import Exercise61, Exercise62, Exercise64
-from crosscheck.engines.mujoco.machinery import (
+from crosscheck.engines.mujoco.engine_model import (
     INTEGRATORS,
     LIGHT,
     MJCF_DIR,
@@ -105,6 +104,7 @@ from crosscheck.engines.mujoco.machinery import (
     SOLIMP,
     SOLREF,
 )
+from crosscheck.engines.mujoco.exercises import Exercise61, Exercise62, Exercise64
 from crosscheck.engines.mujoco.planar import (
     FrameBar,
     PendulumAngle,
@@ -256,7 +256,7 @@ def agreement(n_states: int = 25, seed: int = 0, models=None) -> list[dict]:
     relative (per state: max|err| / max(max|ref|, the same quantity at the initial state)),
     energy, and the mean time of one forward() call (mj_forward + recovery + maps)."""
     from reference.models import get
-    from reference.numeric import NumericModel
+    from reference.numeric.model import NumericModel
 
     def mx(x):
         x = np.asarray(x, float)

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
-import mujoco
-from crosscheck.engines.mujoco.machinery import LIGHT, MjEngineModel, document, lamina, num, vec
+from crosscheck.engines.mujoco.engine_model import LIGHT, MjEngineModel, document, lamina, num, vec
 
 _SQRT_HALF = math.sqrt(0.5)
 

@@ -12,18 +12,18 @@ with M from mj_fullM (armature included), qfrc_smooth = passive - bias + applied
 anchors MuJoCo itself uses (engine_core_constraint.c): connect p1 - p2, weld p1 - p2 and
 omega1 - omega2 (the weld's quaternion rows span the same space on the manifold), joint
 q1 - poly(q2) with Jdot v = -poly''(q2) v2^2. Dependent rows are solved as in
-reference.redundant (unique qacc, minimum-norm lambda).
+reference.numeric.redundant (unique qacc, minimum-norm lambda).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
-import mujoco
-from reference import redundant
-from reference.mjcf_checks import disabled
+from reference.mjcf.checks import disabled
+from reference.numeric import redundant
 
 EQ = mujoco.mjtEq
 
@@ -121,8 +121,8 @@ def rigid_forward(m, qpos, qvel, *, applied=None) -> RigidForward:
 def sample_states(imp, count: int, seed: int = 7):
     """The import's initial state in MuJoCo's (qpos, qvel), then `count` seeded random states
     (qpos0 moved by N(0, 0.5^2) per dof, qvel ~ N(0, 1)) projected onto the manifold."""
-    from reference.mjcf import qvel_from_rates
-    from reference.mjcf_checks import project_state
+    from reference.mjcf.checks import project_state
+    from reference.mjcf.loader import qvel_from_rates
 
     m = imp.mj
     q0 = np.array(imp.model.initial_q)
@@ -137,7 +137,7 @@ def sample_states(imp, count: int, seed: int = 7):
 def agreement(imp, nm, count: int = 4, seed: int = 7) -> list[dict]:
     """Per state: the reference's u' mapped to qacc against MuJoCo's rigid qacc (relative to
     max(1, |qacc|)), MuJoCo's soft qacc against its rigid one, and both ranks."""
-    from reference.mjcf import qvel_from_rates, rates_from_qvel
+    from reference.mjcf.loader import qvel_from_rates, rates_from_qvel
 
     rows = []
     for qpos, qvel in sample_states(imp, count, seed):
@@ -165,8 +165,8 @@ def main(argv=None) -> int:
     import argparse
     import time
 
-    from reference.mjcf import import_mjcf
-    from reference.numeric import NumericModel
+    from reference.mjcf.loader import import_mjcf
+    from reference.numeric.model import NumericModel
 
     ap = argparse.ArgumentParser(
         prog="python -m crosscheck.engines.mujoco.mjcf_rigid",

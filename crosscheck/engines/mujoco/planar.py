@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
-import mujoco
 from crosscheck.engines.kinematics import IdentityMaps, frame_bar_from_engine, frame_bar_to_engine
-from crosscheck.engines.mujoco.machinery import LIGHT, MjEngineModel, document, lamina, num, vec
+from crosscheck.engines.mujoco.engine_model import LIGHT, MjEngineModel, document, lamina, num, vec
 
 
 def _xml_pendulum_angle(p, **kw) -> str:

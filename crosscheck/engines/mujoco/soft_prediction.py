@@ -25,9 +25,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
-import mujoco
 from crosscheck.engines.base import EngineUnsupported
 
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import mujoco
 import numpy as np
 
-import mujoco
 from crosscheck.engines.base import EngineUnsupported
 from crosscheck.engines.mujoco.soft_prediction import documented_R, predict
 

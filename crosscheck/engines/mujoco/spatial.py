@@ -3,11 +3,11 @@ and the symmetric top with Euler parameters (Exercises 6.5-6.7)."""
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
-import mujoco
 from crosscheck.engines.kinematics import R313, E, angles313, eps_ddot
-from crosscheck.engines.mujoco.machinery import (
+from crosscheck.engines.mujoco.engine_model import (
     MjEngineModel,
     R_to_quat,
     document,

@@ -1,9 +1,9 @@
 """MuJoCo's model of a user's MJCF file: the file as MuJoCo compiles it (issue 11 item 3).
 
-The reference model of an MJCF file (reference.mjcf) is written in the file's own joint
+The reference model of an MJCF file (reference.mjcf.loader) is written in the file's own joint
 coordinates, qpos in MuJoCo's order, so the state maps are the identity on positions; the
 speeds are the coordinate rates, which equal MuJoCo's qvel on hinges and slides and map to the
-local angular velocity on ball and free joints (reference.mjcf.rates_from_qvel /
+local angular velocity on ball and free joints (reference.mjcf.loader.rates_from_qvel /
 qvel_from_rates). The answer is MuJoCo's own soft one from mj_forward, with the rigid answer
 recovered from it and the impedance prediction, exactly as for the built-in models
 (machinery.MjEngineModel.forward). The file's physics is not touched (solref, solimp, timestep,
@@ -15,18 +15,18 @@ Multipliers: the reference's rows are MuJoCo's equality rows in MuJoCo's order (
 weld 6, joint 1). Where the rows are dependent (a planar loop closed by a 3-D connect) only the
 generalized constraint force J^T f is unique; the engine's forces are then reported as the
 minimum-norm multipliers with the same J^T f (pinv(J^T) J^T f, the reference's convention,
-reference.redundant), so comparing them compares J^T f. A file with ball or free joints has
+reference.numeric.redundant), so comparing them compares J^T f. A file with ball or free joints has
 quaternion norm rows whose multipliers depend on the formulation and have no MuJoCo
 counterpart: its multipliers are not compared (accelerations are).
 """
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
-import mujoco
 from crosscheck.engines.base import EngineUnsupported
-from crosscheck.engines.mujoco.machinery import SOLIMP, SOLREF, MjEngineModel
+from crosscheck.engines.mujoco.engine_model import SOLIMP, SOLREF, MjEngineModel
 from crosscheck.engines.mujoco.soft_recovery import dense_efc_J
 
 JNT = mujoco.mjtJoint
@@ -121,13 +121,13 @@ class UserFileModel(MjEngineModel):
         return m
 
     def to_engine_state(self, q, u):
-        from reference.mjcf import qvel_from_rates
+        from reference.mjcf.loader import qvel_from_rates
 
         q = np.asarray(q, float)
         return q.copy(), qvel_from_rates(self.imp.joints, q, np.asarray(u, float), self.m.nv)
 
     def from_engine_state(self, qe, ve):
-        from reference.mjcf import rates_from_qvel
+        from reference.mjcf.loader import rates_from_qvel
 
         qe = np.asarray(qe, float)
         return qe.copy(), rates_from_qvel(self.imp.joints, qe, np.asarray(ve, float))

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from crosscheck.compare import EXACT_KKT, Tolerance
+from crosscheck.checks.tolerances import EXACT_KKT, Tolerance
 from crosscheck.engines.base import Capabilities, TableAdapter
-from crosscheck.engines.opensim.common import FIXED_STEP, INTEGRATORS, OsimModel
+from crosscheck.engines.opensim.engine_model import FIXED_STEP, INTEGRATORS, OsimModel
 from crosscheck.engines.opensim.exercises import Exercise61, Exercise62, Exercise64
 from crosscheck.engines.opensim.planar import (
     MovingSupport,

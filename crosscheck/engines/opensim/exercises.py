@@ -12,10 +12,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 import opensim as osim
+
 from crosscheck.engines.kinematics import IdentityMaps
-from crosscheck.engines.opensim.common import OsimModel, custom_joint, lamina, point_body, vec3
+from crosscheck.engines.opensim.engine_model import (
+    OsimModel,
+    custom_joint,
+    lamina,
+    point_body,
+    vec3,
+)
 
 __all__ = ["Exercise61", "Exercise62", "Exercise64"]
 

@@ -13,15 +13,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 import opensim as osim
+
 from crosscheck.engines.kinematics import (
     R313,
     angles313,
     frame_bar_from_engine,
     frame_bar_to_engine,
 )
-from crosscheck.engines.opensim.common import OsimModel, custom_joint, vec3
+from crosscheck.engines.opensim.engine_model import OsimModel, custom_joint, vec3
 from crosscheck.engines.opensim.exercises import _prescribed, reaction
 
 __all__ = ["DoublePendulum3D", "DoublePendulum3DFree", "FrameBar", "TopCartesian", "TopEuler"]

@@ -81,8 +81,8 @@ from crosscheck.engines.base import (
     resolve_params,
     single_variant,
 )
+from crosscheck.engines.pinocchio.engine_model import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
 from crosscheck.engines.pinocchio.exercises import Exercise61, Exercise62, Exercise64
-from crosscheck.engines.pinocchio.machinery import INTEGRATORS, PROX_EXACT, PROX_REDUNDANT
 from crosscheck.engines.pinocchio.planar import (
     FrameBar,
     KnifeEdge,
@@ -156,7 +156,7 @@ class PinocchioAdapter(TableAdapter):
     def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
         """A user's MJCF file: each record says which Pinocchio model answered, and one more
         record (reported, not judged) lists what pin's own MJCF parser lost."""
-        from crosscheck.compare import record
+        from crosscheck.checks.tolerances import record
         from crosscheck.engines.pinocchio.parser_findings import findings_isolated, summary
         from crosscheck.engines.pinocchio.user_file import BUILT_FROM
         from reference import models

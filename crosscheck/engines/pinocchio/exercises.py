@@ -6,9 +6,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 import pinocchio as pin
-from crosscheck.engines.pinocchio.machinery import PROX_REDUNDANT, PinEngineModel, at, lamina
+
+from crosscheck.engines.pinocchio.engine_model import PROX_REDUNDANT, PinEngineModel, at, lamina
 
 # ======================================================================================
 # Exercises 6.1, 6.2, 6.4 (geometry as assumed in the reference's docstrings)

@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 import pinocchio as pin
 
 SPHERICAL, FREE_FLYER = "JointModelSpherical", "JointModelFreeFlyer"
@@ -128,7 +127,7 @@ def right_hand_side(layout: JointLayout, accelerations):
     """F(t, y) = [q_e', v_e'] with v_e' = accelerations(q_e, v_e, t), the engine's forward call
     returning only the accelerations (an array it may own: it is copied here).
 
-    F.into(t, y, out) writes F(t, y) into `out`: LeanDOP853 (reference.integrate_rk) fills each
+    F.into(t, y, out) writes F(t, y) into `out`: LeanDOP853 (reference.integrate.rk) fills each
     stage's row of its stage matrix that way, with no fresh vector and no copy per call."""
     nq, size = layout.nq, layout.nq + layout.nv
 

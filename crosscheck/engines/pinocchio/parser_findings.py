@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-
 import pinocchio as pin
 
 # relative size of a difference in mass, inertia, axis or gravity that is a finding: the
@@ -255,6 +254,6 @@ if __name__ == "__main__":
     import json
     import sys
 
-    from reference.mjcf import compile_file
+    from reference.mjcf.loader import compile_file
 
     print(json.dumps(parser_findings(sys.argv[1], compile_file(sys.argv[1]))))

@@ -7,15 +7,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 import pinocchio as pin
+
 from crosscheck.engines.kinematics import (
     IdentityMaps,
     LinearMaps,
     frame_bar_from_engine,
     frame_bar_to_engine,
 )
-from crosscheck.engines.pinocchio.machinery import PROX_REDUNDANT, Y_UP, PinEngineModel, lamina
+from crosscheck.engines.pinocchio.engine_model import PROX_REDUNDANT, Y_UP, PinEngineModel, lamina
 
 
 class PendulumAngle(IdentityMaps, PinEngineModel):

@@ -4,10 +4,10 @@ top with Euler parameters (Exercises 6.5-6.7)."""
 from __future__ import annotations
 
 import numpy as np
-
 import pinocchio as pin
+
 from crosscheck.engines.kinematics import R313, E, angles313, eps_ddot, eps_rates
-from crosscheck.engines.pinocchio.machinery import (
+from crosscheck.engines.pinocchio.engine_model import (
     PROX_EXACT,
     PinEngineModel,
     R_to_quat,

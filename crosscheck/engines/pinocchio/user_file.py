@@ -16,11 +16,11 @@ MuJoCo's compiled numbers instead, element by element, and solved by Pinocchio's
 - equality rows from Pinocchio's kinematics: connect p1 - p2 at the compiled anchors (frame
   Jacobians, LOCAL_WORLD_ALIGNED; J-dot v the anchors' classical accelerations at a = 0), weld
   the same plus the rotation rows torquescale/2 R2^T (omega1 - omega2) (the reference's rows on
-  the manifold, reference.mjcf), joint q1 - poly(q2);
+  the manifold, reference.mjcf.loader), joint q1 - poly(q2);
 - the solve: pin.forwardDynamics(model, data, q, v, tau, J, gamma), Pinocchio's exact KKT, on
   an independent subset of the rows (pivoted QR of J^T; a planar loop closed by a 3-D connect
   has a dependent row that makes the Delassus matrix singular), the forces then expressed as
-  the minimum-norm multipliers of all rows with the same J^T lambda (reference.redundant).
+  the minimum-norm multipliers of all rows with the same J^T lambda (reference.numeric.redundant).
 
 State: Pinocchio's q is MuJoCo's qpos with hinge/slide offsets removed (q - qpos0: Pinocchio's
 joints are at zero in the compiled pose) and quaternions as (x, y, z, w); v is qvel (a free
@@ -33,9 +33,9 @@ import time
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 import scipy.linalg
 
-import pinocchio as pin
 from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory
 from crosscheck.engines.mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
 
@@ -97,7 +97,7 @@ def build_pin_model(m):
         name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}"
         model.addFrame(pin.Frame(name, joint, body_in_joint, pin.FrameType.BODY))
         place[b] = (joint, body_in_joint)
-    from reference.mjcf_checks import disabled
+    from reference.mjcf.checks import disabled
 
     model.gravity.linear = (
         np.zeros(3) if disabled(m, "mjDSBL_GRAVITY") else np.array(m.opt.gravity, float)
@@ -169,7 +169,7 @@ class UserFilePinModel(EngineModel):
         return qpos, qvel
 
     def to_engine_state(self, q, u):
-        from reference.mjcf import qvel_from_rates
+        from reference.mjcf.loader import qvel_from_rates
 
         q = np.asarray(q, float)
         return self._pin_state(
@@ -177,7 +177,7 @@ class UserFilePinModel(EngineModel):
         )
 
     def from_engine_state(self, qe, ve):
-        from reference.mjcf import rates_from_qvel
+        from reference.mjcf.loader import rates_from_qvel
 
         qpos, qvel = self._mj_state(qe, ve)
         return qpos, rates_from_qvel(self.imp.joints, qpos, qvel)
@@ -386,7 +386,7 @@ class UserFilePinModel(EngineModel):
         constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
         from scipy.integrate import solve_ivp
 
-        from crosscheck.engines.pinocchio.machinery import (
+        from crosscheck.engines.pinocchio.engine_model import (
             check_integrator,
             ivp_method,
             ivp_trajectory,

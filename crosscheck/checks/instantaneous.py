@@ -1,0 +1,335 @@
+"""One comparison path: the reference's answer against an engine's, state by state.
+
+``compare_at_state`` compares one engine model with the reference at one consistent state and
+returns the errors per quantity (the metrics and named tolerances of crosscheck.checks.tolerances);
+``engine_records`` folds it over a run's states into results.json records (`crosscheck run`),
+and `crosscheck sweep` aggregates the same per-state values over its samples. Each quantity's
+tolerance is chosen once, by ``tolerance``.
+
+Quantities: state_map (reference -> engine -> reference), mass_matrix (where the coordinates
+map one to one), energy (``energy_error``), accelerations and multipliers. Along
+trajectories: ``energy_drift``, ``work_energy_balance`` and ``constraint_residual``. An engine whose
+answer is regularized at the state (``EngineForward.soft``) is held to its rigid recovery, and
+its raw answer to the one predicted from the reference's answer and the engine's documented
+regularization (``*_soft_vs_predicted``, Capabilities.soft_prediction: the prediction never
+reads the engine's constraint solution, so a physics error shows there; the raw error itself
+is ``*_soft_error``, reported, not judged).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from crosscheck.checks import tolerances as C
+from crosscheck.engines.base import Capabilities, EngineAdapter, EngineModel, EngineUnsupported
+from crosscheck.engines.registry import engine_label
+
+NO_MASS_MATRIX = (
+    "engine coordinates do not map one to one onto the reference's, so their "
+    "mass matrices are not comparable"
+)
+NO_CONSTRAINTS = (
+    "no constraints: the engine runs plain forward dynamics (ABA / unconstrained "
+    "step), no multipliers to compare"
+)
+NO_FORCES = "the engine model has no constraint forces that map onto the reference's rows"
+SOFT_ANSWER = (
+    "raw soft answer against the one predicted from the reference's answer and the "
+    "documented regularization: |raw - predicted| over |predicted - reference|"
+)
+NO_PREDICTION = "the engine does not predict its soft answer independently"
+
+
+def rigid_answer(engine: str) -> str:
+    """What a soft engine's judged answer is (the records' ``answer`` field)."""
+    return f"rigid, recovered from {engine_label(engine)}'s soft solution"
+
+
+@dataclass(frozen=True)
+class ReferenceAnswer:
+    """The reference at one state: u', lambda, M and (K, V)."""
+
+    accelerations: np.ndarray
+    multipliers: np.ndarray
+    mass_matrix: np.ndarray
+    energy: tuple[float, float]
+
+
+def reference_answer(nm, q, u, t: float = 0.0) -> ReferenceAnswer:
+    ref = nm.forward(q, u, t)
+    return ReferenceAnswer(
+        ref.accelerations, ref.multipliers, nm.matrices(q, u, t)[0], tuple(nm.energy(q, u, t))
+    )
+
+
+def energy_error(engine_kv, reference_kv) -> float:
+    """|(K + V)_engine - (K + V)_reference| / max(|K| + |V|, 1) (compare.METRICS)."""
+    Ke, Ve = engine_kv
+    Kr, Vr = reference_kv
+    return abs((Ke + Ve) - (Kr + Vr)) / max(abs(Kr) + abs(Vr), 1.0)
+
+
+def energy_error_series(E, W=None) -> np.ndarray:
+    """|E(t) - E(0)| / max(max |E|, 1) at every time, or where energy is not conserved the
+    work-energy balance |E(t) - E(0) - W(t)| / max(max |E|, 1), W the work of loads and moving
+    constraints. The one definition: records take its maximum, the report plots it."""
+    E = np.asarray(E, float)
+    change = E - E[0] if W is None else E - E[0] - np.asarray(W, float)
+    return np.abs(change) / max(float(np.max(np.abs(E))), 1.0)
+
+
+def energy_drift(E) -> float:
+    """Drift of a total-energy series: max |E(t) - E(0)| / max(max |E|, 1)."""
+    return float(np.max(energy_error_series(E)))
+
+
+def work_energy_balance(E, W) -> float:
+    """max |E(t) - E(0) - W(t)| / max(max |E|, 1), W the work of loads and moving constraints."""
+    return float(np.max(energy_error_series(E, W)))
+
+
+def constraint_residual(nm, q, u, t: float = 0.0) -> tuple[float, float]:
+    """(max |f(q, t)|, max |A u + a0|) of the reference's constraints at a state (0 without)."""
+    pos, vel = nm.residuals(q, u, t)
+    return (
+        float(np.max(np.abs(pos))) if pos.size else 0.0,
+        float(np.max(np.abs(vel))) if vel.size else 0.0,
+    )
+
+
+def _finite(x: float) -> float:
+    x = float(x)
+    return x if math.isfinite(x) else math.inf
+
+
+@dataclass
+class StateComparison:
+    """Errors of one engine model at one state: values {quantity: error} (non-finite -> inf),
+    skips {quantity: reason}, soft (judged on the rigid recovery), the solver's iterations,
+    and the predicted relative soft errors (accelerations, multipliers) where soft."""
+
+    values: dict[str, float]
+    skips: dict[str, str]
+    soft: bool
+    iterations: int | None = None
+    predicted: list = field(default_factory=list)
+    answers: dict = field(default_factory=dict)  # the judged u' and lambda (the agreement matrix)
+
+
+# engine coordinates of two readings of one configuration agree to round-off of the trig
+# functions and a rotation's composition (1e-15 relative); 1e-9 leaves room, and a different
+# configuration differs at order one
+SAME_CONFIGURATION = 1e-9
+
+
+def whole_turns_removed(em: EngineModel, q, u, q2, qe) -> np.ndarray:
+    """The round trip q -> engine -> q2 read back angles with atan2, so an angle outside
+    (-pi, pi] comes back a whole number of turns away (sweep seed 4 sample 322 of the 3-D
+    double pendulum: theta21 = -3.28 returned as 3.00, state_map 1.9). Those turns are removed
+    only where the engine shows them to be the same configuration: q2 with them removed maps to
+    the same engine coordinates as q (to round-off); anything else stays an error."""
+    q, q2 = np.asarray(q, float), np.asarray(q2, float)
+    turns = np.round((q2 - q) / (2 * math.pi))
+    if not turns.any():
+        return q2
+    qe2, _ = em.to_engine_state(q2, u)
+    if C.scaled_error(qe2, qe) > SAME_CONFIGURATION:
+        return q2
+    return q2 - 2 * math.pi * turns
+
+
+def compare_at_state(
+    em: EngineModel, q, u, t: float, ref: ReferenceAnswer, n_rows: int, caps: Capabilities
+) -> StateComparison:
+    """The engine model against the reference's answer at one consistent state (q, u, t);
+    ``caps`` are its adapter's capabilities (soft_prediction)."""
+    vals: dict[str, float] = {}
+    skips: dict[str, str] = {}
+    qe, ve = em.to_engine_state(q, u)
+    q2, u2 = em.from_engine_state(qe, ve)
+    q2 = whole_turns_removed(em, q, u, q2, qe)
+    vals["state_map"] = max(C.scaled_error(q2, q), C.scaled_error(u2, u))
+    M_e = em.mass_matrix(q)
+    if M_e is None:
+        skips["mass_matrix"] = em.mass_matrix_note or NO_MASS_MATRIX
+    else:
+        vals["mass_matrix"] = C.scaled_error(M_e, ref.mass_matrix)
+    ef = em.forward(q, u, t)
+    vals["energy"] = energy_error(em.energy(q, u), ref.energy)
+    if n_rows == 0:
+        skips["multipliers"] = NO_CONSTRAINTS
+    elif ef.multipliers is None:
+        skips["multipliers"] = ef.multipliers_note or NO_FORCES
+    pairs = [("accelerations", ef.accelerations, ef.rigid_accelerations, ref.accelerations)]
+    if "multipliers" not in skips:
+        pairs.append(("multipliers", ef.multipliers, ef.rigid_multipliers, ref.multipliers))
+    predicted = _soft_predictions(em, q, u, ref, ef.soft, caps, skips)
+    answers = {qty: (rigid if ef.soft else raw) for qty, raw, rigid, _ in pairs}
+    for k, (qty, raw_value, rigid, reference) in enumerate(pairs):
+        if not ef.soft:
+            vals[qty] = C.scaled_error(raw_value, reference)
+            continue
+        vals[qty] = C.scaled_error(rigid, reference)
+        vals[f"{qty}_soft_error"] = C.scaled_error(raw_value, reference)
+        if predicted is not None and predicted[k] is not None:
+            vals[f"{qty}_soft_vs_predicted"] = C.soft_prediction(
+                raw_value, reference, np.asarray(predicted[k], float) - reference
+            )[0]
+    return StateComparison(
+        {k: _finite(v) for k, v in vals.items()},
+        skips,
+        ef.soft,
+        ef.iterations,
+        _predicted_errors(pairs, predicted),
+        answers,
+    )
+
+
+def _soft_predictions(em, q, u, ref, soft, caps, skips):
+    """The engine's predicted raw (accelerations, multipliers) where its answer is soft and it
+    predicts one (None otherwise, with the skip reason of the ``*_soft_vs_predicted`` rows)."""
+    if not soft:
+        return None
+    reason = NO_PREDICTION
+    if caps.soft_prediction:
+        try:
+            return em.predict_soft(q, u, ref.accelerations)
+        except EngineUnsupported as exc:
+            reason = f"no soft prediction: {exc}"
+    for qty in ("accelerations", "multipliers"):
+        skips.setdefault(f"{qty}_soft_vs_predicted", reason)
+    return None
+
+
+def _predicted_errors(pairs, predicted) -> list:
+    """max |predicted - reference| (scaled) of each compared quantity: the size of the soft
+    effect the prediction expects (records' predicted_rel_error_max)."""
+    if predicted is None:
+        return []
+    return [
+        C.scaled_error(p, reference)
+        for (_, _, _, reference), p in zip(pairs, predicted, strict=False)
+        if p is not None
+    ]
+
+
+def tolerance(
+    quantity: str, soft: bool, adapter: EngineAdapter, model_name: str = ""
+) -> tuple[C.Tolerance | None, str]:
+    """(named tolerance, metric) of a quantity; None: reported, not judged."""
+    if quantity == "state_map":
+        return C.STATE_MAP, "scaled_error"
+    if quantity == "mass_matrix":
+        return C.MASS_MATRIX, "scaled_error"
+    if quantity == "energy":
+        return C.ENERGY, "relative_energy_error"
+    if quantity.endswith("_soft_vs_predicted"):
+        return C.SOFT_PREDICTION, "relative_miss"
+    if quantity.endswith("_soft_error"):
+        return None, "scaled_error"
+    return (C.RIGID_RECOVERY if soft else adapter.exact_tolerance(model_name)), "scaled_error"
+
+
+def build(
+    adapter: EngineAdapter, name: str, params, variant: str | None, nominal: dict | None = None
+) -> EngineModel:
+    """The engine model of a variant (build's default when variant is None); its maps use
+    `nominal` (the unperturbed values: a perturbation changes only the physics)."""
+    em = adapter.build(name, params, variant=variant) if variant else adapter.build(name, params)
+    if nominal is not None:
+        em.nominal = dict(nominal)
+    return em
+
+
+def engine_records(
+    name: str,
+    nm,
+    states,
+    adapter: EngineAdapter,
+    params: dict,
+    variant: str | None = None,
+    answers=None,
+    refs: list[ReferenceAnswer] | None = None,
+) -> list[dict]:
+    """results.json records of one engine model over a run's states (t = 0): the worst error
+    of each quantity, at which state, against its tolerance. ``answers`` (an
+    agreement.Answers) collects the judged answers for the agreement matrix; ``refs`` are the
+    reference's answers at the states when the caller has them (one solve per state for all
+    engines), else they are computed here."""
+
+    def rec(*a, **k):
+        r = C.record(name, nm.formulation, adapter.name, *a, **k)
+        if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
+            r["variant"] = variant
+        return r
+
+    try:
+        em = build(adapter, name, params, variant, nominal=nm.params)
+    except EngineUnsupported as exc:
+        return [
+            rec("instantaneous", q, None, None, f"engine cannot represent the model: {exc}")
+            for q in ("accelerations", "multipliers")
+        ]
+    worst: dict[str, C.WorstCase] = {}
+    skipped: dict[str, str] = {}
+    iterations, predicted, soft = [], [], False
+    for i, (q, u) in enumerate(states):
+        ref = refs[i] if refs is not None else reference_answer(nm, q, u)
+        sc = compare_at_state(em, q, u, 0.0, ref, nm.m, adapter.capabilities)
+        for qty, err in sc.values.items():
+            worst.setdefault(qty, C.WorstCase()).add(err, i)
+        skipped.update(sc.skips)
+        soft = soft or sc.soft
+        predicted += sc.predicted
+        if sc.iterations is not None:
+            iterations.append(sc.iterations)
+        if answers is not None:
+            side = adapter.name + (f"/{variant}" if variant else "")
+            for qty, value in sc.answers.items():
+                tol = tolerance(qty, sc.soft, adapter, name)[0]
+                answers.add(side, i, qty, value, tol)
+    return _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name)
+
+
+def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> list[dict]:
+    """The records of one engine model from its worst cases (run's record order)."""
+
+    def judged(qty, **extra):
+        tol, metric = tolerance(qty, soft, adapter, name)
+        w = worst[qty]
+        kw = {} if metric == "scaled_error" else {"metric": metric}
+        return rec("instantaneous", qty, w.error, tol, worst_state=w.state, **kw, **extra)
+
+    out = [judged("state_map")]
+    out.append(
+        rec("instantaneous", "mass_matrix", None, None, skipped["mass_matrix"])
+        if "mass_matrix" in skipped
+        else judged("mass_matrix")
+    )
+    out.append(judged("energy"))
+    it = {"iterations_max": max(iterations)} if iterations else {}
+    for qty in ("accelerations", "multipliers"):
+        if qty in skipped:
+            out.append(rec("instantaneous", qty, None, None, skipped[qty]))
+        elif not soft:
+            out.append(judged(qty, **it))
+        else:
+            raw_errors = [
+                worst[f"{k}_soft_error"].error
+                for k in ("accelerations", "multipliers")
+                if f"{k}_soft_error" in worst
+            ]
+            extra = {"soft_rel_error_max": float(max(raw_errors))}
+            if predicted:
+                extra["predicted_rel_error_max"] = float(max(predicted))
+            out.append(judged(qty, answer=rigid_answer(adapter.name), **extra, **it))
+            name_p = f"{qty}_soft_vs_predicted"
+            out.append(
+                judged(name_p, answer=SOFT_ANSWER, **extra)
+                if name_p in worst
+                else rec("instantaneous", name_p, None, None, skipped.get(name_p, NO_PREDICTION))
+            )
+    return out

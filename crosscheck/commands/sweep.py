@@ -1,0 +1,365 @@
+"""`crosscheck sweep`: seeded random campaigns of the instantaneous cross-checks, at scale.
+
+    crosscheck sweep MODEL [...] --samples N --seed S [--index I] [--engines pinocchio,mujoco]
+                     [--workers K | --dask ADDRESS] [--chunk C] [--max-seconds T]
+                     [--perturb ENGINE:PARAM=REL] [--formulation F] [--worst K] [--out DIR]
+    crosscheck sweep [MODEL ...] --bench --samples N [--out DIR]   # throughput -> sweep_bench.json
+    crosscheck sweep --resume DIR [--workers K | --dask ADDRESS]   # finish an interrupted one
+
+Samples. Sample i of model M (i = I .. I+N-1) is one random parameter set, one time t and one
+consistent state, drawn by crosscheck.checks.sampling (the property tests' generator) from a numpy
+Generator seeded with sampling.sample_seed(S, M, i): its randomness depends on (S, M, i) only,
+never on the worker that ran it, the chunking, the executor or the other models.
+
+Checks. For every sample and every engine variant, the instantaneous cross-checks of
+`crosscheck run` (crosscheck.checks.instantaneous.compare_at_state, the one comparison path; the
+same metrics and named tolerances): state map, mass matrix (where the coordinates map one to one),
+energy, accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer
+recovered from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
+`*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance predicts
+(`*_soft_vs_predicted`, SOFT_PREDICTION). The reference is evaluated for all samples of a chunk in
+one batched call of its compiled code, with per-sample parameter arrays.
+
+Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding, executor),
+"status" (complete, stopped, completed sample ranges per model, outside_tolerance, faults, verdict,
+passed: true only for a complete campaign with nothing failed), "series" (per model x engine x
+variant: evaluated, faults, or why it is not run), "results" (per model x engine x variant x
+quantity: tolerance and its reason, count, max, mean, quantiles, a log10 histogram,
+outside_tolerance, the worst cases), "faults" (groups with counts, the first FAULTS_KEPT records per
+group), "timing" (where the time went; the only
+part that is not deterministic, with "meta")}. A worst case carries its sample index, sample
+seed, parameters and state, and the command lines that reproduce it exactly:
+    crosscheck sweep M --seed S --index i --samples 1 --engines E --workers 1 --out DIR
+(the same error, bit for bit) and `crosscheck eval M --set ... --q=... --u=... --t ...` (the
+reference's accelerations and multipliers at that case, to round-off of the scalar path).
+Faults (a draw whose projection fails, a singular reference, an engine that raises while
+building or evaluating) are recorded per sample with the stage, the exception and its message;
+the campaign goes on. An interrupted campaign (Ctrl-C, or --max-seconds) writes what it
+completed, as sample-index ranges per model, and says why it stopped; every finished chunk is
+also kept in DIR/sweep.chunks (crosscheck.sweep.store), and `--resume DIR` computes only the
+samples no stored chunk covers, ending with the sweep.json of an uninterrupted run (meta and
+timing aside). A Dask worker lost mid-campaign costs only the rerun of its tasks (the scheduler
+reschedules them; the results do not depend on where a chunk ran).
+
+Execution: local worker processes by default (all cores; ProcessPoolExecutor, chunks of at most
+LOCAL_CHUNK_MAX samples), in-process with --workers 1, or a Dask distributed cluster with
+--dask ADDRESS (chunks of at least DASK_MIN_CHUNK samples; `--dask local:K` starts a local
+cluster of K one-thread worker processes). The aggregate is independent of the executor and the
+chunking. Per worker, the compiled reference code and the engine adapters are built once (a
+module-level cache); the engine MODEL depends on the parameters, so it is built per sample, and
+the time that takes is recorded (timing.per_series.build_s; see the benchmark).
+On a Dask cluster the workers need this package (same versions) importable, and write their
+compiled reference code to their own cache directory on first use; results are bit-identical
+when the workers' numpy/libm give the same floating-point results as the local machine (same
+builds); --max-seconds compares wall clocks (time.time) on the workers; one-thread workers
+(`dask worker --nthreads 1 --nworkers K`) suit this Python-bound work. The parent keeps every
+error value (8 bytes per sample per quantity, ~20 quantities per model) to give exact quantiles:
+10^6 samples of one model is ~160 MB, so run models one at a time at that scale.
+
+Exit status: 0 when the campaign completed with every sample within every tolerance and nothing
+faulted (status.verdict "passed"), 1 when a sample is outside a tolerance or faulted ("failed"),
+4 when it stopped early (--max-seconds) with nothing failed in what it ran ("incomplete": not
+passed), 2 on bad input (one line), 130 when interrupted (after writing sweep.json, whose
+status.passed is then false).
+
+Layout: sweep_config (settings, Campaign), sweep_worker (one chunk, on a worker), sweep_exec
+(serial, process pool, Dask), sweep_aggregate (merge and summary), sweep_campaign (plan and
+run), sweep_bench (throughput); this module is the command line, and re-exports the names
+callers use (crosscheck.commands.sweep.campaign, Campaign, ...).
+"""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+
+from crosscheck.checks.perturb import parse_perturb
+from crosscheck.runtime import jsonio
+from crosscheck.sweep.aggregate import reproduce_commands  # noqa: F401 - re-exported
+from crosscheck.sweep.bench import _print_bench, bench
+from crosscheck.sweep.campaign import campaign
+from crosscheck.sweep.config import (  # noqa: F401 - re-exported
+    DASK_MAX_CHUNK,
+    DASK_MIN_CHUNK,
+    LOCAL_CHUNK_MAX,
+    QUANTILES,
+    WORST_CASES,
+    Campaign,
+)
+from crosscheck.sweep.executors import dask_chunk, default_workers, local_chunk  # noqa: F401 - re-exported
+from crosscheck.sweep.worker import (  # noqa: F401 - re-exported
+    ChunkSpec,
+    _adapter,
+    base_model,
+    draw_sample,
+    reference_batch,
+    run_chunk,
+)
+from reference.errors import ModelInputError
+
+
+# ---- command line ---------------------------------------------------------------------------
+def _print_summary(res: dict, path: Path) -> None:
+    st = res["status"]
+    for r in res["results"]:
+        if r.get("outside_tolerance"):
+            w = r["worst"][0] if r["worst"] else {}
+            print(
+                f"OUTSIDE {r['model']} {r['engine']}{'/' + r['variant'] if r['variant'] else ''}"
+                f" {r['quantity']}: {r['outside_tolerance']} of {r['count']} samples > "
+                f"{r['tolerance']:.0e} (max {r['max']:.3e}); reproduce the worst: "
+                f"{w.get('reproduce', {}).get('sweep', '')}",
+                file=sys.stderr,
+            )
+    for g in res["faults"]["groups"]:
+        print(
+            f"FAULT {g['model']} {g['engine']}{'/' + g['variant'] if g['variant'] else ''} "
+            f"{g['stage']} {g['type']} x{g['count']}: {g['first_reason'][:160]}",
+            file=sys.stderr,
+        )
+    for c in res["faults"]["chunks"]:
+        print(
+            f"CHUNK FAILED {c['model']} [{c['start']}, {c['stop']}): {c['type']} "
+            f"{c['reason'][:160]}",
+            file=sys.stderr,
+        )
+    total = sum(st["completed"].values())
+    requested = sum(st["requested"].values())
+    print(
+        f"crosscheck sweep: {total} of {requested} samples, {st['outside_tolerance']} "
+        f"outside tolerance, {st['faults']} faults"
+        + (f", stopped: {st['stopped']}" if st["stopped"] else "")
+        + f" -> {path}"
+    )
+
+
+def _user_models_here(args, names) -> None:
+    """User models (--model-file) are registered in this process only: their samples run
+    here (--workers 1); Dask workers elsewhere could not load the files."""
+    from reference import models
+
+    if not set(names) & set(models.user_names()):
+        return
+    if args.dask is not None:
+        raise ModelInputError(
+            "--model-file models run in this process only; leave out --dask "
+            "(the workers would not have the file's models)"
+        )
+    args.workers = 1
+
+
+def cmd_sweep(args) -> int:
+    from crosscheck.commands.arguments import output_dir, resolve_engines, resolve_models
+    from crosscheck.runtime.output import write_atomic
+    from crosscheck.sweep.store import ChunkStore
+
+    if args.workers is not None and args.dask is not None:
+        raise ModelInputError("give --workers or --dask, not both")
+    if args.resume is not None:
+        cfg, out = _resumed_campaign(args)
+    else:
+        names = resolve_models(args.models, getattr(args, "user_models", None))
+        engines = tuple(resolve_engines(args.engines))
+        _user_models_here(args, names)
+        out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
+        if args.bench:
+            return _cmd_bench(args, names, engines, out)
+        cfg = Campaign(
+            list(names),
+            args.samples,
+            args.seed,
+            args.index,
+            engines,
+            parse_perturb(args.perturb),
+            args.formulation,
+            args.worst,
+            str(out),
+        )
+    bar = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=cfg.samples * len(cfg.models), desc="samples", unit="sample", file=sys.stderr
+        )
+    store = ChunkStore(out, cfg)
+    try:
+        res = campaign(
+            cfg,
+            workers=args.workers,
+            dask=args.dask,
+            chunk=args.chunk,
+            max_seconds=args.max_seconds,
+            progress=bar.update if bar else None,
+            store=store,
+            resume=args.resume is not None,
+        )
+    finally:
+        if bar:
+            bar.close()
+    # written after a Ctrl-C too: its status says "interrupted" and what was completed
+    path = write_atomic(out / "sweep.json", jsonio.dumps(res), after_interrupt=True)
+    _print_summary(res, path)
+    if res["status"]["complete"]:
+        store.remove()  # after sweep.json is in place: nothing left to resume
+    else:
+        print(
+            f"finished chunks kept in {store.dir}; continue with: "
+            f"{shlex.join(['crosscheck', 'sweep', '--resume', str(out)])}"
+        )
+    return exit_code(res["status"])
+
+
+# campaign options of the command line, with their defaults: under --resume each must be left
+# at its default or agree with the stored campaign
+_CAMPAIGN_OPTIONS = {
+    "models": [],
+    "samples": 100,
+    "seed": 0,
+    "index": 0,
+    "engines": None,
+    "perturb": [],
+    "formulation": None,
+    "worst": WORST_CASES,
+}
+
+
+def _resumed_campaign(args):
+    """The campaign stored in --resume DIR; options that contradict it are refused."""
+    from crosscheck.commands.arguments import output_dir
+    from crosscheck.sweep.store import stored_settings
+
+    if args.bench:
+        raise ModelInputError(
+            "--resume continues a campaign; --bench measures throughput: give one of them"
+        )
+    out = output_dir(args.resume, "--resume")
+    if args.out not in ("out", args.resume):
+        raise ModelInputError(f"--resume {args.resume!r} writes there; drop --out {args.out!r}")
+    st = stored_settings(out)
+    given = {"perturb": parse_perturb(args.perturb)}
+    for key, default in _CAMPAIGN_OPTIONS.items():
+        value = getattr(args, key)
+        if value != default and given.get(key, value) != st[key]:
+            raise ModelInputError(
+                f"--resume {args.resume!r} continues the campaign stored there ({key} "
+                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out"
+            )
+    cfg = Campaign(
+        list(st["models"]),
+        st["samples"],
+        st["seed"],
+        st["index"],
+        tuple(st["engines"]),
+        st["perturb"],
+        st["formulation"],
+        st["worst"],
+        str(out),
+    )
+    return cfg, out
+
+
+def _cmd_bench(args, names, engines, out) -> int:
+    from crosscheck.runtime.output import write_atomic
+
+    cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
+    cfg.validate()
+    b = bench(
+        names, args.samples, args.seed, engines, log=lambda m: print(m, file=sys.stderr, flush=True)
+    )
+    write_atomic(out / "sweep_bench.json", jsonio.dumps(b))
+    _print_bench(b)
+    print(f"wrote {out / 'sweep_bench.json'}")
+    return 0
+
+
+def exit_code(status: dict) -> int:
+    """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
+    stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
+    from crosscheck.cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+
+    if status["stopped"] == "interrupted":
+        return EXIT_INTERRUPTED
+    return {"passed": 0, "failed": 1}.get(status["verdict"], EXIT_INCOMPLETE)
+
+
+def register(sub):
+    from crosscheck.commands.arguments import (
+        add_engines,
+        add_models,
+        nonnegative_int,
+        positive_int,
+        positive_seconds,
+    )
+
+    s = sub.add_parser(
+        "sweep",
+        help="seeded random campaigns of the cross-checks (local workers or Dask)",
+        description="Draw N seeded random parameter sets and consistent states per model, run "
+        "the instantaneous cross-checks on each, write DIR/sweep.json.",
+    )
+    add_models(s)
+    s.add_argument(
+        "--samples", type=positive_int, default=100, help="samples per model (default 100)"
+    )
+    s.add_argument("--seed", type=nonnegative_int, default=0, help="campaign seed (default 0)")
+    s.add_argument(
+        "--index",
+        type=nonnegative_int,
+        default=0,
+        help="first sample index (default 0): --index I --samples 1 reruns sample I",
+    )
+    add_engines(s)
+    s.add_argument(
+        "--formulation", default=None, help="reference formulation (default: each model's first)"
+    )
+    s.add_argument(
+        "--perturb",
+        action="append",
+        default=[],
+        metavar="ENGINE:PARAM=REL",
+        help="fault injection, as in crosscheck run",
+    )
+    s.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="local worker processes (default: all cores; 1 runs in this process)",
+    )
+    s.add_argument(
+        "--dask",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]",
+    )
+    s.add_argument(
+        "--chunk",
+        type=positive_int,
+        default=None,
+        help="samples per task (default: sized per executor)",
+    )
+    s.add_argument(
+        "--max-seconds",
+        type=positive_seconds,
+        default=None,
+        help="time budget: stop and report what is done",
+    )
+    s.add_argument(
+        "--worst", type=nonnegative_int, default=WORST_CASES, help="worst cases kept per quantity"
+    )
+    s.add_argument(
+        "--bench",
+        action="store_true",
+        help="measure throughput (per model and engine, 1 vs 2 workers) and write "
+        "DIR/sweep_bench.json instead of running a campaign",
+    )
+    s.add_argument("--out", default="out")
+    s.add_argument(
+        "--resume",
+        default=None,
+        metavar="DIR",
+        help="continue the interrupted campaign whose --out was DIR: its finished "
+        "chunks (DIR/sweep.chunks) are kept, only the rest is computed",
+    )
+    s.set_defaults(func=cmd_sweep)

@@ -1,0 +1,225 @@
+"""The checks of `crosscheck run` (the command itself: crosscheck/commands/run.py): each model's
+reference against every engine, stage by stage, then in time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from crosscheck.checks import tolerances as C
+from crosscheck.checks.agreement import reference_answers
+from crosscheck.checks.instantaneous import engine_records, reference_answer
+from crosscheck.checks.perturb import parse_perturb, perturbed
+from crosscheck.checks.sampling import consistent_states
+from crosscheck.engines.registry import get_engine
+from reference import NumericModel, models
+from reference.backends import c_build as cbuild
+from reference.generic import generic_parameters
+
+__all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
+
+# the check names of the records at the generic parameter set (reference/generic.py): distinct
+# from the textbook-default ones, so a gate sees them as records of their own
+GENERIC_SUFFIX = "_generic"
+
+
+def generic_model(name: str) -> NumericModel:
+    """The model at its generic parameter set (reference.generic), whose initial state still
+    projects onto the constraints and gives finite accelerations."""
+    model = models.get(name)
+
+    def geometry_ok(values) -> bool:
+        try:
+            nm = NumericModel(model, params=values)
+            q, u = nm.project(model.initial_q, model.initial_u)
+            return bool(np.all(np.isfinite(nm.forward(q, u).accelerations)))
+        except Exception:
+            return False
+
+    return NumericModel(model, params=generic_parameters(model, geometry_ok))
+
+
+def _formulation_records(name, nm, states):
+    """The reference's formulations against its primary one (Lagrange = d'Alembert = Kane)."""
+    model = nm.model
+    out = []
+    dependent = dict(model.formulation_dependent_rows)
+    keep = [j for j, c in enumerate(model.constraint_names or [""] * nm.m) if c not in dependent]
+    tol = C.Tolerance(
+        1e-11,
+        "two derivations of the same equations evaluated in different "
+        "arithmetic order: round-off only",
+    )
+    for other in model.formulations[1:]:
+        # the Python path: evaluated at a handful of states here, where a C build would take
+        # 1-2 s of compiler time per formulation (scripts/c_build_times.py); it equals the
+        # compiled path to the bit or within 1e-14 (tests/test_compiled.py)
+        on = NumericModel(model, other, nm.params, backend="python")
+        acc, lam = C.WorstCase(), C.WorstCase()
+        for i, (q, u) in enumerate(states):
+            a, b = nm.forward(q, u), on.forward(q, u)
+            acc.add(C.scaled_error(b.accelerations, a.accelerations), i)
+            lam.add(C.scaled_error(b.multipliers[keep], a.multipliers[keep]), i)
+        out.append(
+            C.record(
+                name,
+                other,
+                "reference",
+                "formulations",
+                "accelerations",
+                acc.error,
+                tol,
+                worst_state=acc.state,
+                against=nm.formulation,
+            )
+        )
+        if nm.m == 0:
+            out.append(
+                C.record(
+                    name,
+                    other,
+                    "reference",
+                    "formulations",
+                    "multipliers",
+                    None,
+                    None,
+                    "no constraints, so no multipliers to compare",
+                )
+            )
+            continue
+        reason = ""
+        if dependent:
+            reason = (
+                tol.reason + "; rows not compared because their multiplier depends on "
+                "the formulation: " + "; ".join(f"{k}: {v}" for k, v in dependent.items())
+            )
+        out.append(
+            C.record(
+                name,
+                other,
+                "reference",
+                "formulations",
+                "multipliers",
+                lam.error,
+                tol,
+                reason,
+                worst_state=lam.state,
+                against=nm.formulation,
+            )
+        )
+    return out
+
+
+SOFT_FILE = (
+    "reported, not judged: MuJoCo integrates the file's own soft equality constraints "
+    "(its solref/solimp; MuJoCo's default solimp gives an impedance of 0.9..0.95, "
+    "against the 0.9999 the trajectory bounds are sized for), so its motion differs "
+    "from the rigid one by design; the instantaneous records judge its soft answer "
+    "against the error its impedance predicts"
+)
+
+
+def _soft_file_trajectories(name, recs, adapters):
+    """A soft engine's trajectory records on a user's MJCF file with equality constraints (the
+    file's own solref/solimp): the measured figure kept, not judged (SOFT_FILE)."""
+    src = models.user_source(name)
+    if not (hasattr(src, "mj") and src.mj.neq):
+        return recs
+    soft = {a.name for a in adapters if not a.capabilities.exact}
+    out = []
+    for r in recs:
+        if r["engine"] in soft and r["passed"] is not None:
+            r = {
+                **r,
+                "judged_tolerance": r["tolerance"],
+                "tolerance": None,
+                "passed": None,
+                "skipped": True,
+                "reason": f"{SOFT_FILE} (measured {r['error']:.3g}; the "
+                f"built-in models' bound: {r['reason']})",
+            }
+        out.append(r)
+    return out
+
+
+def run(
+    model_names,
+    engine_names,
+    n_states=6,
+    perturb=None,
+    progress=None,
+    trajectories=True,
+    t_end=5.0,
+    agreement: list | None = None,
+):
+    """All records (and trajectory series) for the models; see the module docstring.
+    ``agreement``, when given, receives the agreement matrices (crosscheck.checks.agreement)."""
+    from crosscheck.checks.trajectory.check import trajectory_records
+
+    perturb = perturb or {}
+    adapters = [get_engine(e) for e in engine_names]
+    records, series = [], []
+    model_names = list(model_names)
+    for k, name in enumerate(model_names):
+        model = models.get(name)
+        # the C builds of the next model start now (its derivation here, its compiles on the
+        # other core while this model is checked; reference/backends/c_build.py): on a cold cache
+        # only the first model waits for its compiler
+        for ahead in model_names[k : k + 2] if k == 0 else model_names[k + 1 : k + 2]:
+            upcoming = models.get(ahead)
+            cbuild.prebuild_model(upcoming, upcoming.formulations[:1])
+        nm = NumericModel(model)
+        states = consistent_states(nm, n_states)
+        records += _formulation_records(name, nm, states)
+        refs = [reference_answer(nm, q, u) for q, u in states]  # once for every engine
+        answers = reference_answers(name, refs, nm.m)
+        for adapter in adapters:
+            params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
+            for variant in adapter.variants(name):
+                records += adapter.annotate_records(
+                    name,
+                    engine_records(name, nm, states, adapter, params, variant, answers, refs),
+                )
+        if agreement is not None:
+            agreement += answers.matrices()
+        records += _generic_records(name, adapters, n_states, perturb)
+        if trajectories:
+            engine_params = {
+                a.name: perturbed(name, nm.params, perturb.get(a.name, {})) for a in adapters
+            }
+            recs, ser = trajectory_records(name, nm, adapters, t_end, engine_params)
+            records += _soft_file_trajectories(name, recs, adapters)
+            series += ser
+        else:  # skipped on request: visible in the results, not silently absent
+            records.append(
+                C.record(
+                    name,
+                    nm.formulation,
+                    "reference",
+                    "trajectory",
+                    "state_error",
+                    None,
+                    None,
+                    "instantaneous checks only (--instantaneous)",
+                )
+            )
+        if progress:
+            progress(name)
+    return records, series
+
+
+def _generic_records(name, adapters, n_states, perturb) -> list[dict]:
+    """The instantaneous checks again at the model's generic parameter set, where no two
+    masses, lengths or principal inertias are equal (a swapped axis or sign cannot cancel):
+    check names "formulations_generic" and "instantaneous_generic"."""
+    nm = generic_model(name)
+    states = consistent_states(nm, n_states)
+    out = _formulation_records(name, nm, states)
+    refs = [reference_answer(nm, q, u) for q, u in states]
+    for adapter in adapters:
+        params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
+        for variant in adapter.variants(name):
+            out += engine_records(name, nm, states, adapter, params, variant, refs=refs)
+    for r in out:
+        r["check"] += GENERIC_SUFFIX
+    return out

@@ -1,0 +1,93 @@
+"""Output files written so a reader never sees a half-written or mixed set.
+
+Every file of one command goes first to a temporary name beside its final one (same directory,
+so the rename is atomic on POSIX file systems); `commit` then renames them all into place with
+SIGINT held back, so Ctrl-C cannot land between two renames. An interrupted or failed command
+removes its temporary files and leaves the directory as it was: the previous run's files,
+complete and consistent with each other, or nothing.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from pathlib import Path
+
+from crosscheck.runtime import interrupts
+
+TMP_PREFIX = ".crosscheck-tmp-"
+
+
+class Outputs:
+    """The files of one command in one directory: stage them, then commit or discard."""
+
+    def __init__(self, out_dir: str | Path):
+        self.dir = Path(out_dir)
+        self._staged: dict[str, Path] = {}  # final name -> temporary path
+
+    def stage(self, name: str, text: str) -> Path:
+        """Write `text` under a temporary name; returns that path (readable before commit)."""
+        self.dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.dir / f"{TMP_PREFIX}{os.getpid()}-{name}"
+        self._staged[name] = tmp
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())  # the data is on disk before the name points at it
+        return tmp
+
+    def path(self, name: str) -> Path:
+        return self.dir / name
+
+    def commit(
+        self, stale: tuple[str, ...] = (), *, after_interrupt: bool = False
+    ) -> dict[str, Path]:
+        """Rename every staged file into place and remove `stale` files this command did not
+        write (an old report beside new results would look current); returns final paths.
+        After a Ctrl-C only files that say so (`after_interrupt`: a campaign's stop status, its
+        finished chunks) are committed."""
+        if not after_interrupt:
+            interrupts.check()  # an interrupt an engine swallowed: this command's files never land
+        with _sigint_held():
+            for name in stale:
+                if name not in self._staged:
+                    (self.dir / name).unlink(missing_ok=True)
+            for name, tmp in self._staged.items():
+                os.replace(tmp, self.dir / name)
+        done = {name: self.dir / name for name in self._staged}
+        self._staged.clear()
+        return done
+
+    def discard(self) -> None:
+        for tmp in self._staged.values():
+            tmp.unlink(missing_ok=True)
+        self._staged.clear()
+
+    def __enter__(self) -> Outputs:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.discard()  # after a commit there is nothing left to discard
+
+
+class _sigint_held:
+    """Block SIGINT (main thread only) while the renames run; a Ctrl-C pressed meanwhile is
+    delivered right after, when every file is already in place."""
+
+    def __enter__(self):
+        self._on = threading.current_thread() is threading.main_thread()
+        if self._on:
+            self._old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+    def __exit__(self, *exc):
+        if self._on:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self._old)
+
+
+def write_atomic(path: str | Path, text: str, *, after_interrupt: bool = False) -> Path:
+    """One file, atomically: the old content or the new, never a part."""
+    path = Path(path)
+    with Outputs(path.parent) as o:
+        o.stage(path.name, text)
+        return o.commit(after_interrupt=after_interrupt)[path.name]
