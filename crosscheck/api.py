@@ -1,4 +1,4 @@
-"""A Python API for users' own test suites (issue 11 item 8).
+"""A Python API for users' own test suites.
 
     import crosscheck
     records = crosscheck.check("my_mechanism.xml")              # or a .py file, a name, a Model

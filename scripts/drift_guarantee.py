@@ -1,4 +1,4 @@
-"""Measure the reference's constraint drift against its stabilization's own guarantee (issue 14).
+"""Measure the reference's constraint drift against its stabilization's own guarantee.
 
 For every constrained model: the 5 s reference run with coordinate projection and without
 (index1), both at rtol = atol = 1e-12, and per output time the ratios

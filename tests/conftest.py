@@ -31,5 +31,5 @@ os.environ.setdefault("CROSSCHECK_BACKGROUND_COMPILE", "0")
 def _in_own_tmp_path(tmp_path, monkeypatch):
     """Every test runs in its own temporary directory, so the commands' default paths (out/,
     out/results.json) resolve there and no test reads what an earlier command left in the
-    checkout (issue 15 item 9: the README's second command failed after its first)."""
+    checkout (the README's second command once failed after its first)."""
     monkeypatch.chdir(tmp_path)

@@ -1,4 +1,4 @@
-"""The agreement matrix (issue 12 item 4): every side against every other, so that a fault
+"""The agreement matrix: every side against every other, so that a fault
 shows which side is the odd one out."""
 
 from __future__ import annotations

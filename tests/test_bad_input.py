@@ -1,4 +1,4 @@
-"""The bad-input table (issue 15): every command refuses bad input with one line and exit 2,
+"""The bad-input table: every command refuses bad input with one line and exit 2,
 before any work, and leaves nothing in its output directory. Exit 1 is kept for "a check
 failed"; nothing here may produce it."""
 

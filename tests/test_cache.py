@@ -47,7 +47,7 @@ def test_second_process_reads_the_cache(tmp_path):
 
 
 def test_renamed_model_reuses_the_derivation(tmp_path):
-    """Issue 11 item 7: the name is not physics. A renamed copy of a model (or the same MJCF
+    """The name is not physics. A renamed copy of a model (or the same MJCF
     file imported under another name) reads the entry its original wrote: the second process
     refuses to derive and still gives the same multiplier."""
     first = _run("derive", tmp_path)
@@ -122,7 +122,7 @@ def _key_and_entries(pkg_root, cache):
 
 
 def test_editing_a_formulation_misses_the_cache(tmp_path):
-    """Issue 14 item 1: a warm cache must not hide an edit of the derivation's source. A copy of
+    """A warm cache must not hide an edit of the derivation's source. A copy of
     the package with one formulation edited (a comment is enough: the key hashes the files, so
     any edit counts) gets another key, and building the model there derives a new entry."""
     import shutil

@@ -1,5 +1,5 @@
-"""The C backend's own behaviour (reference.backends.c_source, reference.backends.c_build; issue
-13): its choice and refusal, its build cache, its fallback when the printer cannot translate a
+"""The C backend's own behaviour (reference.backends.c_source, reference.backends.c_build): its
+choice and refusal, its build cache, its fallback when the printer cannot translate a
 model, the bound calls' lifetime and parameters, and the four-lane batch against the scalar kernel.
 Equality with the Python path is tests/test_compiled.py's, bad inputs tests/test_fast_paths.py's
 (both run on this backend too)."""

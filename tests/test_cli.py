@@ -198,7 +198,7 @@ def test_a_negative_value_does_not_swallow_a_flag(capsys):
 
 def test_default_paths_resolve_in_the_tests_own_directory(tmp_path, capsys):
     """conftest runs every test in its tmp_path: `crosscheck report` without --results looks
-    for out/results.json there, not in the checkout (issue 15 item 9)."""
+    for out/results.json there, not in the checkout."""
     from pathlib import Path
 
     assert Path.cwd() == tmp_path

@@ -1,4 +1,4 @@
-"""The compiled backends (C and numba) against the pure-Python path they replace (issue 13).
+"""The compiled backends (C and numba) against the pure-Python path they replace.
 
 All run the same generated straight-line code (reference.backends.c_source prints it as C,
 reference.backends.numba_backend rewrites it for numba), so they must agree to the last bit.

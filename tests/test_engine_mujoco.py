@@ -1,7 +1,7 @@
 """MuJoCo adapter against the reference, with the real MuJoCo 4.0 (no mocks).
 
 Tolerances (one per quantity, with the reason):
-- TOL_RIGID = 1e-9 (issue 3): the de-regularized answer f + A^-1 R f and its accelerations.
+- TOL_RIGID = 1e-9: the de-regularized answer f + A^-1 R f and its accelerations.
   Measured floor 1e-11 to 2e-10 of the force scale: MuJoCo's own soft solve stops that far from
   the exact soft solution at d = 0.9999 (1e-14 at d = 0.9: it scales with 1/(1 - d)), the
   recovery passes it on 1:1, and states projected to ~1e-13 add MuJoCo's stabilization K r.
@@ -244,7 +244,7 @@ def check_forward(name, variant, formulation, q, u):
     raw = fw.raw
     s_acc, s_lam = scales(name, formulation)
     out = {}
-    # de-regularized (rigid) answer: the issue's 1e-9
+    # de-regularized (rigid) answer: RIGID_RECOVERY's 1e-9
     out["acc_rigid"] = rel_err(raw["rigid_accelerations"], ref.accelerations, s_acc)
     assert out["acc_rigid"] <= TOL_RIGID, (
         name,

@@ -36,7 +36,7 @@ ADAPTER = OpenSimAdapter()
 # Accelerations and multipliers: both sides solve the same KKT system with backward-stable
 # factorizations; measured worst over 50 states per model 2.7e-12 relative (slider_crank_split's
 # multipliers, T = 0.7), most models ~1e-15..1e-13 (docs/engines/opensim.md). The adapter's
-# tolerance is the suite's exact-KKT bound (1e-11, the target).
+# tolerance is the suite's exact-KKT bound (1e-11).
 EXACT = ADAPTER.exact_tolerance("slider_crank").value
 # Below 1 SI unit an acceleration or force is compared absolutely (round-off follows the size of
 # the terms that cancel, g ~ 10, v^2/L ~ 10, not the answer).

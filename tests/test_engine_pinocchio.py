@@ -57,7 +57,7 @@ MANIFOLD_ATOL = 1e-12
 # inertias (2e-4 and 1e-4 kg m^2 against ~0.08 transverse) give cond(M) ~ 1e3 and measured
 # errors up to ~1e-12 relative; the proximal iterations for the redundant planar rows stop at
 # |d lambda| <= 1e-12 with a contraction ~mu |G^-1| ~ 1e-8 per iteration, far below that.
-# 1e-11 is the contract for Pinocchio: ~10x above the worst measured figure, ~1e4x
+# 1e-11 is the suite's contract for Pinocchio: ~10x above the worst measured figure, ~1e4x
 # below the 1e-7 effect of the fault injection m2 * (1 + 1e-6).
 ACC_RTOL = 1e-11
 LAM_RTOL = 1e-11

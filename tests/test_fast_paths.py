@@ -1,4 +1,4 @@
-"""Bad inputs on every fast single-state path of the compiled forward (issue 13).
+"""Bad inputs on every fast single-state path of the compiled forward.
 
 The compiled kernels take one signature (float64 C-contiguous vectors and a float): numba's
 dispatch and the C kernels' argument checks reject anything else with a TypeError (the C

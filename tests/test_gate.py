@@ -158,7 +158,7 @@ def test_passed_to_skipped_and_new_failing_records_are_regressions(
     assert any(
         ln.startswith(f"{key(new_ok)}: new record (passed)") and "--accept-new" in ln
         for ln in found
-    )  # ungated: a regression unless accepted (issue 15 item 7)
+    )  # ungated: a regression unless accepted
     code, out, _ = gate(
         capsys, "--baseline", baseline, "--results", write(tmp_path, "r.json", data), "--accept-new"
     )
@@ -171,7 +171,7 @@ def test_passed_to_skipped_and_new_failing_records_are_regressions(
 
 
 def test_a_baseline_of_one_model_does_not_pass_the_whole_suite(clean, tmp_path, capsys):
-    """The gate compared nothing new and passed (issue 15 item 7): now the records the baseline
+    """The gate compared nothing new and passed: now the records the baseline
     lacks fail it, unless --accept-new lists them as accepted; a missing record still fails."""
     # the fixture's run has one model: a baseline of its reference records stands for a
     # baseline that covers a part of what the results hold

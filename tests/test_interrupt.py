@@ -1,4 +1,4 @@
-"""Interrupted commands (issue 15 item 5): one line, exit 130, and the output directory holds
+"""Interrupted commands: one line, exit 130, and the output directory holds
 the previous run's files, complete and consistent, or this run's, never a mix."""
 
 from __future__ import annotations

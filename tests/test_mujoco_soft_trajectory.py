@@ -31,7 +31,7 @@ def test_unperturbed_slider_crank_passes_its_rigid_limit():
 
 
 def test_one_percent_mass_error_fails_a_trajectory_record(tmp_path, capsys):
-    """The command of issue 16: `crosscheck run slider_crank --engines mujoco --perturb
+    """The command that once failed: `crosscheck run slider_crank --engines mujoco --perturb
     mujoco:m3=1e-2` exits non-zero, and a trajectory record is among its failures."""
     code = main(
         [

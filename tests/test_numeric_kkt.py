@@ -1,9 +1,9 @@
-"""The numeric KKT path for large models (issue 11 item 9): the IFToMM A02 N-four-bar.
+"""The numeric KKT path for large models: the IFToMM A02 N-four-bar.
 
 Past codegen.UNROLL_KKT_MAX rows the reference does not unroll its KKT solve; it solves the
 generated M, A, f, b per state with reference.numeric.redundant. Checked against MuJoCo's rigid
 answer (crosscheck.engines.mujoco.mjcf_rigid) at TOL_MJCF of tests/test_user_models.py: 1e-9
-relative, the issue's bar (measured: 6e-15 at these states for N = 5, printed by
+relative, the suite's bar for MJCF files (measured: 6e-15 at these states for N = 5, printed by
 `python -m crosscheck.engines.mujoco.mjcf_rigid FILE`; 1.9e-14 at the parallelogram states of
 docs/scaling.md).
 """

@@ -2,7 +2,7 @@
 Real Pinocchio and MuJoCo, no mocks. (The Pinocchio adapter's timing hook is tested in
 tests/test_engine_pinocchio.py.)
 
-The issue asks for one MJCF per model, fed to MuJoCo and to Pinocchio through its MJCF parser
+The suite keeps one MJCF per model, fed to MuJoCo and to Pinocchio through its MJCF parser
 where that parser is right. Here every file is parsed (pin.buildModelFromMJCF for the trees,
 pin.buildModelAndLegacyConstraintsFromMJCF for the loops: RigidConstraintModels that
 constraintDynamics takes), gravity is set by hand, and the parsed model's accelerations are

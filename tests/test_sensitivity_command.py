@@ -12,7 +12,7 @@ from crosscheck.cli import main
 from crosscheck.commands.sensitivity import DEFAULT_MODELS, engine_thresholds
 from reference import models
 
-CAUGHT_BY = 1e-8  # the bar: an error of 1e-8 in any used parameter must fail a record
+CAUGHT_BY = 1e-8  # the bar: an error of 1e-8 in any used parameter must fail a record
 ENGINES = ("pinocchio", "mujoco", "exudyn", "opensim")
 
 thresholds = functools.cache(engine_thresholds)  # one search per model and engine

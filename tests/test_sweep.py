@@ -395,7 +395,7 @@ def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
     )
     st = res["status"]
     assert st["stopped"] == "interrupted" and not st["complete"]
-    assert not st["passed"] and st["verdict"] == "incomplete"  # issue 15 item 6
+    assert not st["passed"] and st["verdict"] == "incomplete"  # interrupted: never passed
     ranges = st["completed_ranges"]["pendulum_xy"]
     done = sum(b - a for a, b in ranges)
     assert done == st["completed"]["pendulum_xy"] >= 4  # the two merged chunks, maybe more

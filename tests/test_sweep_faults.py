@@ -1,4 +1,4 @@
-"""Campaigns under faults (issue 15 item 12): an interrupted sweep resumes from its finished
+"""Campaigns under faults: an interrupted sweep resumes from its finished
 chunks and ends identical to an uninterrupted one, recomputing nothing it finished; a Dask
 worker process killed mid-campaign changes nothing in the results."""
 

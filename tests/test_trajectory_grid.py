@@ -1,5 +1,5 @@
 """Short horizons: the reference, Pinocchio and both MuJoCo rungs share one output grid for
-every t_end > 0 (issue 15 item 1)."""
+every t_end > 0."""
 
 from __future__ import annotations
 

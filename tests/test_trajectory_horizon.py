@@ -1,4 +1,4 @@
-"""The horizon trajectories are compared on when the reference reaches a singular pose (issue 11:
+"""The horizon trajectories are compared on when the reference reaches a singular pose (
 the IFToMM A02 four-bars lying flat): cut just before the first such pose, said in a record."""
 
 from __future__ import annotations

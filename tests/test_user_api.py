@@ -1,4 +1,4 @@
-"""crosscheck.check / assert_passes: the Python API for users' test suites (issue 11 item 8)."""
+"""crosscheck.check / assert_passes: the Python API for users' test suites."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Users' own models (issue 11): MJCF files into the reference, dependent constraint rows,
+"""Users' own models: MJCF files into the reference, dependent constraint rows,
 force elements, and the model-file loader. Real MuJoCo, no mocks.
 
 The MJCF checks compare the reference's accelerations, mapped to MuJoCo's qacc, with MuJoCo's
@@ -6,7 +6,7 @@ rigid answer (crosscheck.engines.mujoco.mjcf_rigid: the exact KKT solve from MuJ
 qfrc_smooth, equality Jacobians and J-dot v), at the file's initial state and at seeded random
 states projected onto the constraint manifold.
 
-TOL_MJCF = 1e-9 relative to max(1, max|qacc|): the issue's bar. Measured (kane and lagrange,
+TOL_MJCF = 1e-9 relative to max(1, max|qacc|), the bar for MJCF files. Measured (kane, lagrange,
 `PYTHONPATH=$PWD python -m pytest -q tests/test_user_models.py -k mjcf -s` prints the figures):
 pendulum_hinge 6e-16, double_pendulum 1.2e-15, fourbar_connect 4e-15, fourbar_tilted 2e-15,
 fourbar_sites 4e-15, weld_sites 6e-16; slow tests: gripper 5e-15, spatial_mix 1e-14, so the

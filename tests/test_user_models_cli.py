@@ -1,4 +1,4 @@
-"""`--model-file` on the commands (issue 11 item 1): user models beside the built-in ones."""
+"""`--model-file` on the commands: user models beside the built-in ones."""
 
 from __future__ import annotations
 
@@ -92,7 +92,7 @@ def test_unknown_model_name_lists_user_models(capsys):
 
 @pytest.mark.slow  # three formulations of a 9-coordinate model derived cold: a minute or two
 def test_gripper_compared_up_to_its_dead_centre(tmp_path, capsys):
-    """Issue 11: the ten-body gripper reaches a dead centre at t = 0.72 s, where its constraint
+    """The ten-body gripper reaches a dead centre at t = 0.72 s, where its constraint
     rows lose rank and the motion past it is not unique. The trajectories are compared up to
     just before it, and a skipped record says where and why the requested second was cut."""
     code = main(

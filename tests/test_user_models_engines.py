@@ -1,4 +1,4 @@
-"""Engines on users' MJCF files (issue 11 items 3 and 4): MuJoCo loads the file as it is,
+"""Engines on users' MJCF files: MuJoCo loads the file as it is,
 Pinocchio gets a complete model built from MuJoCo's compiled one; dependent rows compare the
 accelerations and J^T lambda (the minimum-norm multipliers)."""
 

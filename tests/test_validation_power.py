@@ -1,4 +1,4 @@
-"""Issue 14: the blind spots of the suite, each closed and held here."""
+"""The blind spots of the suite, each closed and held here."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 4's targets, as ratios of figures measured in one `crosscheck bench` run: the
+"""The suite's speed targets, as ratios of figures measured in one `crosscheck bench` run: the
 reference's work-precision against the soft fixed-step engine's (MuJoCo), and its forward
 dynamics against the exact engine's native call (Pinocchio), single-state and batched."""
 
@@ -18,7 +18,7 @@ from reference.integrate.driver import simulate
 
 TARGET_ERROR, TARGET_RESIDUAL, TARGET_MUJOCO_ERROR = 1e-8, 1e-10, 1e-4
 TARGET_BATCH_SPEEDUP = 10.0
-# issue 13's bar for target 1: the reference in at most a quarter of MuJoCo's time (ratio >= 4)
+# the bar for target 1: the reference in at most a quarter of MuJoCo's time (ratio >= 4)
 TARGET_WP_SPEEDUP = 4.0
 
 
@@ -62,7 +62,7 @@ def _profile_run(fn, top=8) -> list[str]:
 def targets(
     forward: list[dict], wp: list[dict], model: str = "slider_crank", quick: bool = False
 ) -> dict:
-    """Issue 4's three targets, as ratios of figures measured in this run. The forward targets
+    """The three targets, as ratios of figures measured in this run. The forward targets
     time the reference and Pinocchio back to back (forward_pair) on every model with a
     Pinocchio forward record (quick: QUICK_MODELS only)."""
     out = {}
@@ -243,7 +243,7 @@ def work_precision_target(recs: list[dict], model: str) -> dict:
 
 
 def _speedup(ratio: float) -> dict:
-    """Issue 13's stricter bar on the same ratio: at most a quarter of the engine's time."""
+    """The stricter bar on the same ratio: at most a quarter of the engine's time."""
     return {
         "speedup_target": TARGET_WP_SPEEDUP,
         "met_speedup": ratio >= TARGET_WP_SPEEDUP,

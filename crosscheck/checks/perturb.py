@@ -71,7 +71,7 @@ def check_perturb(names, perturb: dict) -> None:
 
 def check_perturb_changes(names, engine_names, perturb: dict) -> None:
     """Before any work: every perturbation changes its engine's model of every model in the
-    run (issue 14: a perturbation that does nothing passes and proves nothing). The engine's
+    run (a perturbation that does nothing passes and proves nothing). The engine's
     model is built at the defaults with and without each perturbed parameter and the two
     fingerprints (EngineModel.fingerprint: masses, inertias, geometry, gravity, loads) are
     compared; an engine whose models have no fingerprint is not checked."""

@@ -210,7 +210,7 @@ def forward_ratios(recs) -> list[dict]:
 
 
 def _ratios(name, recs) -> dict:
-    """Issue 13's ratios from this run's records: the reference's checked and raw single-state
+    """The speed ratios from this run's records: the reference's checked and raw single-state
     calls over each engine's call (targets <= 0.5 and <= 0.25 against every engine with exact
     multipliers), and each engine's loop over the batched reference per state (target >= 20)."""
     from crosscheck.engines.registry import get_engine
@@ -374,7 +374,7 @@ def _print_summary(result: dict, out: Path) -> None:
     for path, what in result.get("forward_paths", {}).items():
         print(f"  {path:15s} {what}")
     print(
-        "\nratios (issue 13 targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20;"
+        "\nratios (targets: checked <= 0.5, raw <= 0.25 x Pinocchio; loop/batched >= 20;"
         " raw = single-raw, raw_out = single-raw-out, into = single-into)"
     )
     for r in result["forward_ratios"]:

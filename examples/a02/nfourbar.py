@@ -3,7 +3,7 @@
 N parallelogram cells in a row: N + 1 cranks pivoted on the ground at x = 0, 1, ..., N and N
 couplers, each hinged on the top of crank i and closed on the top of crank i + 1 by a 3-D
 `connect` (three rows, two independent in the plane: the dependent row is what
-reference.redundant is for). 2N + 1 links of 1 m and 1 kg (thin rods: I = m L^2 / 12 about
+reference.numeric.redundant is for). 2N + 1 links of 1 m and 1 kg (thin rods: I = m L^2 / 12 about
 the centre), gravity 9.81 m/s^2 along -y, released with the cranks vertical and the top of
 the first crank (B0) moving at 1 m/s along +x, simulated for 10 s. When the cranks are
 horizontal every bar lies on the ground line and the constraint rows lose N of their 2N

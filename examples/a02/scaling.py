@@ -78,7 +78,7 @@ def build(n: int, work: Path) -> dict:
 
     from crosscheck.engines.pinocchio.user_file import UserFilePinModel
     from crosscheck.user_models import load_model_file, register_all
-    from reference.numeric import NumericModel
+    from reference.numeric.model import NumericModel
 
     path = work / f"a02_nfourbar_{n}.xml"
     path.write_text(mjcf(n))
@@ -149,7 +149,7 @@ def engines_at_states(b: dict) -> dict:
     """Per engine: seconds per forward call and worst relative u' error against the reference."""
     from crosscheck.engines.mujoco.mjcf_rigid import rigid_forward
     from reference.errors import SingularSystemError
-    from reference.mjcf import rates_from_qvel
+    from reference.mjcf.loader import rates_from_qvel
 
     imp, nm, pin = b["um"].mjcf, b["nm"], b["pin"]
     m = imp.mj
@@ -268,7 +268,7 @@ def mujoco_run(b: dict) -> dict:
 
 def reference_run(b: dict, wall: float) -> dict:
     """The reference's DOP853 + projection for 10 s within `wall` seconds, or how it stopped."""
-    from reference.integrate import simulate
+    from reference.integrate.driver import simulate
 
     nm = b["nm"]
     q0, u0 = nm.model.initial_q, nm.model.initial_u
@@ -377,7 +377,7 @@ def main(argv=None) -> int:
         help="wall seconds for each Pinocchio 10 s run (default 300)",
     )
     args = ap.parse_args(argv)
-    from reference import codegen
+    from reference.backends import codegen
 
     command = "PYTHONPATH=$PWD python examples/a02/scaling.py " + " ".join(
         argv if argv is not None else sys.argv[1:]

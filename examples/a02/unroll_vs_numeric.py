@@ -13,9 +13,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from nfourbar import mjcf
 
-from reference import codegen
-from reference.mjcf import import_mjcf
-from reference.numeric import NumericModel
+from reference.backends import codegen
+from reference.mjcf.loader import import_mjcf
+from reference.numeric.model import NumericModel
 
 n = int(sys.argv[1]) if len(sys.argv) > 1 else 5
 with tempfile.TemporaryDirectory() as tmp:

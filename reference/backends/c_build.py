@@ -1,4 +1,4 @@
-"""Build and load the C kernels of reference.backends.c_source (issue 13): one CPython extension per
+"""Build and load the C kernels of reference.backends.c_source: one CPython extension per
 derivation cache entry, compiled by the system's C compiler into the cache directory.
 
 The built file is named by a digest of everything that decides its machine code (the C text,

@@ -1,4 +1,4 @@
-"""C source of the generated code (issue 13): the same expressions as reference.backends.codegen's
+"""C source of the generated code: the same expressions as reference.backends.codegen's
 Python module, printed as C functions that a C compiler builds into a CPython extension.
 
 Why C beside numba: a call into a numba kernel costs about 0.6 us before any arithmetic (its

@@ -1,4 +1,4 @@
-/* Runtime of the generated C kernels (reference/ckernels.py, issue 13).
+/* Runtime of the generated C kernels (reference/backends/c_source.py).
 
    Included by each generated module after its kernel bodies; the module defines NQ, NU, NP,
    NM (coordinates, speeds, parameters, constraint rows), MODULE_NAME and KERNEL_BODIES, one

@@ -1,4 +1,4 @@
-/* The compiled stepper of reference.integrate (issue 13): scipy's DOP853 step (the loop of
+/* The compiled stepper of reference.integrate: scipy's DOP853 step (the loop of
    reference/integrate_rk.py's LeanDOP853, the same formulas in the same order) and its dense
    output, driving the module's own forward kernel, and the coordinate projection of
    integrate_projection.py after every accepted step and at every output time. Included by

@@ -37,7 +37,7 @@ from reference.eom import EquationsOfMotion
 from reference.formulations.lagrange import kinetic_energy, potential_energy
 
 # The derivation cache must miss whenever any source that shapes the derived equations or the
-# generated code changes (a hand-bumped version number was forgotten: issue 14 item 1). These
+# generated code changes (a hand-bumped version number is easily forgotten). These
 # are the modules the derivation runs through; the model modules are covered by
 # Model.content_hash(), which hashes the declared expressions themselves.
 _PACKAGE = Path(__file__).resolve().parents[1]  # reference/
@@ -76,7 +76,7 @@ def cache_dir() -> Path:
 def cache_key(model, formulation: str) -> str:
     """File stem of a cache entry: the formulation (a readable prefix) and a hash of the
     model's content, the formulation, the derivation's sources and sympy. The model's name is
-    not in it (issue 11 item 7): a renamed or re-imported model reuses its derivation; the
+    not in it: a renamed or re-imported model reuses its derivation; the
     generated file's first line names the model it was first derived for."""
     h = hashlib.sha256(
         f"{model.content_hash()}|{formulation}|{derivation_sources_hash()}|"
@@ -177,7 +177,7 @@ def _cholesky(
     """Lower-triangular L with L L^T = Mc, skipping structural zeros, and the reciprocals of its
     diagonal; records pivot ratios (each pivot over `reference[j]`, by default the original
     diagonal entry). One reciprocal per pivot, then multiplications: a division costs 4-10
-    multiplications, and the solves divide by each pivot n + m times (issue 13)."""
+    multiplications, and the solves divide by each pivot n + m times."""
     n = len(Mc)
     L = [["0"] * n for _ in range(n)]
     inv = ["0"] * n

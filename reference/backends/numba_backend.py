@@ -1,4 +1,4 @@
-"""Numba backend for the generated code of reference.backends.codegen (issue 13), and the choice of
+"""Numba backend for the generated code of reference.backends.codegen, and the choice of
 backend (the C one is reference.backends.c_source and reference.backends.c_build).
 
 The generated Python module (straight-line functions of lists, returning lists) is rewritten,

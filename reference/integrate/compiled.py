@@ -1,4 +1,4 @@
-"""A whole integration in compiled code: the DOP853 stepper of ckernel_stepper.h (issue 13).
+"""A whole integration in compiled code: the DOP853 stepper of ckernel_stepper.h.
 
 Where a run qualifies (why_not), `simulate` hands the solver loop to the model's C module: the
 same scipy DOP853 step (LeanDOP853's formulas, scipy's tableau read from the solver, the start

@@ -1,4 +1,4 @@
-"""Written for multibody-crosscheck (issue 11): a Python model file as a user writes one.
+"""Written for multibody-crosscheck: a Python model file as a user writes one.
 
 A point mass on a horizontal plane (x, y) tied to the origin by a spring-damper, and a
 pendulum (one angle) with a joint damper and a time-dependent driving torque, both with the

@@ -21,7 +21,7 @@ REFERENCE_ACCURACY = C.Tolerance(
 )
 # The reference's stabilization guarantees its own bounds, so they are the tolerances: a run
 # whose projection is switched off must fail here, not only at the gate. Measured over 5 s on
-# every constrained model (issue 14; the ratios are per output time):
+# every constrained model (the ratios are per output time):
 #   |f| / (PROJECTION_TOL (1 + |q|_inf)): 0.88..1.00 with projection, 17..1.6e5 without (index1)
 #   |A u + a0| / (eps max(|u|_inf, 1)):   0.1..1.1 with projection, 610..1e5 without
 # (PYTHONPATH=$PWD python scripts/drift_guarantee.py). Gauss-Newton stops at

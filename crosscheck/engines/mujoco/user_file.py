@@ -1,4 +1,4 @@
-"""MuJoCo's model of a user's MJCF file: the file as MuJoCo compiles it (issue 11 item 3).
+"""MuJoCo's model of a user's MJCF file: the file as MuJoCo compiles it.
 
 The reference model of an MJCF file (reference.mjcf.loader) is written in the file's own joint
 coordinates, qpos in MuJoCo's order, so the state maps are the identity on positions; the

@@ -61,7 +61,7 @@ _UNSUPPORTED = {
     "knife_edge": "nonholonomic (velocity-level) constraint: OpenSim's Python API offers only "
     "holonomic constraints and coordinate couplers (Simbody's NoSlip/knife-edge "
     "constraints are not wrapped as OpenSim components)",
-    # expressible in OpenSim but not mapped yet (issue 12): say so instead of a silent gap
+    # expressible in OpenSim but not mapped yet: say so instead of a silent gap
 }
 
 

@@ -1,4 +1,4 @@
-"""Pinocchio's model of a user's MJCF file, built from MuJoCo's compiled model (issue 11 item 3).
+"""Pinocchio's model of a user's MJCF file, built from MuJoCo's compiled model.
 
 Pinocchio's own MJCF parser loses dynamics on real files (it ignores <option gravity>, does
 not parse joint stiffness, leaves damping unapplied, drops `joint` equalities; what it kept on

@@ -1,5 +1,5 @@
 """The report's sensitivity section: DIR/sensitivity.json of `crosscheck sensitivity`, when it
-lies beside the report's results.json, as a table and a plot (issue 14).
+lies beside the report's results.json, as a table and a plot.
 
 One row per model and parameter, one column per engine: the smallest relative change of that
 parameter in that engine's model that some check of the suite catches ("1e-11": a change of
