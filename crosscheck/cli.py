@@ -10,18 +10,14 @@ from __future__ import annotations
 
 import argparse
 import atexit
-import math
 import os
 import re
 import sys
 
 # Only the standard library at import time: the models and engines (numpy, sympy, seconds to
 # import) load inside main(), where a Ctrl-C is answered with one line, not a traceback.
-from crosscheck.commands.arguments import OneLineParser, add_model_files, finite_float
-from crosscheck.runtime import (
-    interrupts,  # standard library only
-    jsonio,
-)
+from crosscheck.commands.arguments import OneLineParser
+from crosscheck.runtime import interrupts  # standard library only
 
 EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
@@ -29,203 +25,23 @@ EXIT_INCOMPLETE = 4  # a campaign stopped by its time budget: nothing failed, no
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
 
 
-def UsageError(message: str) -> Exception:
-    """Bad command-line input: a ModelInputError, printed as one line with exit status 2."""
-    from reference.errors import ModelInputError
-
-    return ModelInputError(message)
+# Every command, in the order `crosscheck --help` lists them: crosscheck.commands.<name> has
+# register(subparsers), which adds the command's parser and the function it runs.
+COMMANDS = ("models", "eval", "run", "bench", "report", "gate", "sweep", "engines", "sensitivity")
 
 
-def _floats(text: str | None, what: str) -> list[float] | None:
-    if text is None:
-        return None
-    out = []
-    for item in text.split(","):
-        item = item.strip()
-        if not item:
-            continue
-        try:
-            out.append(float(item))
-        except ValueError:
-            raise UsageError(
-                f"{what}: {item!r} is not a number (give comma-separated values)"
-            ) from None
-    return out
-
-
-def _assignments(pairs: list[str]) -> dict[str, float]:
-    out = {}
-    for pair in pairs or []:
-        if "=" not in pair:
-            raise UsageError(f"--set {pair!r}: expected NAME=VALUE")
-        name, value = pair.split("=", 1)
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise UsageError(f"--set {pair!r}: {value!r} is not a number") from None
-    return out
-
-
-_json_default = jsonio.default
-
-
-def dump_json(obj) -> str:
-    return jsonio.dumps(obj, allow_nan=False)
-
-
-# ---- models ------------------------------------------------------------------------------
-def describe_model(model) -> dict:
-    from reference.constraints import classify
-
-    return {
-        "name": model.name,
-        "source": model.source,
-        "title": model.title,
-        "coordinates": [s.name for s in model.coordinates],
-        "speeds": [s.name for s in model.speeds],
-        "parameters": {p.name: p.default for p in model.parameters},
-        "parameter_units": {p.name: p.unit for p in model.parameters},
-        "constraints": classify(model),
-        "formulations": list(model.formulations),
-        "multiplier_meaning": model.multiplier_meaning,
-        "geometry_note": model.geometry_note,
-        "initial_state": {"q": list(model.initial_q), "u": list(model.initial_u)},
-    }
-
-
-def cmd_models(args) -> int:
-    from reference import models
-
-    described = [
-        {**describe_model(models.get(n)), "origin": models.origin(n)}
-        for n in [*models.names(), *models.user_names()]
-    ]
-    if args.json:
-        print(dump_json(described))
-        return 0
-    rows = [("name", "origin", "source", "q", "u", "constraints", "formulations")]
-    for d in described:
-        rows.append(
-            (
-                d["name"],
-                d["origin"],
-                d["source"],
-                ",".join(d["coordinates"]),
-                str(len(d["speeds"])),
-                str(len(d["constraints"])),
-                ",".join(d["formulations"]),
-            )
-        )
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=False)).rstrip())
-    return 0
-
-
-# ---- eval --------------------------------------------------------------------------------
-def cmd_eval(args) -> int:
-    import numpy as np
-
-    from reference import NumericModel, models
-
-    model = models.get(args.name)
-    nm = NumericModel(model, args.formulation, _assignments(args.set))
-    q = _floats(args.q, "--q")
-    u = _floats(args.u, "--u")
-    q = list(model.initial_q) if q is None else q
-    u = list(model.initial_u) if u is None else u
-    if not math.isfinite(args.t):
-        raise UsageError("--t must be finite")
-    if args.project:
-        q, u = nm.project(q, u, args.t)
-    else:
-        nm.check_consistent(q, u, args.t)
-    res = nm.forward(q, u, args.t)
-    pos, vel = nm.residuals(q, u, args.t)
-    K, V = nm.energy(q, u, args.t)
-    out = {
-        "model": model.name,
-        "source": model.source,
-        "formulation": nm.formulation,
-        "parameters": nm.params,
-        "t": args.t,
-        "q": np.asarray(q, float),
-        "u": np.asarray(u, float),
-        "coordinates": [s.name for s in model.coordinates],
-        "speeds": [s.name for s in model.speeds],
-        "accelerations": res.accelerations,
-        "multipliers": res.multipliers,
-        "constraint_names": list(model.constraint_names),
-        "multiplier_meaning": model.multiplier_meaning,
-        "coordinate_rates": nm.kinematics(q, u, args.t),
-        "residuals": {"position": pos, "velocity": vel},
-        "energy": {"kinetic": K, "potential": V, "total": K + V},
-        "pivot_ratio": res.pivot_ratio,
-    }
-    if args.json:
-        print(dump_json(out))
-    else:
-        print(f"{model.name} ({model.source}), {nm.formulation}, t = {args.t}")
-        for s, a in zip(out["speeds"], res.accelerations, strict=False):
-            print(f"  d({s})/dt = {a:.12g}")
-        for name, lam in zip(model.constraint_names or [], res.multipliers, strict=False):
-            print(f"  lambda[{name}] = {lam:.12g}")
-        print(
-            f"  residuals: position {np.abs(pos).max() if pos.size else 0:.2e}, "
-            f"velocity {np.abs(vel).max() if vel.size else 0:.2e}"
-        )
-    return 0
-
-
-# ---- parser ------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(
-        prog="crosscheck",
-        description="Textbook multiplier formulations cross-checked against Pinocchio and MuJoCo",
-    )
-    sub = p.add_subparsers(dest="command", required=True)
-
-    m = sub.add_parser("models", help="list the models of the unit")
-    m.add_argument("--json", action="store_true", help="machine-readable list")
-    add_model_files(m)
-    m.set_defaults(func=cmd_models)
-
-    e = sub.add_parser("eval", help="accelerations and multipliers of a model at a state")
-    e.add_argument("name", help="model name (see `crosscheck models`)")
-    e.add_argument("--formulation", default=None, help="lagrange | dalembert | kane")
-    e.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="override a parameter (repeatable)",
-    )
-    e.add_argument("--q", help="coordinates, comma-separated (default: the model's initial state)")
-    e.add_argument("--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)")
-    e.add_argument("--t", type=finite_float, default=0.0, help="time (rheonomic constraints)")
-    e.add_argument(
-        "--project",
-        action="store_true",
-        help="project the state onto the constraint manifold instead of refusing it",
-    )
-    e.add_argument("--json", action="store_true")
-    add_model_files(e)
-    e.set_defaults(func=cmd_eval)
-
-    for register in _optional_commands():
-        register(sub)
-    add_model_files(sub.choices["report"])  # report's own module is being split; added here
-    return p
-
-
-def _optional_commands():
-    """Subcommands that live in their own modules: each has a register(subparsers)."""
     from importlib import import_module
 
-    return [
-        import_module(f"crosscheck.commands.{name}").register
-        for name in ("run", "bench", "report", "gate", "sweep", "engines", "sensitivity")
-    ]
+    p = OneLineParser(
+        prog="crosscheck",
+        description="Textbook multiplier formulations cross-checked against the registered "
+        "engines (Pinocchio, MuJoCo, Exudyn, OpenSim)",
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+    for name in COMMANDS:
+        import_module(f"crosscheck.commands.{name}").register(sub)
+    return p
 
 
 # A value that starts with a minus sign: a number or a comma-separated list of numbers

@@ -214,7 +214,7 @@ def test_forward_record_keeps_the_dataclass_behaviour(nm):
 
 
 def test_bench_names_every_reference_call_and_the_out_ratio(monkeypatch):
-    from crosscheck.commands import bench
+    from crosscheck.bench import forward as bench
     from crosscheck.engines.registry import get_engine
 
     monkeypatch.setenv("CROSSCHECK_BACKEND", "c" if cbuild.available() else "numba")

@@ -10,7 +10,7 @@ import json
 import pytest
 
 from crosscheck.cli import main
-from crosscheck.commands.gate import FACTOR, ROUND_OFF_FLOOR, worsened
+from crosscheck.gate import FACTOR, ROUND_OFF_FLOOR, worsened
 
 from .test_report import crosscheck, results_of, synthetic_bench
 

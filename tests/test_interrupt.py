@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-import crosscheck.commands.report as report
+import crosscheck.report.write as report
 from crosscheck.cli import main
 from crosscheck.runtime.output import TMP_PREFIX
 from crosscheck.sweep.store import chunk_files

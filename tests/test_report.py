@@ -338,7 +338,7 @@ def test_junit_has_one_case_per_record_with_reasons(full_report):
 
 
 def test_report_is_deterministic(full_report):
-    from crosscheck.commands.report import generate
+    from crosscheck.report.write import generate
 
     site, root = full_report["dir"], full_report["root"]
     before = {p.name: p.read_bytes() for p in site.iterdir()}

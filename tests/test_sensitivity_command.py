@@ -8,8 +8,9 @@ import json
 
 import pytest
 
+from crosscheck.checks.sensitivity import engine_thresholds
 from crosscheck.cli import main
-from crosscheck.commands.sensitivity import DEFAULT_MODELS, engine_thresholds
+from crosscheck.commands.sensitivity import DEFAULT_MODELS
 from reference import models
 
 CAUGHT_BY = 1e-8  # the bar: an error of 1e-8 in any used parameter must fail a record

@@ -23,7 +23,17 @@ import pytest
 
 from crosscheck.checks.sampling import draw_sample, sample_seed, with_params
 from crosscheck.cli import main
-from crosscheck.commands import sweep as S
+from crosscheck.sweep.campaign import campaign
+from crosscheck.sweep.config import (
+    DASK_MAX_CHUNK,
+    DASK_MIN_CHUNK,
+    LOCAL_CHUNK_MAX,
+    QUANTILES,
+    Campaign,
+)
+from crosscheck.sweep.executors import dask_chunk, local_chunk
+from crosscheck.sweep.worker import base_model, cached_adapter, reference_batch
+from crosscheck.sweep.worker import draw_sample as sweep_draw_sample
 from reference import NumericModel, models
 
 DETERMINISTIC = ("status", "series", "results", "faults")
@@ -38,8 +48,8 @@ def _same(a: dict, b: dict) -> None:
 @pytest.fixture(scope="module")
 def local_run():
     """The reference campaign: in this process, chunks of 3."""
-    cfg = S.Campaign(["pendulum_xy", "slider_crank_split"], samples=8, seed=11)
-    return cfg, S.campaign(cfg, workers=1, chunk=3)
+    cfg = Campaign(["pendulum_xy", "slider_crank_split"], samples=8, seed=11)
+    return cfg, campaign(cfg, workers=1, chunk=3)
 
 
 # ---- a sample is the property tests' instance; fast paths = slow paths ---------------------
@@ -47,7 +57,7 @@ def local_run():
 def test_sample_is_the_property_tests_instance(name):
     from tests.test_properties import _instance
 
-    base = S.base_model(name)
+    base = base_model(name)
     for i in (0, 7):
         s, nm, t, q, u = draw_sample(base, 5, i)
         assert s == sample_seed(5, name, i) and 0 <= s < 2**32  # a valid hypothesis seed
@@ -66,7 +76,7 @@ def test_sample_is_the_property_tests_instance(name):
 
 def test_with_params_equals_the_constructor():
     model = models.get("double_pendulum_3d")
-    base = S.base_model(model.name)
+    base = base_model(model.name)
     _, nm, t, q, u = draw_sample(base, 1, 0)
     slow = NumericModel(model, base.formulation, nm.params)
     fast = with_params(base, nm.params)
@@ -79,9 +89,9 @@ def test_with_params_equals_the_constructor():
 
 @pytest.mark.parametrize("name", ["slider_crank_split", "top_euler", "exercise_6_4"])
 def test_batched_reference_with_per_sample_parameters_equals_scalar(name):
-    base = S.base_model(name)
+    base = base_model(name)
     draws = [draw_sample(base, 2, i) for i in range(6)]
-    UD, LAM, errs = S.reference_batch(
+    UD, LAM, errs = reference_batch(
         base,
         [d[1] for d in draws],
         [d[2] for d in draws],
@@ -100,15 +110,15 @@ def test_batched_reference_with_per_sample_parameters_equals_scalar(name):
 
 def test_batched_reference_isolates_a_singular_sample():
     # the slider-crank folded onto itself (l2 = l1 at theta1 = pi/2) beside regular samples
-    base = S.base_model("slider_crank")
+    base = base_model("slider_crank")
     draws = [draw_sample(base, 2, i) for i in range(3)]
     fold = with_params(base, {**draws[1][1].params, "l2": draws[1][1].params["l1"]})
     nms = [draws[0][1], fold, draws[2][1]]
     Q = [draws[0][3], np.array([np.pi / 2, -np.pi / 2]), draws[2][3]]
     U = [draws[0][4], np.zeros(2), draws[2][4]]
-    UD, _, errs = S.reference_batch(base, nms, [0.0] * 3, Q, U)
+    UD, _, errs = reference_batch(base, nms, [0.0] * 3, Q, U)
     assert errs[0] is None and errs[2] is None and "singular" in str(errs[1])
-    assert np.array_equal(UD[2], S.reference_batch(base, nms[2:], [0.0], Q[2:], U[2:])[0][0])
+    assert np.array_equal(UD[2], reference_batch(base, nms[2:], [0.0], Q[2:], U[2:])[0][0])
 
 
 @pytest.mark.parametrize(
@@ -133,7 +143,7 @@ def test_sample_errors_are_the_run_checks_at_that_state(name, engine):
     )
     from crosscheck.engines.registry import get_engine
 
-    base = S.base_model(name)
+    base = base_model(name)
     _, nm, t, q, u = draw_sample(base, 4, 1)
     ad = get_engine(engine)
     for variant in ad.variants(name):
@@ -157,12 +167,12 @@ def test_identical_for_worker_counts_and_chunk_sizes(local_run):
         "pendulum_xy": 8,
         "slider_crank_split": 8,
     }
-    b = S.campaign(cfg, workers=2, chunk=5)
+    b = campaign(cfg, workers=2, chunk=5)
     assert b["meta"]["executor"]["kind"] == "processes"
     _same(a, b)
-    _same(a, S.campaign(cfg, workers=1, chunk=8))
+    _same(a, campaign(cfg, workers=1, chunk=8))
     # and each sample is its own: a sub-range of the campaign gives its part of the values
-    part = S.campaign(S.Campaign(["pendulum_xy"], samples=3, seed=11, index=4), workers=1)
+    part = campaign(Campaign(["pendulum_xy"], samples=3, seed=11, index=4), workers=1)
     full = {(r["engine"], r["quantity"]): r for r in a["results"] if r["model"] == "pendulum_xy"}
     for r in part["results"]:
         if r.get("skipped"):
@@ -182,17 +192,17 @@ def test_dask_cluster_equals_local_run(local_run):
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
-        b = S.campaign(cfg, dask=client, chunk=3)
+        b = campaign(cfg, dask=client, chunk=3)
     assert b["meta"]["executor"]["kind"] == "dask"
     _same(a, b)
 
 
 def test_chunk_sizes_keep_task_overhead_small():
-    assert S.dask_chunk(10_000, 8) == 313  # a quarter of a model's samples per thread
-    assert S.dask_chunk(1_000, 8) == S.DASK_MIN_CHUNK  # never below the overhead floor ...
-    assert S.dask_chunk(40, 8) == 5  # ... unless that would leave threads idle
-    assert S.dask_chunk(10**6, 8) == S.DASK_MAX_CHUNK  # tasks of seconds, not minutes
-    assert S.local_chunk(10_000, 2) == S.LOCAL_CHUNK_MAX and S.local_chunk(8, 2) == 1
+    assert dask_chunk(10_000, 8) == 313  # a quarter of a model's samples per thread
+    assert dask_chunk(1_000, 8) == DASK_MIN_CHUNK  # never below the overhead floor ...
+    assert dask_chunk(40, 8) == 5  # ... unless that would leave threads idle
+    assert dask_chunk(10**6, 8) == DASK_MAX_CHUNK  # tasks of seconds, not minutes
+    assert local_chunk(10_000, 2) == LOCAL_CHUNK_MAX and local_chunk(8, 2) == 1
 
 
 # ---- worst cases reproduce exactly ----------------------------------------------------------
@@ -246,11 +256,11 @@ def test_worst_case_reproduces_bit_for_bit(tmp_path, capsys):
     ev = shlex.split(worst["reproduce"]["eval"])
     assert main(ev[1:]) == 0
     d = json.loads(capsys.readouterr().out)
-    base = S.base_model("slider_crank")
+    base = base_model("slider_crank")
     s, nm, t, q, u = draw_sample(base, 9, worst["index"])
     assert s == worst["sample_seed"] and d["parameters"] == nm.params and d["t"] == t
     assert np.array_equal(d["q"], q) and np.array_equal(d["u"], u)
-    UD, LAM, _ = S.reference_batch(base, [nm], [t], [q], [u])
+    UD, LAM, _ = reference_batch(base, [nm], [t], [q], [u])
     assert np.allclose(d["accelerations"], UD[0], rtol=1e-13, atol=1e-13)
     assert np.allclose(d["multipliers"], LAM[0], rtol=1e-13, atol=1e-13)
 
@@ -292,7 +302,7 @@ class _FlakyAdapter:
 def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monkeypatch):
     from reference.errors import OffManifoldError
 
-    real_adapter, real_draw = S._adapter, S.draw_sample
+    real_adapter, real_draw = cached_adapter, sweep_draw_sample
 
     def adapter(engine):
         a = real_adapter(engine)
@@ -306,16 +316,14 @@ def test_faults_are_recorded_with_reason_and_seed_and_the_campaign_finishes(monk
     from crosscheck.sweep import campaign as sweep_campaign
     from crosscheck.sweep import worker as sweep_worker
 
-    for mod in (S, sweep_worker, sweep_campaign):  # the worker draws and builds; the plan builds
-        monkeypatch.setattr(mod, "_adapter", adapter)
+    for mod in (sweep_worker, sweep_campaign):  # the worker draws and builds; the plan builds
+        monkeypatch.setattr(mod, "cached_adapter", adapter)
     monkeypatch.setattr(sweep_worker, "draw_sample", draw)
-    cfg = S.Campaign(["pendulum_xy"], samples=10, seed=1)
-    res = S.campaign(cfg, workers=1, chunk=4)
+    cfg = Campaign(["pendulum_xy"], samples=10, seed=1)
+    res = campaign(cfg, workers=1, chunk=4)
     st = res["status"]
     assert st["complete"] and st["completed"] == {"pendulum_xy": 10} and not st["passed"]
-    params = {
-        i: real_draw(S.base_model("pendulum_xy"), 1, i)[1].params for i in range(10) if i != 2
-    }
+    params = {i: real_draw(base_model("pendulum_xy"), 1, i)[1].params for i in range(10) if i != 2}
     build = sorted(i for i, p in params.items() if p["m"] > 1.5)
     evaluate = sorted(i for i, p in params.items() if p["m"] <= 1.5 and p["L"] < 0.8)
     assert build and evaluate  # the seed exercises both
@@ -356,8 +364,8 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
         return p
 
     monkeypatch.setattr(sampling, "random_params", non_physical)
-    res = S.campaign(
-        S.Campaign(["double_pendulum_3d"], samples=2, seed=0, engines=("mujoco",)), workers=1
+    res = campaign(
+        Campaign(["double_pendulum_3d"], samples=2, seed=0, engines=("mujoco",)), workers=1
     )
     groups = res["faults"]["groups"]
     assert {g["variant"] for g in groups} == {"free", "tree"}
@@ -369,8 +377,8 @@ def test_mujoco_refusing_a_parameter_set_is_a_recorded_fault(monkeypatch):
 def test_drawn_inertias_stay_physical():
     """The generator draws each inertia on its own but keeps every body physical (second
     moments, rejection for shared parameters), so MuJoCo accepts every draw."""
-    res = S.campaign(
-        S.Campaign(["double_pendulum_3d", "frame_bar"], samples=6, seed=0, engines=("mujoco",)),
+    res = campaign(
+        Campaign(["double_pendulum_3d", "frame_bar"], samples=6, seed=0, engines=("mujoco",)),
         workers=1,
     )
     assert not res["faults"]["groups"], res["faults"]["groups"]
@@ -387,8 +395,8 @@ def test_interrupted_campaign_reports_what_it_completed(local_run, workers):
         if len(merged) == 2:
             raise KeyboardInterrupt
 
-    res = S.campaign(
-        S.Campaign(["pendulum_xy"], samples=8, seed=11),
+    res = campaign(
+        Campaign(["pendulum_xy"], samples=8, seed=11),
         workers=workers,
         chunk=2,
         on_chunk=interrupt,
@@ -475,7 +483,7 @@ def test_cli_clean_campaign_exits_0_and_writes_the_contract(tmp_path, capsys):
     ):
         assert key in res["meta"]
     r = next(r for r in res["results"] if r["quantity"] == "accelerations")
-    assert set(r["quantiles"]) == {str(p) for p in S.QUANTILES}
+    assert set(r["quantiles"]) == {str(p) for p in QUANTILES}
     assert r["tolerance"] == 1e-11 and r["outside_tolerance"] == 0 and r["count"] == 4
     assert r["max"] == r["worst"][0]["error"] == r["quantiles"]["0.999"]
     h = r["histogram"]

@@ -11,8 +11,9 @@ import signal
 import pytest
 
 from crosscheck.cli import main
-from crosscheck.commands import sweep as S
 from crosscheck.runtime.output import TMP_PREFIX
+from crosscheck.sweep.campaign import campaign
+from crosscheck.sweep.config import Campaign
 from crosscheck.sweep.store import STORE, ChunkStore
 
 from .test_sweep import _same
@@ -23,14 +24,14 @@ SAMPLES, SEED, CHUNK = 8, 11, 2
 
 @pytest.fixture(scope="module")
 def undisturbed():
-    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED)
-    return S.campaign(cfg, workers=1, chunk=CHUNK)
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED)
+    return campaign(cfg, workers=1, chunk=CHUNK)
 
 
 def _interrupted(out, after: int) -> tuple[dict, list]:
     """The campaign stopped by Ctrl-C (as campaign() sees it) after `after` chunks, storing its
     finished chunks in out/sweep.chunks the way `crosscheck sweep --out out` does."""
-    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(out))
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(out))
     merged = []
 
     def ctrl_c(res):
@@ -38,7 +39,7 @@ def _interrupted(out, after: int) -> tuple[dict, list]:
         if len(merged) == after:
             raise KeyboardInterrupt
 
-    res = S.campaign(cfg, workers=1, chunk=CHUNK, on_chunk=ctrl_c, store=ChunkStore(out, cfg))
+    res = campaign(cfg, workers=1, chunk=CHUNK, on_chunk=ctrl_c, store=ChunkStore(out, cfg))
     return res, merged
 
 
@@ -48,9 +49,9 @@ def test_resume_computes_only_what_is_missing(tmp_path, undisturbed):
     assert len(list((tmp_path / STORE).glob("*-*.json"))) == 3
     # a chunk a killed process left half written under its temporary name: not a stored chunk
     (tmp_path / STORE / f"{TMP_PREFIX}999-{MODELS[0]}-6.json").write_text('{"model": "pen')
-    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
     computed = []
-    res = S.campaign(
+    res = campaign(
         cfg,
         workers=1,
         chunk=CHUNK,
@@ -123,7 +124,7 @@ def test_a_killed_dask_worker_changes_nothing(undisturbed):
     chunk. Its nanny restarts it, the scheduler reruns the lost task, the aggregate is the
     undisturbed one."""
     distributed = pytest.importorskip("distributed")
-    cfg = S.Campaign(MODELS, samples=SAMPLES, seed=SEED)
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED)
     killed = []
     with (
         distributed.LocalCluster(
@@ -141,7 +142,7 @@ def test_a_killed_dask_worker_changes_nothing(undisturbed):
                 os.kill(pids[busy[0]], signal.SIGKILL)
                 killed.append(pids[busy[0]])
 
-        res = S.campaign(cfg, dask=client, chunk=CHUNK, on_chunk=kill_a_busy_worker)
+        res = campaign(cfg, dask=client, chunk=CHUNK, on_chunk=kill_a_busy_worker)
     assert killed, "no worker was busy when a chunk finished: nothing was disturbed"
     assert res["meta"]["executor"]["kind"] == "dask"
     assert not res["faults"]["chunks"]

@@ -11,7 +11,7 @@ import statistics
 
 import numpy as np
 
-from crosscheck.bench.workprecision import QUICK_MODELS, _adapter, horizon
+from crosscheck.bench.workprecision import QUICK_MODELS, adapter_or_reason, horizon
 from crosscheck.engines.registry import available_engines, get_engine
 from reference import NumericModel, models
 from reference.integrate.driver import simulate
@@ -288,7 +288,7 @@ def forward_pair(name: str, engine: str | None = None, rounds: int = 3) -> dict:
     from crosscheck.bench.timing import per_call_seconds
 
     engine = engine or _target_engine(exact=True)
-    a, _why = _adapter(engine) if engine else (None, "no exact engine")
+    a, _why = adapter_or_reason(engine) if engine else (None, "no exact engine")
     out: dict = {}
     try:
         model = models.get(name)

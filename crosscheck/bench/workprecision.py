@@ -476,7 +476,7 @@ def engine_records(name, quick, ref, nm, adapter):
     return out
 
 
-def _adapter(engine):
+def adapter_or_reason(engine):
     """The engine adapter object, or the reason it is unavailable."""
     if isinstance(engine, EngineAdapter):
         return engine, None
@@ -500,7 +500,7 @@ def work_precision_records(model_names, quick: bool = False, engines=None, log=N
             names.append("slider_crank")
     adapters = []
     for e in available_engines() if engines is None else engines:
-        a, why = _adapter(e)
+        a, why = adapter_or_reason(e)
         adapters.append((a.name if a is not None else e, a, why))
     out = []
     for name in names:

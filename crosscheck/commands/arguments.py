@@ -247,3 +247,33 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str):  # type: ignore[override]
         # "crosscheck: error:" like every other bad input, whichever subcommand refused it
         self.exit(2, f"crosscheck: error: {message} (see `{self.prog} --help`)\n")
+
+
+def float_list(text: str | None, what: str) -> list[float] | None:
+    if text is None:
+        return None
+    out = []
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        try:
+            out.append(float(item))
+        except ValueError:
+            raise _refuse(
+                f"{what}: {item!r} is not a number (give comma-separated values)"
+            ) from None
+    return out
+
+
+def assignments(pairs: list[str]) -> dict[str, float]:
+    out = {}
+    for pair in pairs or []:
+        if "=" not in pair:
+            raise _refuse(f"--set {pair!r}: expected NAME=VALUE")
+        name, value = pair.split("=", 1)
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise _refuse(f"--set {pair!r}: {value!r} is not a number") from None
+    return out

@@ -167,7 +167,7 @@ def _write_outputs(out: Path, results_text: str, report: bool) -> None:
     with Outputs(out) as staged:
         staged.stage("results.json", results_text)
         if report:  # the main job leaves a report a person can open
-            from crosscheck.commands.report import generate
+            from crosscheck.report.write import generate
 
             bench = out / "bench.json"
             generate(

@@ -62,10 +62,7 @@ faulted (status.verdict "passed"), 1 when a sample is outside a tolerance or fau
 passed), 2 on bad input (one line), 130 when interrupted (after writing sweep.json, whose
 status.passed is then false).
 
-Layout: sweep_config (settings, Campaign), sweep_worker (one chunk, on a worker), sweep_exec
-(serial, process pool, Dask), sweep_aggregate (merge and summary), sweep_campaign (plan and
-run), sweep_bench (throughput); this module is the command line, and re-exports the names
-callers use (crosscheck.commands.sweep.campaign, Campaign, ...).
+The campaign's machinery is crosscheck.sweep; this module is the command line.
 """
 
 from __future__ import annotations
@@ -76,25 +73,11 @@ from pathlib import Path
 
 from crosscheck.checks.perturb import parse_perturb
 from crosscheck.runtime import jsonio
-from crosscheck.sweep.aggregate import reproduce_commands  # noqa: F401 - re-exported
-from crosscheck.sweep.bench import _print_bench, bench
+from crosscheck.sweep.bench import bench, print_bench
 from crosscheck.sweep.campaign import campaign
-from crosscheck.sweep.config import (  # noqa: F401 - re-exported
-    DASK_MAX_CHUNK,
-    DASK_MIN_CHUNK,
-    LOCAL_CHUNK_MAX,
-    QUANTILES,
+from crosscheck.sweep.config import (
     WORST_CASES,
     Campaign,
-)
-from crosscheck.sweep.executors import dask_chunk, default_workers, local_chunk  # noqa: F401 - re-exported
-from crosscheck.sweep.worker import (  # noqa: F401 - re-exported
-    ChunkSpec,
-    _adapter,
-    base_model,
-    draw_sample,
-    reference_batch,
-    run_chunk,
 )
 from reference.errors import ModelInputError
 
@@ -269,7 +252,7 @@ def _cmd_bench(args, names, engines, out) -> int:
         names, args.samples, args.seed, engines, log=lambda m: print(m, file=sys.stderr, flush=True)
     )
     write_atomic(out / "sweep_bench.json", jsonio.dumps(b))
-    _print_bench(b)
+    print_bench(b)
     print(f"wrote {out / 'sweep_bench.json'}")
     return 0
 

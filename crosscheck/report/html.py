@@ -1,4 +1,4 @@
-"""The report as one self-contained HTML page (index.html); see crosscheck.commands.report."""
+"""The report as one self-contained HTML page (index.html); see crosscheck.report.write."""
 
 from __future__ import annotations
 

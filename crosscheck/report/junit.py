@@ -1,5 +1,5 @@
 """The results as JUnit XML (junit.xml: one test case per record); see
-crosscheck.commands.report."""
+crosscheck.report.write."""
 
 from __future__ import annotations
 

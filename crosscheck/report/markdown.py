@@ -1,4 +1,4 @@
-"""The report as Markdown (report.md); see crosscheck.commands.report."""
+"""The report as Markdown (report.md); see crosscheck.report.write."""
 
 from __future__ import annotations
 

@@ -70,7 +70,7 @@ def _num(x) -> float:
         return math.nan
 
 
-def _figure(width, height):
+def new_figure(width, height):
     from matplotlib.backends.backend_svg import FigureCanvasSVG
     from matplotlib.figure import Figure
 
@@ -79,7 +79,7 @@ def _figure(width, height):
     return fig
 
 
-def _svg(fig) -> str:
+def svg_text(fig) -> str:
     import matplotlib
 
     buf = io.StringIO()
@@ -88,7 +88,7 @@ def _svg(fig) -> str:
     return buf.getvalue()
 
 
-def _style(ax):
+def axes_style(ax):
     ax.grid(True, which="major", color="#dddddd", linewidth=0.6)
     ax.set_axisbelow(True)
     for side in ("top", "right"):
@@ -121,9 +121,9 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
     hi = max([1.0, *finite]) * 30
     slots = [(key, r) for key in rows for r in by_row[key]]
     height = 1.1 + 0.27 * len(slots) + 0.12 * len(rows)
-    fig = _figure(8.6, height)
+    fig = new_figure(8.6, height)
     ax = fig.add_subplot()
-    _style(ax)
+    axes_style(ax)
     ax.set_xscale("log")
     ax.set_xlim(lo, hi)
     y = 0.0
@@ -162,7 +162,7 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
     _agreement_legend(ax, notes)
     if title:
         ax.set_title(title, fontsize=10, loc="left")
-    return _svg(fig)
+    return svg_text(fig)
 
 
 def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dict) -> None:
@@ -353,10 +353,10 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     if not panels:
         return None
     styles = line_styles([_series_key(s) for s in lines])
-    fig = _figure(8.6, 0.6 + 2.15 * len(panels))
+    fig = new_figure(8.6, 0.6 + 2.15 * len(panels))
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     for ax, (key, label) in zip(axes, panels, strict=False):
-        _style(ax)
+        axes_style(ax)
         ax.set_yscale("log")
         ax.set_ylabel(label, fontsize=8)
         zeros = []
@@ -406,7 +406,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
         fig.set_figheight(fig.get_figheight() + 0.22 * ((len(handles) + 1) // 2))
     if title:
         axes[0].set_title(title, fontsize=10, loc="left")
-    return _svg(fig)
+    return svg_text(fig)
 
 
 def _series_key(s: dict) -> tuple:
@@ -465,10 +465,10 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
 
     styles = line_styles(list(lines))
     engines = list(dict.fromkeys(k[1] for k in lines))
-    fig = _figure(min(3.3 * len(panels) + 2.4, 12.0), 3.6)
+    fig = new_figure(min(3.3 * len(panels) + 2.4, 12.0), 3.6)
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
     for ax, (key, label) in zip(axes, panels, strict=False):
-        _style(ax)
+        axes_style(ax)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(label, fontsize=8)
@@ -501,7 +501,7 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
     fig.legend(handles, labels, fontsize=7.5, loc="outside right upper", frameon=False)
     if title:
         fig.suptitle(title, fontsize=10, x=0.02, ha="left")
-    return _svg(fig)
+    return svg_text(fig)
 
 
 # ---- sweeps (crosscheck sweep) ----------------------------------------------------------------
@@ -533,7 +533,7 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
     for ax in axes.flat[len(quantities) :]:
         ax.set_visible(False)
     for ax, qn in zip(axes.flat, quantities, strict=False):
-        _style(ax)
+        axes_style(ax)
         ax.set_xscale("log")
         ax.set_title(qn, fontsize=8.5, loc="left")
         tols = set()
@@ -580,4 +580,4 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
         ax.set_xlabel("error (log; dashed: the engine's tolerance)", fontsize=7.5)
     if title:
         fig.suptitle(title, fontsize=10, x=0.01, y=1 - 0.05 / height, ha="left", va="top")
-    return _svg(fig)
+    return svg_text(fig)

@@ -24,12 +24,12 @@ from crosscheck.sweep.config import (
     SOFT_ERROR_REASON,
     Campaign,
 )
-from crosscheck.sweep.worker import _adapter, base_model
+from crosscheck.sweep.worker import base_model, cached_adapter
 
 
 # ---- the campaign (runs in the parent) ------------------------------------------------------
 @dataclass
-class _ModelAgg:
+class ModelAggregate:
     name: str
     formulation: str
     start: int
@@ -75,7 +75,7 @@ class _ModelAgg:
                 acc[j] += x[j]
 
 
-def _ranges(mask: np.ndarray, start: int) -> list[list[int]]:
+def completed_index_ranges(mask: np.ndarray, start: int) -> list[list[int]]:
     """Index ranges [a, b) where mask is True."""
     out, i, n = [], 0, len(mask)
     while i < n:
@@ -147,7 +147,7 @@ def reproduce_commands(
     return {"sweep": shlex.join(argv), "eval": shlex.join(ev)}
 
 
-def _campaign_meta(cfg: Campaign, aggs) -> dict:
+def campaign_meta(cfg: Campaign, aggs) -> dict:
     return {
         "seed": cfg.seed,
         "samples": cfg.samples,
@@ -201,7 +201,7 @@ def _quantity_record(
 ) -> tuple[dict, int | None]:
     """The results row of one model x engine x variant x quantity, and how many samples are
     outside its tolerance (None: no tolerance)."""
-    tol, metric = tolerance(qn, soft, _adapter(e), name)
+    tol, metric = tolerance(qn, soft, cached_adapter(e), name)
     row = {"model": name, "formulation": agg.formulation, "engine": e, "variant": v, "quantity": qn}
     if (e, v, qn) not in agg.values:
         return {**row, "skipped": agg.skips[(e, v, qn)], "count": 0}, None
@@ -270,7 +270,7 @@ def _redrawer(base, seed):
     return case
 
 
-def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
+def summarize(cfg: Campaign, aggs, stopped, done) -> dict:
     results, series_rows, fault_groups, fault_records, chunk_faults = [], [], {}, [], []
     outside_total = 0
     for name, agg in aggs.items():
@@ -323,7 +323,9 @@ def _summarize(cfg: Campaign, aggs, stopped, done) -> dict:
         "stopped": stopped,
         "requested": {n: cfg.samples for n in aggs},
         "completed": done,
-        "completed_ranges": {n: _ranges(a.completed, cfg.index) for n, a in aggs.items()},
+        "completed_ranges": {
+            n: completed_index_ranges(a.completed, cfg.index) for n, a in aggs.items()
+        },
         "outside_tolerance": outside_total,
         "faults": n_faults + len(chunk_faults),
     }
@@ -367,7 +369,7 @@ def _fault_command(cfg: Campaign, model: str, f: dict) -> str:
     return shlex.join([*argv, "--out", f"repro/{model}-{f['index']}"])
 
 
-def _timing(aggs, wall: float) -> dict:
+def timing_summary(aggs, wall: float) -> dict:
     """Where the time went (not part of the deterministic results)."""
     rows = []
     for name, a in aggs.items():

@@ -12,7 +12,7 @@ from crosscheck.checks.sampling import draw_sample
 from crosscheck.engines.registry import available_engines
 from crosscheck.sweep.campaign import campaign
 from crosscheck.sweep.config import LOCAL_CHUNK_MAX, REFERENCE, Campaign
-from crosscheck.sweep.executors import _mp_context, default_workers
+from crosscheck.sweep.executors import default_workers, new_mp_context
 from crosscheck.sweep.worker import base_model
 from reference import models
 
@@ -31,7 +31,7 @@ def _machine_scaling(workers=(1, 2), tasks: int = 8, n: int = 2_000_000) -> list
     the ceiling for any Python-bound campaign here (cores may be shared or throttled)."""
     out = []
     for w in workers:
-        with ProcessPoolExecutor(max_workers=w, mp_context=_mp_context()) as ex:
+        with ProcessPoolExecutor(max_workers=w, mp_context=new_mp_context()) as ex:
             list(ex.map(_spin, [1000] * w))  # start the workers before timing
             t0 = time.perf_counter()
             list(ex.map(_spin, [n] * tasks))
@@ -170,7 +170,7 @@ def bench(
     }
 
 
-def _print_bench(b: dict) -> None:
+def print_bench(b: dict) -> None:
     print(
         f"{'model':24s} {'engine':10s} {'variant':8s} {'samples/s':>9s} {'draw':>6s} "
         f"{'ref batch':>9s} {'ref scalar':>10s} {'ref M,E':>7s} {'build':>7s} "

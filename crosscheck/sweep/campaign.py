@@ -9,18 +9,24 @@ import time
 from crosscheck.checks.instantaneous import build
 from crosscheck.engines.base import EngineUnsupported
 from crosscheck.runtime import interrupts
-from crosscheck.sweep.aggregate import _campaign_meta, _ModelAgg, _ranges, _summarize, _timing
+from crosscheck.sweep.aggregate import (
+    ModelAggregate,
+    campaign_meta,
+    completed_index_ranges,
+    summarize,
+    timing_summary,
+)
 from crosscheck.sweep.config import Campaign
 from crosscheck.sweep.executors import (
-    _Dask,
-    _dask_client,
-    _Pool,
-    _Serial,
+    DaskExecutor,
+    PoolExecutor,
+    SerialExecutor,
     dask_chunk,
+    dask_client,
     default_workers,
     local_chunk,
 )
-from crosscheck.sweep.worker import ChunkSpec, _adapter, _first_line, base_model
+from crosscheck.sweep.worker import ChunkSpec, base_model, cached_adapter, first_line
 from reference.errors import ModelInputError
 
 
@@ -32,17 +38,19 @@ def _plan(cfg: Campaign):
         base = base_model(name, cfg.formulation)  # raises for a bad formulation
         series, unsupported = [], {}
         for e in cfg.engines:
-            ad = _adapter(e)
+            ad = cached_adapter(e)
             for v in ad.variants(name):
                 try:  # the model structure, not the parameters, decides this
                     build(ad, name, None, v)
                 except EngineUnsupported as exc:
-                    unsupported[(e, v)] = _first_line(exc)
+                    unsupported[(e, v)] = first_line(exc)
                     continue
                 except Exception:
                     pass
                 series.append((e, v))
-        aggs[name] = _ModelAgg(name, base.formulation, cfg.index, cfg.samples, series, unsupported)
+        aggs[name] = ModelAggregate(
+            name, base.formulation, cfg.index, cfg.samples, series, unsupported
+        )
     return aggs
 
 
@@ -55,7 +63,7 @@ def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
     for name, agg in aggs.items():
         for a in range(cfg.index, end, chunk):
             b = min(a + chunk, end)
-            for lo, hi in _ranges(~agg.completed[a - cfg.index : b - cfg.index], a):
+            for lo, hi in completed_index_ranges(~agg.completed[a - cfg.index : b - cfg.index], a):
                 specs.append(
                     ChunkSpec(
                         name,
@@ -76,7 +84,7 @@ def _executor(cfg: Campaign, workers, dask, chunk):
     threads = None
     client = cluster = None
     if dask is not None:
-        client, cluster = _dask_client(dask)
+        client, cluster = dask_client(dask)
         threads = sum(client.nthreads().values()) or 1
         chunk = chunk or dask_chunk(cfg.samples, threads)
         executor = {
@@ -118,7 +126,7 @@ class _Merger:
                     "start": spec.start,
                     "stop": spec.stop,
                     "type": type(res).__name__,
-                    "reason": _first_line(res),
+                    "reason": first_line(res),
                 }
             )
             return
@@ -167,11 +175,11 @@ def campaign(
     runner = None
     try:
         runner = (
-            _Dask(specs, client, threads)
+            DaskExecutor(specs, client, threads)
             if client is not None
-            else _Serial(specs)
+            else SerialExecutor(specs)
             if workers == 1
-            else _Pool(specs, workers)
+            else PoolExecutor(specs, workers)
         )
         try:
             for spec, res in runner:
@@ -197,11 +205,11 @@ def campaign(
             stopped = f"time budget --max-seconds {max_seconds:g} reached"
         elif any(a.chunk_faults for a in aggs.values()):
             stopped = "chunks failed as a whole (see faults.chunks)"
-    out = _summarize(cfg, aggs, stopped, done)
-    out["meta"] = {**meta(sys.argv[1:]), **_campaign_meta(cfg, aggs), "executor": executor}
+    out = summarize(cfg, aggs, stopped, done)
+    out["meta"] = {**meta(sys.argv[1:]), **campaign_meta(cfg, aggs), "executor": executor}
     if resume:
         out["meta"]["resumed"] = loaded
-    out["timing"] = _timing(aggs, time.perf_counter() - t_start)
+    out["timing"] = timing_summary(aggs, time.perf_counter() - t_start)
     return out
 
 

@@ -10,15 +10,16 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from crosscheck.runtime.workers import default_workers, process_context, start_worker
 from crosscheck.sweep.config import DASK_MAX_CHUNK, DASK_MIN_CHUNK, LOCAL_CHUNK_MAX
-from crosscheck.sweep.worker import _first_line, run_chunk
+from crosscheck.sweep.worker import first_line, run_chunk
 from reference.errors import ModelInputError
 
 
-def _mp_context():
-    return process_context("crosscheck.commands.sweep")
+def new_mp_context():
+    """The workers' process context, their server having imported what a chunk runs."""
+    return process_context("crosscheck.sweep.worker")
 
 
-class _Serial:
+class SerialExecutor:
     """Chunks one after another in this process (--workers 1: reproduction, debugging)."""
 
     def __init__(self, specs):
@@ -48,14 +49,14 @@ def _submittable(specs):
         yield spec
 
 
-class _Pool:
+class PoolExecutor:
     """Chunks on local worker processes, yielded as they complete. At most `window` chunks are
     in flight, so a campaign of 10^6 samples does not queue 10^5 futures up front."""
 
     def __init__(self, specs, workers: int):
         self.ex = ProcessPoolExecutor(
             max_workers=workers,
-            mp_context=_mp_context(),
+            mp_context=new_mp_context(),
             initializer=start_worker,
             initargs=(os.getpid(),),
         )
@@ -99,7 +100,7 @@ class _Pool:
         self.ex.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask_client(address):
+def dask_client(address):
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -122,11 +123,11 @@ def _dask_client(address):
     except (OSError, ValueError, TypeError) as exc:
         raise ModelInputError(
             f"--dask {address!r}: cannot connect to a Dask scheduler "
-            f"({_first_line(exc) or type(exc).__name__})"
+            f"({first_line(exc) or type(exc).__name__})"
         ) from None
 
 
-class _Dask:
+class DaskExecutor:
     """Chunks as tasks on a Dask distributed cluster, yielded as they complete; at most
     `window` tasks in flight (the scheduler is not handed 10^5 tasks at once)."""
 

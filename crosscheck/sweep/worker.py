@@ -51,11 +51,11 @@ def base_model(name: str, formulation: str | None = None) -> NumericModel:
     return _cached(("numeric", name, formulation), lambda: NumericModel(model, formulation))
 
 
-def _adapter(engine: str):
+def cached_adapter(engine: str):
     return _cached(("adapter", engine), lambda: get_engine(engine))
 
 
-def _first_line(exc: BaseException) -> str:
+def first_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return (text[0] if text else "")[:400]
 
@@ -162,7 +162,7 @@ def _evaluate_chunk(
             per_series[(engine, variant)][2] += 1
             try:
                 params = perturbed(name, nm.params, perturb.get(engine, {}))
-                em = build(_adapter(engine), name, params, variant)
+                em = build(cached_adapter(engine), name, params, variant)
             except Exception as exc:
                 fault(i, s, engine, variant, "build", exc)
                 per_series[(engine, variant)][0] += time.perf_counter() - tb
@@ -176,7 +176,7 @@ def _evaluate_chunk(
                     t,
                     ReferenceAnswer(acc, lam, M_ref, E_ref),
                     base.m,
-                    _adapter(engine).capabilities,
+                    cached_adapter(engine).capabilities,
                 )
                 vals, sk, sf = sc.values, sc.skips, sc.soft
             except Exception as exc:
@@ -225,7 +225,7 @@ def run_chunk(spec: ChunkSpec) -> dict:
                 "sample_seed": s,
                 "stage": stage,
                 "type": type(exc).__name__,
-                "reason": _first_line(exc),
+                "reason": first_line(exc),
             }
         )
 

@@ -1,5 +1,5 @@
 """What every integration method of reference.integrate.driver shares: the named settings, the
-errors, the Trajectory it returns, per-model facts, consistent initial states and the _Problem base
+errors, the Trajectory it returns, per-model facts, consistent initial states and the Problem base
 class the method families (integrate_index1, integrate_projection, integrate_nullspace)
 derive from."""
 
@@ -157,14 +157,14 @@ class Trajectory:
         }
 
 
-def _floats(v):
+def as_floats(v):
     """A kernel output as a list of floats (it is one already on the Python backend): the
     integrators' arithmetic on a few entries is cheaper on floats than numpy's per-call cost."""
     return v.tolist() if type(v) is np.ndarray else v
 
 
 # ---- small dense linear algebra ------------------------------------------------------------
-def _min_norm_correction(
+def min_norm_correction(
     J: list[float], rows: int, cols: int, r: list[float], redundant: bool = False
 ) -> list[float]:
     """-J^T (J J^T)^-1 r for a flat row-major J (rows x cols): the minimum-norm step. With
@@ -229,7 +229,7 @@ def consistent_initial_state(
 
 
 # ---- the right-hand sides ---------------------------------------------------------------
-class _Problem:
+class Problem:
     """What one method integrates: y0, fun(t, y), the full state of y, what follows a step."""
 
     def __init__(self, nm: NumericModel, energy: bool):

@@ -104,7 +104,7 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         PROJECTION_MAX_ITER,
         int(run.bookkeeping),
         int(prob.rheonomic),
-        k.offsets["energy"][0][0] + 2,  # the power of the loads (_Problem.power)
+        k.offsets["energy"][0][0] + 2,  # the power of the loads (Problem.power)
         int(prob.rates),
     )
     status, T, Y, TE, YE, nfev, nsteps, pmin, nproj, niter, t_stop, _y = k.stepper()(

@@ -73,7 +73,7 @@ the model's C module (integrate_compiled: within the tolerance of the Python loo
 same errors); the Python loop below runs everything else, and any run the C loop declines.
 `stepper` chooses.
 
-Layout: integrate_common (settings, errors, Trajectory, the _Problem base), one module per
+Layout: integrate_common (settings, errors, Trajectory, the Problem base), one module per
 method family (integrate_index1: index1 and baumgarte; integrate_projection;
 integrate_nullspace); this module is the driver (simulate) and re-exports the public names.
 """
@@ -106,16 +106,16 @@ from reference.integrate.common import (  # noqa: F401 - re-exported
     Trajectory,
     consistent_initial_state,
 )
-from reference.integrate.index1 import _Baumgarte, _Index1
-from reference.integrate.nullspace import _Nullspace
-from reference.integrate.projection import _Projection
+from reference.integrate.index1 import Baumgarte, Index1
+from reference.integrate.nullspace import Nullspace
+from reference.integrate.projection import Projection
 from reference.numeric.model import NumericModel
 
 _PROBLEMS = {
-    "index1": _Index1,
-    "baumgarte": _Baumgarte,
-    "projection": _Projection,
-    "nullspace": _Nullspace,
+    "index1": Index1,
+    "baumgarte": Baumgarte,
+    "projection": Projection,
+    "nullspace": Nullspace,
 }
 
 

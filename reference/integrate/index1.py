@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from reference.errors import ModelInputError
-from reference.integrate.common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, _floats, _Problem
+from reference.integrate.common import BAUMGARTE_ALPHA, BAUMGARTE_BETA, Problem, as_floats
 from reference.numeric.model import PIVOT_RATIO_MIN
 
 
-class _Index1(_Problem):
+class Index1(Problem):
     """y' = (N(q, u, t), u') from the compiled KKT solve; `offset(q, u, t)`, when given, shifts
     the constraint rows' right side: A u' = b + offset (Baumgarte)."""
 
@@ -57,7 +57,7 @@ class _Index1(_Problem):
         self.fun = fun
 
 
-class _Baumgarte(_Index1):
+class Baumgarte(Index1):
     def __init__(self, nm, energy, alpha=BAUMGARTE_ALPHA, beta=BAUMGARTE_BETA):
         if alpha < 0 or beta < 0:
             raise ModelInputError(f"Baumgarte gains must be >= 0, got alpha={alpha}, beta={beta}")
@@ -67,7 +67,7 @@ class _Baumgarte(_Index1):
         def offset(q, u, t):
             # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only
             pos, vel = self.res(q, u, t, self.p)
-            pos, vel, mc = _floats(pos), _floats(vel), self.mc
+            pos, vel, mc = as_floats(pos), as_floats(vel), self.mc
             return [-two_a * v - (b2 * pos[j] if j < mc else 0.0) for j, v in enumerate(vel)]
 
         super().__init__(nm, energy, offset)

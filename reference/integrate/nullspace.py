@@ -14,12 +14,12 @@ from reference.integrate.common import (
     RANK_TOL,
     REPARTITION_RATIO,
     IntegrationError,
-    _Problem,
+    Problem,
 )
 from reference.numeric.model import PIVOT_RATIO_MIN
 
 
-class _Nullspace(_Problem):
+class Nullspace(Problem):
     """Coordinate partitioning: y = (q_independent, u_independent[, W])."""
 
     def __init__(self, nm, energy):

@@ -11,13 +11,13 @@ from reference.integrate.common import (
     PROJECTION_MAX_ITER,
     PROJECTION_TOL,
     IntegrationError,
-    _floats,
-    _min_norm_correction,
+    as_floats,
+    min_norm_correction,
 )
-from reference.integrate.index1 import _Index1
+from reference.integrate.index1 import Index1
 
 
-class _Projection(_Index1):
+class Projection(Index1):
     """index1's RHS; after each accepted step y is projected and solver.f refreshed."""
 
     def __init__(self, nm, energy, refresh=True):
@@ -61,12 +61,12 @@ class _Projection(_Index1):
         tol = PROJECTION_TOL * (1.0 + max(map(abs, q), default=0.0))
         for it in range(PROJECTION_MAX_ITER + 1):
             pos, vel = res(qk, uk, t, p)
-            err = max(map(abs, _floats(pos)), default=0.0)
+            err = max(map(abs, as_floats(pos)), default=0.0)
             if err <= tol or it == PROJECTION_MAX_ITER:
                 break
-            J = _floats(pjac(qk, zu, t, p)[0])
+            J = as_floats(pjac(qk, zu, t, p)[0])
             try:
-                dq = _min_norm_correction(J, mc, nq, _floats(pos), self.nm.redundant)
+                dq = min_norm_correction(J, mc, nq, as_floats(pos), self.nm.redundant)
             except np.linalg.LinAlgError:
                 raise SingularSystemError(
                     f"{self.nm.model.name}: projection at t = {t:.6g}: the constraint "
@@ -81,7 +81,7 @@ class _Projection(_Index1):
                 f"(|f| = {err:.2e} after {PROJECTION_MAX_ITER} Gauss-Newton steps): the step "
                 f"left the manifold too far; tighten rtol/atol"
             )
-        return q, qk, _floats(vel)
+        return q, qk, as_floats(vel)
 
     def project_u(self, qk, u, t, vel):
         """u - A^T (A A^T)^-1 (A u + a0), and A where it is the position Jacobian (None else)."""
@@ -91,7 +91,7 @@ class _Projection(_Index1):
             Al = A
         else:
             Al = self.mat(qk, self.vec(u), t, self.p)[2]
-        du = _min_norm_correction(_floats(Al), self.m, self.n, vel, self.nm.redundant)
+        du = min_norm_correction(as_floats(Al), self.m, self.n, vel, self.nm.redundant)
         return [a + b for a, b in zip(u, du, strict=False)], A
 
     def project(self, t, y):

@@ -245,14 +245,14 @@ class Exercise64(ExudynModel):
             ObjectJointRevoluteZ,
         )
 
-        from crosscheck.engines.exudyn.spatial import _rigid_body_ep
+        from crosscheck.engines.exudyn.spatial import rigid_body_ep
 
         p = self.params
         self.gravity = (0.0, 0.0, -p["g"])
         g0 = items.ground(self)
         Id, Ib = p["m_d"] * p["R"] ** 2, p["m"] * p["l"] ** 2 / 12
-        _, disk = _rigid_body_ep(self, p["m_d"], (Id / 4, Id / 4, Id / 2))
-        _, bar = _rigid_body_ep(self, p["m"], (Ib, Ib, 0.0))
+        _, disk = rigid_body_ep(self, p["m_d"], (Id / 4, Id / 4, Id / 2))
+        _, bar = rigid_body_ep(self, p["m"], (Ib, Ib, 0.0))
         mbs = self.mbs
 
         def frame(body, pos, rot=None):

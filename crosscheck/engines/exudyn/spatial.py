@@ -31,7 +31,7 @@ from crosscheck.engines.kinematics import R313, angles313
 __all__ = ["DoublePendulum3D", "FrameBar", "TopCartesian", "TopEuler"]
 
 
-def _rigid_body_ep(model, mass: float, inertia_diag) -> tuple[int, int]:
+def rigid_body_ep(model, mass: float, inertia_diag) -> tuple[int, int]:
     """NodeRigidBodyEP (reference: the origin, Euler parameters (1, 0, 0, 0)) and an
     ObjectRigidBody with the principal central inertias along the body axes, gravity on."""
     n = model.mbs.AddNode(NodeRigidBodyEP(referenceCoordinates=[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
@@ -64,8 +64,8 @@ class DoublePendulum3D(ExudynModel):
         p = self.params
         self.gravity = (0.0, -p["g"], 0.0)
         g0 = items.ground(self)
-        _, b1 = _rigid_body_ep(self, p["m1"], (p["I1_11"], p["I1_22"], p["I1_33"]))
-        _, b2 = _rigid_body_ep(self, p["m2"], (p["I2_11"], p["I2_22"], p["I2_33"]))
+        _, b1 = rigid_body_ep(self, p["m1"], (p["I1_11"], p["I1_22"], p["I1_33"]))
+        _, b2 = rigid_body_ep(self, p["m2"], (p["I2_11"], p["I2_22"], p["I2_33"]))
         l1, l2 = p["l1"], p["l2"]
         self.joint_O = self.mbs.AddObject(
             ObjectJointSpherical(
@@ -155,7 +155,7 @@ class TopCartesian(ExudynModel):
         p = self.params
         self.gravity = (0.0, 0.0, -p["g"])
         g0 = items.ground(self)
-        self.node, body = _rigid_body_ep(self, p["m"], (p["I"], p["I"], p["I3"]))
+        self.node, body = rigid_body_ep(self, p["m"], (p["I"], p["I"], p["I3"]))
         self.joint = self.mbs.AddObject(
             ObjectJointSpherical(
                 markerNumbers=[items.point(self, g0), items.point(self, body, 0.0, 0.0, -p["L"])]
@@ -274,9 +274,9 @@ class FrameBar(ExudynModel):
 
         p = self.params
         g0 = items.ground(self)
-        _, frame_body = _rigid_body_ep(self, 0.0, (0.0, 0.0, 0.0))
+        _, frame_body = rigid_body_ep(self, 0.0, (0.0, 0.0, 0.0))
         self.masses.pop()  # massless: no potential, no kinetic energy
-        _, bar = _rigid_body_ep(self, p["m"], (p["I1"], p["I2"], p["I3"]))
+        _, bar = rigid_body_ep(self, p["m"], (p["I1"], p["I2"], p["I3"]))
         mbs = self.mbs
 
         def frame(body, pos, rot=None):

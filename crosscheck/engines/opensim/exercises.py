@@ -56,7 +56,7 @@ def _spring_damper(owner, coord, k, c) -> None:
     model.addForce(f)
 
 
-def _prescribed(model, name, body, force=None, torque=None, in_ground=True) -> None:
+def prescribed_load(model, name, body, force=None, torque=None, in_ground=True) -> None:
     """A constant force (at the body origin) and/or torque on a body, ground or body axes."""
     f = osim.PrescribedForce(name, body)
     f.setForceIsInGlobalFrame(bool(in_ground))
@@ -102,7 +102,7 @@ class Exercise61(IdentityMaps, OsimModel):
         self.model.addJoint(bar_joint)
         self.model.addConstraint(osim.PointConstraint(bar, vec3(0, p["l"]), block, vec3()))
         _spring_damper(self, "x", p["k"], p["c"])
-        _prescribed(self.model, "F", block, force=(0.0, -p["F"], 0.0))
+        prescribed_load(self.model, "F", block, force=(0.0, -p["F"], 0.0))
         self.defaults = {"x": p["l"] * math.sin(0.4), "y": p["l"] * math.cos(0.4), "theta": 0.4}
 
     def end_forces(self):
@@ -148,7 +148,7 @@ class Exercise62(OsimModel):
         bar_joint.upd_coordinates(0).setName("theta")
         self.model.addJoint(bar_joint)
         _spring_damper(self, "x", p["k"], p["c"])
-        _prescribed(self.model, "F", block, force=(p["F"], 0.0, 0.0))
+        prescribed_load(self.model, "F", block, force=(p["F"], 0.0, 0.0))
         self.block, self.bar, self.G = block, bar, vec3(0, -p["l"] / 2, 0)
 
     def to_engine_state(self, q, u):
@@ -217,9 +217,13 @@ class Exercise64(OsimModel):
             )
         )
         _spring_damper(self, "theta", p["k"], p["c"])
-        _prescribed(self.model, "M_phi", disk, torque=(0, 0, p["M_phi"]))
-        _prescribed(self.model, "M_theta_bar", bar, torque=(p["M_theta"], 0, 0), in_ground=False)
-        _prescribed(self.model, "M_theta_disk", disk, torque=(-p["M_theta"], 0, 0), in_ground=False)
+        prescribed_load(self.model, "M_phi", disk, torque=(0, 0, p["M_phi"]))
+        prescribed_load(
+            self.model, "M_theta_bar", bar, torque=(p["M_theta"], 0, 0), in_ground=False
+        )
+        prescribed_load(
+            self.model, "M_theta_disk", disk, torque=(-p["M_theta"], 0, 0), in_ground=False
+        )
         self.disk = disk
         self.P = np.array([0.0, p["R"], 0.0])
         self.c = np.array([0.0, 0.0, -p["l"] / 2])

@@ -22,7 +22,7 @@ from crosscheck.engines.kinematics import (
     frame_bar_to_engine,
 )
 from crosscheck.engines.opensim.engine_model import OsimModel, custom_joint, vec3
-from crosscheck.engines.opensim.exercises import _prescribed, reaction
+from crosscheck.engines.opensim.exercises import prescribed_load, reaction
 
 __all__ = ["DoublePendulum3D", "DoublePendulum3DFree", "FrameBar", "TopCartesian", "TopEuler"]
 
@@ -407,9 +407,13 @@ class FrameBar(OsimModel):
                 parent_offset=(0, p["d"], 0),
             )
         )
-        _prescribed(self.model, "M_phi", frame, torque=(0, 0, p["M_phi"]))
-        _prescribed(self.model, "M_theta_bar", bar, torque=(0, p["M_theta"], 0), in_ground=False)
-        _prescribed(self.model, "M_theta_F", frame, torque=(0, -p["M_theta"], 0), in_ground=False)
+        prescribed_load(self.model, "M_phi", frame, torque=(0, 0, p["M_phi"]))
+        prescribed_load(
+            self.model, "M_theta_bar", bar, torque=(0, p["M_theta"], 0), in_ground=False
+        )
+        prescribed_load(
+            self.model, "M_theta_F", frame, torque=(0, -p["M_theta"], 0), in_ground=False
+        )
         self.bar = bar
 
     def to_engine_state(self, q, u):

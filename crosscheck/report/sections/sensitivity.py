@@ -70,14 +70,14 @@ def _caught_text(t: dict) -> str:
 
 def plot_svg(doc: dict) -> str | None:
     """Thresholds per parameter (x) and engine (marker colour), log y; not caught: red x."""
-    from crosscheck.report.plots import FAIL_COLOR, _figure, _style, _svg, engine_color
+    from crosscheck.report.plots import FAIL_COLOR, axes_style, engine_color, new_figure, svg_text
 
     engines, rows, labels = table(doc)
     if not rows:
         return None
-    fig = _figure(max(6.0, 0.28 * len(rows) + 2.0), 3.6)
+    fig = new_figure(max(6.0, 0.28 * len(rows) + 2.0), 3.6)
     ax = fig.add_subplot(1, 1, 1)
-    _style(ax)
+    axes_style(ax)
     width = 0.6 / max(len(engines), 1)
     for j, e in enumerate(engines):
         xs, ys, xr = [], [], []
@@ -110,7 +110,7 @@ def plot_svg(doc: dict) -> str | None:
     ax.set_xticklabels(labels, rotation=70, ha="right", fontsize=6)
     ax.set_ylabel("smallest relative change caught", fontsize=8)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False)
-    return _svg(fig)
+    return svg_text(fig)
 
 
 def html(c) -> str:
