@@ -109,7 +109,8 @@ def classify(model: Model) -> list[dict]:
     out = []
     names = model.constraint_names or tuple(f"c{j + 1}" for j in range(model.n_constraints))
     rheo = lambda e: "rheonomic" if sp.diff(e, model.t) != 0 else "scleronomic"
-    for name, f in zip(names, model.configuration_constraints, strict=False):
+    n_config = len(model.configuration_constraints)
+    for name, f in zip(names[:n_config], model.configuration_constraints, strict=True):
         out.append(
             {
                 "name": name,
@@ -119,8 +120,8 @@ def classify(model: Model) -> list[dict]:
                 "expression": str(f),
             }
         )
-    names_m = names[len(model.configuration_constraints) :]
-    for name, g in zip(names_m, model.motion_constraints, strict=False):
+    names_m = names[n_config:]
+    for name, g in zip(names_m, model.motion_constraints, strict=True):
         if model.speeds_are_coordinate_rates:
             A, a0 = motion_coefficients(sp.Matrix([g]), model.speeds)
             kind = integrability(list(A), a0[0], model.coordinates, model.t)

@@ -144,7 +144,7 @@ class Model:
     def speeds_are_coordinate_rates(self) -> bool:
         """True when u_k = q'_k, which Lagrange's equations and d'Alembert's principle need."""
         return len(self.speeds) == len(self.coordinates) and all(
-            sp.simplify(k - u) == 0 for k, u in zip(self.kinematics, self.speeds, strict=False)
+            sp.simplify(k - u) == 0 for k, u in zip(self.kinematics, self.speeds, strict=True)
         )
 
     def time_derivative(self, expr: Any, accelerations: Any = None) -> Any:
@@ -156,7 +156,7 @@ class Model:
             return expr.applyfunc(lambda e: self.time_derivative(e, accelerations))
         out = rate(expr, self.coordinates, self.kinematics, self.t)
         if accelerations is not None:
-            for u, ud in zip(self.speeds, accelerations, strict=False):
+            for u, ud in zip(self.speeds, accelerations, strict=True):
                 out += sp.diff(expr, u) * ud
         return out
 
@@ -290,6 +290,6 @@ def rate(expr: Any, coordinates: Any, kinematics: Any, t: Any = None) -> Any:
     if isinstance(expr, sp.MatrixBase):
         return expr.applyfunc(lambda e: rate(e, coordinates, kinematics, t))
     out = sp.diff(expr, t) if t is not None else sp.Integer(0)
-    for q, qdot in zip(coordinates, kinematics, strict=False):
+    for q, qdot in zip(coordinates, kinematics, strict=True):
         out += sp.diff(expr, q) * qdot
     return out

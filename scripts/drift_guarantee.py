@@ -33,7 +33,7 @@ def main(names) -> None:
                 nm, q0, u0, 5.0, method, rtol=REF_RTOL, atol=REF_RTOL, t_eval=output_grid(5.0)
             )
             pos, vel = [], []
-            for t, q, u in zip(r.t, r.q, r.u, strict=False):
+            for t, q, u in zip(r.t, r.q, r.u, strict=True):
                 f, v = nm.residuals(q, u, t)
                 qs, us = 1.0 + np.max(np.abs(q)), max(1.0, float(np.max(np.abs(u))))
                 pos.append(float(np.max(np.abs(f), initial=0.0)) / (PROJECTION_TOL * qs))

@@ -55,7 +55,7 @@ def instances(model) -> st.SearchStrategy[Instance]:
 def parameters(model, factors) -> dict[str, float]:
     lo, hi = SCALE_RANGE
     values = {}
-    for p, f in zip(model.parameters, factors, strict=False):
+    for p, f in zip(model.parameters, factors, strict=True):
         if p.positive or p.nonnegative:
             values[p.name] = p.default * f
         else:  # a signed load: the factor's place in its range mapped onto [-1, 1]

@@ -197,7 +197,7 @@ def test_energy_same_datum(case):
     em = engine(model_name, variant=variant)
     nm = reference(model_name, get(model_name).formulations[0])
     for q, u in states(model_name, 5):
-        for got, ref in zip(em.energy(q, u), nm.energy(q, u), strict=False):
+        for got, ref in zip(em.energy(q, u), nm.energy(q, u), strict=True):
             bound = ENERGY_RTOL * max(1.0, abs(ref))
             if model_name in RELAXED:
                 bound = max(bound, ENERGY_MANIFOLD_ATOL)
@@ -455,5 +455,5 @@ def test_simulate_3d_conserves_energy(model_name):
     E0 = sum(nm.energy(q0, u0))
     assert np.max(np.abs(tr.energy - E0)) < ENERGY_DRIFT_ATOL
     # the mapped states carry the same energy in the reference
-    for q, u, E in zip(tr.q, tr.u, tr.energy, strict=False):
+    for q, u, E in zip(tr.q, tr.u, tr.energy, strict=True):
         assert abs(sum(nm.energy(q, u)) - E) < ENERGY_DRIFT_ATOL

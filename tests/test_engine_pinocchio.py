@@ -778,7 +778,7 @@ def test_simulate_3d_variants_agree():
         rtol=SIM_RTOL,
     )
     nm = reference("top_cartesian", "dalembert")
-    for q, u in zip(tr.q, tr.u, strict=False):
+    for q, u in zip(tr.q, tr.u, strict=True):
         pos, vel = nm.residuals(q, u)
         assert np.max(np.abs(pos)) <= SIM_TOL and np.max(np.abs(vel)) <= SIM_TOL
 

@@ -112,8 +112,8 @@ def test_fast_path_equals_slow_sympy_path(name):
     rng = np.random.default_rng(5)
     for _ in range(3):
         q, u = random_consistent_state(nm, rng)
-        subs = {s: v for s, v in zip(model.coordinates, q, strict=False)}
-        subs.update({s: v for s, v in zip(model.speeds, u, strict=False)})
+        subs = {s: v for s, v in zip(model.coordinates, q, strict=True)}
+        subs.update({s: v for s, v in zip(model.speeds, u, strict=True)})
         subs.update({p.symbol: nm.params[p.name] for p in model.parameters})
         subs[model.t] = 0.0
         M = np.array(eom.M.subs(subs).evalf(30), dtype=float)

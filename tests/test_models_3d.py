@@ -74,7 +74,7 @@ def _assert_same(derived, printed, angles=None):
     """derived - printed is identically 0: expanded (polynomials), or, given the angles,
     reduced modulo sin^2 + cos^2 = 1 (trigonometric identities)."""
     assert len(derived) == len(printed)
-    for k, (d, p) in enumerate(zip(derived, printed, strict=False)):
+    for k, (d, p) in enumerate(zip(derived, printed, strict=True)):
         diff = sp.expand(d - p)
         ok = diff == 0 or (angles is not None and _vanishes_on_circles(diff, angles))
         assert ok, f"equation {k + 1}: derived - printed = {diff}"
@@ -246,11 +246,11 @@ def test_exercise_6_5_printed_equations(formulation):
         -4 * m * g * L * e4 * (e1**2 + e2**2) + lam * e4,
     ]
     eom = derive(models.get("top_euler"), formulation)
-    _assert_same(eom.residual_equations(), [a - b for a, b in zip(lhs, rhs, strict=False)])
+    _assert_same(eom.residual_equations(), [a - b for a, b in zip(lhs, rhs, strict=True)])
     # fourth row of the kinematical equations, 0 = 2 eps . eps', differentiated (halved)
     _assert_same(
         eom.constraint_equations(),
-        [sum(e * a for e, a in zip(eps, edd, strict=False)) + sum(v**2 for v in ed)],
+        [sum(e * a for e, a in zip(eps, edd, strict=True)) + sum(v**2 for v in ed)],
     )
 
 
@@ -268,7 +268,7 @@ def test_exercise_6_7_printed_equations(formulation):
         -2 * L * e1 * l1 - 2 * L * e2 * l2 - 2 * L * e3 * l3 + e3 * l4,
         -2 * L * e2 * l1 + 2 * L * e1 * l2 - 2 * L * e4 * l3 + e4 * l4,
     ]
-    printed += [a - b for a, b in zip(lhs, rhs, strict=False)]
+    printed += [a - b for a, b in zip(lhs, rhs, strict=True)]
     # printed position rows x - L(...) = 0 and the normalization, differentiated twice here
     t = sp.Symbol("t")
     X = [sp.Function(f"X{i}")(t) for i in (1, 2, 3)]
@@ -285,7 +285,7 @@ def test_exercise_6_7_printed_equations(formulation):
         _syms("x{}", (1, 2, 3)) + eps,
         _syms("x{}_dot", (1, 2, 3)) + ed,
         xdd + edd,
-        strict=False,
+        strict=True,
     ):
         rep.update({fn.diff(t, 2): d2, fn.diff(t): d1})
         rep[fn] = sym
@@ -317,7 +317,7 @@ def _lambda_free_sum(eom):
     """sum_k eps_k (M u' - f)_k: equals lambda eps.eps by the equations of motion."""
     eps = eom.model.coordinates[-4:]
     res0 = eom.M * sp.Matrix(eom.accelerations) - eom.f
-    return sp.expand(sum(e * r for e, r in zip(eps, list(res0)[-4:], strict=False)))
+    return sp.expand(sum(e * r for e, r in zip(eps, list(res0)[-4:], strict=True)))
 
 
 @pytest.mark.parametrize("formulation", ["dalembert", "kane"])
@@ -481,7 +481,7 @@ def _kanes_double_pendulum():
     KM = me.KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=kd)
     KM.kanes_equations(bodies, [(G1, -m1 * g * N.y), (G2, -m2 * g * N.y)])
     qs, us = sp.symbols("q1:7"), sp.symbols("u1:7")
-    rep = dict(zip(q, qs, strict=False)) | dict(zip(u, us, strict=False))
+    rep = dict(zip(q, qs, strict=True)) | dict(zip(u, us, strict=True))
     pars = (l1, l2, m1, m2, *Ia, *Ib, g)
     fn = sp.lambdify((qs, us, pars), [KM.mass_matrix.xreplace(rep), KM.forcing.xreplace(rep)])
     dcm = sp.lambdify((qs,), [A.dcm(N).xreplace(rep), B.dcm(N).xreplace(rep)])
@@ -512,7 +512,7 @@ def test_example_4_against_kanes_method():
     Rfun = sp.lambdify((model.coordinates,), [b.R for b in model.bodies])
     for q, u in _states(nm, 8, seed=44):
         # our Body.R (body -> N) is the transpose of sympy's (and the textbook's) N -> body DCM
-        for Rb, D in zip(Rfun(q), dcm(q), strict=False):
+        for Rb, D in zip(Rfun(q), dcm(q), strict=True):
             assert np.abs(np.array(Rb, float).T - np.array(D, float)).max() < KIN_REL
         M, F = (np.array(x, float) for x in fn(q, u[:6], _dp_params(nm)))
         wdot = np.linalg.solve(M, F.ravel())

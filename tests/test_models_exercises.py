@@ -56,7 +56,7 @@ def _zero(e) -> bool:
 
 def _assert_same(derived, printed, what=""):
     assert len(derived) == len(printed)
-    for k, (d, p) in enumerate(zip(derived, printed, strict=False)):
+    for k, (d, p) in enumerate(zip(derived, printed, strict=True)):
         diff = sp.simplify(sp.expand_trig(sp.expand(d - p)))
         assert diff == 0, f"{what} equation {k + 1}: derived - printed = {diff}"
 
@@ -410,9 +410,9 @@ class _EnergyRate:
         E = kinetic_energy(model) + potential_energy(model)
         ud = sp.symbols(f"ud0:{len(model.speeds)}", real=True)
         dE = sp.diff(E, model.t) + sum(
-            sp.diff(E, q) * k for q, k in zip(model.coordinates, model.kinematics, strict=False)
+            sp.diff(E, q) * k for q, k in zip(model.coordinates, model.kinematics, strict=True)
         )
-        dE += sum(sp.diff(E, u) * a for u, a in zip(model.speeds, ud, strict=False))
+        dE += sum(sp.diff(E, u) * a for u, a in zip(model.speeds, ud, strict=True))
         pv = {p.symbol: params[p.name] for p in model.parameters}
         args = [*model.coordinates, *model.speeds, *ud, model.t]
         self.dE = sp.lambdify(args, dE.xreplace(pv), "math")

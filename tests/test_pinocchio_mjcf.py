@@ -188,7 +188,7 @@ def _structure_matches(pm, mm):
     assert pm.nv == mm.nv
     names = [mujoco.mj_id2name(mm, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(mm.njnt)]
     parsed_names = []
-    for n, jm in zip(pm.names[1:], pm.joints[1:], strict=False):
+    for n, jm in zip(pm.names[1:], pm.joints[1:], strict=True):
         if jm.shortname() == "JointModelComposite":  # its MuJoCo joints, consecutive
             j0 = _mj_joint(mm, n)
             parsed_names += names[j0 : j0 + jm.nv]

@@ -229,7 +229,7 @@ def test_every_record_is_a_row_and_failing_rows_stay_marked(full_report):
     rows = check_rows(page)
     records = full_report["results"]["records"]
     assert len(rows) == len(records)
-    for row, rec in zip(rows, records, strict=False):  # same order as results.json
+    for row, rec in zip(rows, records, strict=True):  # same order as results.json
         expected = "SKIP" if rec["skipped"] else "PASS" if rec["passed"] else "FAIL"
         assert row["cells"][0] == expected
         assert row["cells"][2] == rec["engine"] and row["cells"][4] == rec["quantity"]
@@ -322,7 +322,7 @@ def test_junit_has_one_case_per_record_with_reasons(full_report):
     records = full_report["results"]["records"]
     cases = list(root.iter("testcase"))
     assert len(cases) == len(records) == int(root.get("tests"))
-    for case, rec in zip(cases, records, strict=False):
+    for case, rec in zip(cases, records, strict=True):
         assert case.get("classname") == f"crosscheck.{rec['model']}.{rec['engine']}"
         failure, skipped = case.find("failure"), case.find("skipped")
         if rec["skipped"]:

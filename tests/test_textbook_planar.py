@@ -23,7 +23,7 @@ def _equations(model_name, formulation):
 
 def _assert_same(derived, printed):
     assert len(derived) == len(printed)
-    for k, (d, p) in enumerate(zip(derived, printed, strict=False)):
+    for k, (d, p) in enumerate(zip(derived, printed, strict=True)):
         diff = sp.simplify(sp.expand_trig(sp.expand(d - p)))
         assert diff == 0, f"equation {k + 1}: derived - printed = {diff}"
 

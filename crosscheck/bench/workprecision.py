@@ -151,7 +151,7 @@ def _state_metrics(nm: NumericModel, T, Q, U, ref_state, energy_conserved: bool)
     """error vs the reference, max residuals and energy drift of mapped states."""
     rp = rv = 0.0
     E = []
-    for t, q, u in zip(T, Q, U, strict=False):
+    for t, q, u in zip(T, Q, U, strict=True):
         pos, vel = constraint_residual(nm, q, u, t)
         rp, rv = max(rp, pos), max(rv, vel)
         if energy_conserved:

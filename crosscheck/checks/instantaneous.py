@@ -211,7 +211,7 @@ def _predicted_errors(pairs, predicted) -> list:
         return []
     return [
         C.scaled_error(p, reference)
-        for (_, _, _, reference), p in zip(pairs, predicted, strict=False)
+        for (_, _, _, reference), p in zip(pairs, predicted, strict=True)
         if p is not None
     ]
 

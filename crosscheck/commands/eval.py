@@ -58,9 +58,9 @@ def cmd_eval(args) -> int:
         print(jsonio.dumps(out, allow_nan=False))
     else:
         print(f"{model.name} ({model.source}), {nm.formulation}, t = {args.t}")
-        for s, a in zip(out["speeds"], res.accelerations, strict=False):
+        for s, a in zip(out["speeds"], res.accelerations, strict=True):
             print(f"  d({s})/dt = {a:.12g}")
-        for name, lam in zip(model.constraint_names or [], res.multipliers, strict=False):
+        for name, lam in zip(model.constraint_names or [], res.multipliers, strict=True):
             print(f"  lambda[{name}] = {lam:.12g}")
         print(
             f"  residuals: position {np.abs(pos).max() if pos.size else 0:.2e}, "

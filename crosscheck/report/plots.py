@@ -137,7 +137,7 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
         ylabels.append(_row_label(key))
         if i % 2 == 0:
             ax.axhspan(ys[-1] - 0.5, ys[0] + 0.5, color="#f4f4f4", zorder=0, linewidth=0)
-        for r, yy in zip(group, ys, strict=False):
+        for r, yy in zip(group, ys, strict=True):
             eng = r.get("engine", "?")
             color = engine_color(eng, engines)
             label = eng if eng not in seen_labels else None
@@ -355,7 +355,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     styles = line_styles([_series_key(s) for s in lines])
     fig = new_figure(8.6, 0.6 + 2.15 * len(panels))
     axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, (key, label) in zip(axes, panels, strict=False):
+    for ax, (key, label) in zip(axes, panels, strict=True):
         axes_style(ax)
         ax.set_yscale("log")
         ax.set_ylabel(label, fontsize=8)
@@ -392,7 +392,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
     # one legend under the panels (beside them, long labels squeeze the axes to nothing)
     handles = {}
     for ax in axes:
-        for h, lab in zip(*ax.get_legend_handles_labels(), strict=False):
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
             handles.setdefault(lab, h)
     if handles:
         fig.legend(
@@ -467,7 +467,7 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
     engines = list(dict.fromkeys(k[1] for k in lines))
     fig = new_figure(min(3.3 * len(panels) + 2.4, 12.0), 3.6)
     axes = fig.subplots(1, len(panels), squeeze=False)[0]
-    for ax, (key, label) in zip(axes, panels, strict=False):
+    for ax, (key, label) in zip(axes, panels, strict=True):
         axes_style(ax)
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -532,7 +532,7 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
     styles = ["-", "--", ":", "-."]
     for ax in axes.flat[len(quantities) :]:
         ax.set_visible(False)
-    for ax, qn in zip(axes.flat, quantities, strict=False):
+    for ax, qn in zip(axes.flat[: len(quantities)], quantities, strict=True):
         axes_style(ax)
         ax.set_xscale("log")
         ax.set_title(qn, fontsize=8.5, loc="left")

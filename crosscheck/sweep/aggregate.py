@@ -244,7 +244,7 @@ def _quantity_record(
             {
                 str(p): float(x)
                 for p, x in zip(
-                    QUANTILES, np.quantile(vals, QUANTILES, method=QUANTILE_METHOD), strict=False
+                    QUANTILES, np.quantile(vals, QUANTILES, method=QUANTILE_METHOD), strict=True
                 )
             }
             if len(vals)

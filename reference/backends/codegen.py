@@ -249,9 +249,9 @@ def needs_augmentation(eom: EquationsOfMotion, params: dict) -> bool:
     rng = np.random.default_rng(12345)
     subs = {
         s: float(v) + 0.1 * rng.standard_normal()
-        for s, v in zip(m.coordinates, m.initial_q, strict=False)
+        for s, v in zip(m.coordinates, m.initial_q, strict=True)
     }
-    subs.update({s: float(v) for s, v in zip(m.speeds, m.initial_u, strict=False)})
+    subs.update({s: float(v) for s, v in zip(m.speeds, m.initial_u, strict=True)})
     subs.update({p.symbol: params[p.name] for p in m.parameters})
     subs[m.t] = 0.3
     M = np.array(eom.M.xreplace(subs).evalf(), dtype=float)

@@ -49,7 +49,7 @@ def lagrange(model: Model) -> EquationsOfMotion:
     L = kinetic_energy(model) - potential_energy(model)
     Fnc = nonconservative_forces(model, qd)
     E = sp.zeros(len(qd), 1)
-    for k, (q, v) in enumerate(zip(model.coordinates, qd, strict=False)):
+    for k, (q, v) in enumerate(zip(model.coordinates, qd, strict=True)):
         dL_dv = sp.diff(L, v)
         E[k] = model.time_derivative(dL_dv, ud) - sp.diff(L, q) - Fnc[k]
     M, f = split_linear(E, ud)

@@ -38,6 +38,6 @@ def generalized_inertia_minus_active(model: Model, ud) -> sp.Matrix:
             E[k] -= (load.T * vel.diff(s))[0]
     if model.potential != 0:  # springs: F_k = -sum_j dV/dq_j dq'_j/ds_k
         for k, s in enumerate(u):
-            for q, qdot in zip(model.coordinates, model.kinematics, strict=False):
+            for q, qdot in zip(model.coordinates, model.kinematics, strict=True):
                 E[k] += sp.diff(model.potential, q) * sp.diff(qdot, s)
     return E

@@ -101,7 +101,7 @@ class Trajectory:
         """Position residuals f(q, t) (N x m_c) and velocity residuals A u + a0 (N x m)."""
         res, p = self.nm._scalar["residuals"], self.nm.p
         P, V = [], []
-        for t, q, u in zip(self.t, self.q, self.u, strict=False):
+        for t, q, u in zip(self.t, self.q, self.u, strict=True):
             pos, vel = res(q.tolist(), u.tolist(), float(t), p)
             P.append(pos)
             V.append(vel)
@@ -124,7 +124,7 @@ class Trajectory:
         return np.array(
             [
                 sum(en(q.tolist(), u.tolist(), float(t), p)[0][:2])
-                for t, q, u in zip(self.t, self.q, self.u, strict=False)
+                for t, q, u in zip(self.t, self.q, self.u, strict=True)
             ]
         )
 
@@ -299,7 +299,7 @@ class Problem:
         P = self.en(q, u, t, self.p)[0][2]
         if self.rheonomic and len(lam):
             a0 = self.res(q, self.zeros_u, t, self.p)[1]
-            P -= sum(l * a for l, a in zip(lam, a0, strict=False))
+            P -= sum(l * a for l, a in zip(lam, a0, strict=True))
         return P
 
     # defaults: the state is (q, u[, W])

@@ -114,11 +114,11 @@ class Nullspace(Problem):
         qd = list(self.qd_cache)
         J0 = self.J_last
         if J0 is not None:  # dq_d = -J_d^-1 J_i dq_i: first-order accurate start
-            dqi = [a - b for a, b in zip(qi, self.qi_last, strict=False)]
+            dqi = [a - b for a, b in zip(qi, self.qi_last, strict=True)]
             if mc == 1:
                 d = J0[dep[0]]
                 if d != 0.0:
-                    qd[0] -= sum(J0[i] * dv for i, dv in zip(self.ind_q, dqi, strict=False)) / d
+                    qd[0] -= sum(J0[i] * dv for i, dv in zip(self.ind_q, dqi, strict=True)) / d
             else:
                 Jm = np.array(J0, float).reshape(mc, nq)
                 step = np.linalg.solve(Jm[:, dep], Jm[:, self.ind_q] @ dqi)

@@ -72,7 +72,7 @@ class Projection(Index1):
                     f"{self.nm.model.name}: projection at t = {t:.6g}: the constraint "
                     f"Jacobian is rank deficient at q = {np.round(q, 6).tolist()}"
                 ) from None
-            q = [a + b for a, b in zip(q, dq, strict=False)]
+            q = [a + b for a, b in zip(q, dq, strict=True)]
             qk = vec(q)
             self.stats["projection_iterations"] += 1
         if err > PROJECTION_FAIL:
@@ -92,7 +92,7 @@ class Projection(Index1):
         else:
             Al = self.mat(qk, self.vec(u), t, self.p)[2]
         du = min_norm_correction(as_floats(Al), self.m, self.n, vel, self.nm.redundant)
-        return [a + b for a, b in zip(u, du, strict=False)], A
+        return [a + b for a, b in zip(u, du, strict=True)], A
 
     def project(self, t, y):
         """The projected state (a fresh vector); self.jac = (it, A at its q) where known."""

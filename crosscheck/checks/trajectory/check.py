@@ -310,7 +310,7 @@ def _is_conserved(nm: NumericModel, ref) -> bool:
         not is_rheonomic(nm.model)
         and all(
             nm.power_balance(qi, ui, ti)["load_power"] == 0.0
-            for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10], strict=False)
+            for ti, qi, ui in zip(ref.t[::10], ref.q[::10], ref.u[::10], strict=True)
         )
     )
 

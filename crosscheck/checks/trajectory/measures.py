@@ -26,14 +26,14 @@ def state_error(q, u, ref_q, ref_u) -> np.ndarray:
 def residual_series(nm: NumericModel, t, q, u) -> tuple[np.ndarray, np.ndarray]:
     """max |f(q, t)| and max |A u + a0| at every output time (0 where there are no rows)."""
     res = np.array(
-        [constraint_residual(nm, qi, ui, ti) for ti, qi, ui in zip(t, q, u, strict=False)]
+        [constraint_residual(nm, qi, ui, ti) for ti, qi, ui in zip(t, q, u, strict=True)]
     )
     res = res.reshape(len(t), 2)
     return res[:, 0], res[:, 1]
 
 
 def energy_series(nm: NumericModel, t, q, u) -> np.ndarray:
-    return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u, strict=False)])
+    return np.array([sum(nm.energy(qi, ui, ti)) for ti, qi, ui in zip(t, q, u, strict=True)])
 
 
 def energy_measure(ctx, t, q, u) -> float:

@@ -253,7 +253,7 @@ class ExudynModel(EngineModel):
         K = 0.5 * float(v @ M @ v)
         gvec = np.asarray(self.gravity, float)
         V = self._spring_potential(qe)
-        for (_, _, mass), p in zip(self.masses, self._positions(qe), strict=False):
+        for (_, _, mass), p in zip(self.masses, self._positions(qe), strict=True):
             V -= mass * float(gvec[: len(p)] @ p[:3])
         return K, V
 

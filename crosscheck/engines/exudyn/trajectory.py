@@ -154,7 +154,7 @@ def simulate(
     rec_v = [np.asarray(mbs.GetSensorStoredData(s_v)) for _, _, s_v in sensors]
     order = np.concatenate([np.asarray(mbs.systemData.GetNodeLTGODE2(n)) for n, _, _ in sensors])
     Q, U, viol, vviol, E = [], [], [], [], []
-    for t, k in zip(t_eval, steps, strict=False):
+    for t, k in zip(t_eval, steps, strict=True):
         qe, ve = np.empty(order.size), np.empty(order.size)
         qe[order] = np.concatenate([r[k, 1:] for r in rec_q])
         qe += sim.q_reference

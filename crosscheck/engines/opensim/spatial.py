@@ -132,7 +132,7 @@ class DoublePendulum3D(OsimModel):
             R = _rotation(link, s)
             acc = link.getAccelerationInGround(s)  # held while read (see exercises.reaction)
             out.append(R.T @ _np(acc.get(0)))
-        for link, rho in zip(self.links, self.rho, strict=False):
+        for link, rho in zip(self.links, self.rho, strict=True):
             out.append(_np(link.findStationAccelerationInGround(s, vec3(*rho))))
         return np.concatenate(out)
 

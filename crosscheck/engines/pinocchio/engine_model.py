@@ -164,7 +164,7 @@ class PinEngineModel(EngineModel):
             h.update(np.ascontiguousarray(np.asarray(x, float)).tobytes())
 
         m = self.model
-        for jm, placement in zip(m.joints, m.jointPlacements, strict=False):
+        for jm, placement in zip(m.joints, m.jointPlacements, strict=True):
             h.update(jm.shortname().encode())
             add(placement.homogeneous)
         for inertia in m.inertias:
@@ -474,7 +474,7 @@ class PinEngineModel(EngineModel):
             t_eval=t_eval,
         )
         rows = []
-        for t, y in zip(sol.t, sol.y.T, strict=False):
+        for t, y in zip(sol.t, sol.y.T, strict=True):
             qe = normalized(self.layout, y[:nq])
             ve = y[nq:]
             rows.append(

@@ -135,7 +135,7 @@ def html(c) -> str:
         "it.</p>"
     )
     body, classes = [], []
-    for label, row in zip(labels, rows, strict=False):
+    for label, row in zip(labels, rows, strict=True):
         cells, missed = [_e(label)], False
         for t in row:
             if not t:
@@ -190,7 +190,7 @@ def md(c) -> list[str]:
             )
             for t in row
         ]
-        for label, row in zip(labels, rows, strict=False)
+        for label, row in zip(labels, rows, strict=True)
     ]
     return out + md_table(["model / parameter", *engines], body)
 
