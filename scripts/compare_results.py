@@ -1,6 +1,7 @@
-"""Two `crosscheck run` results.json files record by record (docs/compiled.md, "Start-up"):
-how many records differ in status (passed/skipped), how many errors differ, and the largest
-error difference as a fraction of the record's tolerance, with the record it is in.
+"""Two `crosscheck run` results.json files record by record (two commits' runs, or one
+commit's on two machines): how many records differ in status (passed/skipped), how many errors
+differ, and the largest error difference as a fraction of the record's tolerance, with the
+record it is in. Both files must hold the same records in the same order.
 
     python scripts/compare_results.py A/results.json B/results.json
 """
@@ -32,4 +33,6 @@ def main(a_path: str, b_path: str) -> None:
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    main(sys.argv[1], sys.argv[2])

@@ -1,12 +1,12 @@
-"""OpenSim's adaptive integrators in `crosscheck run`'s trajectory check (docs/compiled.md,
-"Worker processes, and C builds only where they pay"): for each model and integrator, the
+"""OpenSim's adaptive integrators in `crosscheck run`'s trajectory check (docs/engines/opensim.md,
+"Trajectories"): for each model and integrator, the
 wall time of the run at the check's rtol, its steps, and every trajectory record's error as a
 fraction of its tolerance, the integrator put first in the adapter's list as the check reads
 it. Then one `Manager.integrate(5 s)` call with the same setting: whether stopping at the 250
 output times is what the run costs (it is not: the cost is Simbody's own steps).
 
-    PYTHONPATH=$PWD python scripts/opensim_integrators.py
-    PYTHONPATH=$PWD python scripts/opensim_integrators.py top_euler --integrators CPodes
+    python benchmarks/opensim_integrators.py
+    python benchmarks/opensim_integrators.py top_euler --integrators CPodes
 """
 
 from __future__ import annotations

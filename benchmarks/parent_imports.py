@@ -3,10 +3,10 @@ phase, in a fresh interpreter: the command line's parser (it imports every comma
 the model names, the engine names (importing the named engines' adapters) and the checks'
 module. The workers' server starts before all of it (crosscheck/commands/run.py), so the
 first models start when both this and the server's own imports are done
-(docs/compiled.md, "The workers' server starts first").
+(benchmarks/run_time.md, "Before the first model").
 
-    PYTHONPATH=$PWD python scripts/parent_imports.py --engines pinocchio,mujoco
-    PYTHONPATH=$PWD python scripts/parent_imports.py            # every engine
+    python benchmarks/parent_imports.py --engines pinocchio,mujoco
+    python benchmarks/parent_imports.py            # every engine
 """
 
 from __future__ import annotations

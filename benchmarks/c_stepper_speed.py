@@ -1,12 +1,12 @@
-"""The C stepper against the Python stepper (docs/compiled.md, "The compiled stepper"), the
-records `crosscheck bench` writes to bench.json "stepper" (crosscheck/bench/stepper.py), for
-the given models (default: four) with seven interleaved rounds, as a table; "/ tol" is the
-largest output difference in units of rtol (1 + max |q|, |u|). With --profile: cProfile of 200
-C-stepper runs of the slider-crank (index1, rtol 1e-10, every step recorded), what the run
-spends outside the C loop.
+"""The C stepper against the Python stepper (benchmarks/reference_speed.md, "The compiled
+stepper"): the records `crosscheck bench` writes to bench.json "stepper"
+(crosscheck/bench/stepper.py), for the given models (default: four), seven interleaved rounds
+(three with --quick), as a table; "/ tol" is the largest output difference in units of rtol
+(1 + max |q|, |u|). With --profile: cProfile of 200 C-stepper runs of the slider-crank (index1,
+rtol 1e-10, every step recorded), what the run spends outside the C loop.
 
-    PYTHONPATH=$PWD python scripts/c_stepper_speed.py [models...]
-    PYTHONPATH=$PWD python scripts/c_stepper_speed.py --profile
+    python benchmarks/c_stepper_speed.py [--quick] [models...]
+    python benchmarks/c_stepper_speed.py --profile
 """
 
 from __future__ import annotations
@@ -21,12 +21,12 @@ from crosscheck.bench.stepper import RTOL, stepper_records
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
 
 
-def main(names):
+def main(names, quick=False):
     print(
         f"{'model':20s} {'method':10s} {'outputs':8s} {'python ms':>10s} {'C ms':>8s} "
         f"{'ratio':>6s} {'nfev py/C':>11s} {'max |dy|':>9s} {'/ tol':>7s}  stepper"
     )
-    for r in stepper_records(names, quick=False):
+    for r in stepper_records(names, quick=quick):
         head = f"{r['model']:20s} {r['method']:10s} {r['outputs']:8s}"
         if "failed" in r:
             print(f"{head} failed: {r['failed']}")
@@ -63,4 +63,6 @@ if __name__ == "__main__":
     if sys.argv[1:] == ["--profile"]:
         profile()
     else:
-        main(sys.argv[1:] or MODELS)
+        args = sys.argv[1:]
+        quick = "--quick" in args
+        main([a for a in args if a != "--quick"] or MODELS, quick)

@@ -1,7 +1,7 @@
 """Measure the OpenSim adapter against the reference: worst relative error of accelerations and
 multipliers over N consistent states per model (every formulation), and the time per state.
 
-    PYTHONPATH=$PWD python scripts/opensim_agreement.py [N] [SEED]
+    python benchmarks/opensim_agreement.py [N] [SEED] [models...]
 
 States as tests/test_engine_opensim.py draws them (the model's sampler for the 3-D models,
 else crosscheck.checks.sampling.random_consistent_state at t ~ U(0, 2)); relative errors divide by
@@ -89,7 +89,8 @@ def main() -> None:
     )
     print("|---|---|---|---|---|---|")
     adapter = OpenSimAdapter()
-    cases = [(name, v) for name in adapter.models() for v in adapter.variants(name)]
+    names = sys.argv[3:] or adapter.models()
+    cases = [(name, v) for name in names for v in adapter.variants(name)]
     for name, variant in cases:
         r = measure(name, n, seed, variant)
         lam = f"{r['lam']:.1e}" if r["lam_mapped"] else "None (not a force)"

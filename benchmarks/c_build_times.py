@@ -1,13 +1,17 @@
-"""How long the C compiler takes to build every built-in model's kernels (docs/compiled.md,
-"The C backend"): each model and formulation's generated module is printed as C and built into
-a fresh temporary directory, one at a time (the derivation itself comes from the cache).
+"""How long the C compiler takes to build the built-in models' kernels
+(benchmarks/reference_speed.md, "Build times").
 
-    PYTHONPATH=$PWD python scripts/c_build_times.py
+Each model and formulation's generated module is printed as C and built into a fresh temporary
+directory, one at a time (the derivation itself comes from the cache). Modules with the numeric
+KKT solve have no C kernels and are left out; model names restrict it to theirs.
+
+    python benchmarks/c_build_times.py [models...]
 """
 
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -21,10 +25,10 @@ from reference.backends.c_source import c_source
 from reference.numeric.model import PIVOT_RATIO_MIN, NumericModel
 
 
-def main() -> None:
+def main(names) -> None:
     rows, seen = [], set()
     with tempfile.TemporaryDirectory() as tmp:
-        for name in models.names():
+        for name in names or models.names():
             model = models.get(name)
             for formulation in model.formulations:
                 nm = NumericModel(model, formulation)
@@ -45,4 +49,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

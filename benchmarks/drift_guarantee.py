@@ -6,7 +6,7 @@ For every constrained model: the 5 s reference run with coordinate projection an
 With projection the first is <= 1 by construction (Gauss-Newton's stopping test) and the second
 is round-off; crosscheck/checks/trajectory/check.py's drift tolerances are built from these bounds.
 
-    PYTHONPATH=$PWD python scripts/drift_guarantee.py [MODEL ...]
+    python benchmarks/drift_guarantee.py [MODEL ...]
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Probe: what a call into compiled code costs from Python, numba's dispatch against a plain
-CPython extension function (docs/compiled.md, "A cheaper crossing").
+CPython extension function (benchmarks/reference_speed.md, "Why C beside numba").
 
 Both compute pendulum_xy's u' and lambda from (q, u, t) into a preallocated out. The C one is
 a METH_FASTCALL function taking its arrays through the buffer protocol (format and size
 checked in C); it is written to a temporary directory and built with the system's C compiler.
 
-    PYTHONPATH=$PWD python scripts/c_crossing_probe.py
+    python benchmarks/c_crossing_probe.py
 """
 
 from __future__ import annotations

@@ -7,8 +7,8 @@ pointing at it (the engines' entry points resolve to its modules). Output goes t
 pipes: the time is the command's own, up to its exit, as at a terminal (a pipe's reader also
 waits for the workers' server to exit).
 
-    PYTHONPATH=$PWD python scripts/warm_ab.py 9ce6640 --reps 3 -- --engines pinocchio,mujoco
-    PYTHONPATH=$PWD python scripts/warm_ab.py 9ce6640 --reps 2 -- --jobs 1
+    python benchmarks/warm_ab.py 9ce6640 --reps 3 -- --engines pinocchio,mujoco
+    python benchmarks/warm_ab.py 9ce6640 --reps 2 -- --jobs 1
 """
 
 from __future__ import annotations

@@ -1,17 +1,17 @@
-"""MuJoCo's soft constraints along trajectories: the figures docs/engines/mujoco.md quotes.
+"""MuJoCo's soft constraints: the figures docs/engines/mujoco.md and docs/tolerances.md quote.
 
-PYTHONPATH=$PWD python scripts/mujoco_soft.py limit [models...]
+python benchmarks/mujoco_soft.py limit [models...]
     per model with equality rows, 5 s of RK4 from the initial state: the soft effect
     S(tc) = max state error against the reference at solref tc = 0.02, 0.01, 0.005 s, the
     ratio r = S(tc) / S(tc/2), the rigid limit's error (runs at tc and tc/2 extrapolated
-    to tc -> 0, crosscheck.checks.trajectory.check.SOFT_LIMIT_*) and its ratio to the correction,
+    to tc -> 0, crosscheck.checks.trajectory.soft.SOFT_LIMIT_*) and its ratio to the correction,
     and the step-halving difference at tc = 0.02 s.
-PYTHONPATH=$PWD python scripts/mujoco_soft.py energy
+python benchmarks/mujoco_soft.py energy
     slider_crank_split, 0.5 s: max |E - E0| for Euler, implicitfast, RK4 at h = 2, 1, 0.5,
     0.25 ms and solref tc = 0.02, 0.01 s (tests/test_mujoco_bounds.py's energy bounds).
-PYTHONPATH=$PWD python scripts/mujoco_soft.py predict [N [models...]]
+python benchmarks/mujoco_soft.py predict [N [models...]]
     MuJoCo's raw soft answer against EngineModel.predict_soft over N consistent states per
-    model (compare.SOFT_PREDICTION's figures).
+    model (crosscheck.checks.tolerances.SOFT_PREDICTION's figures).
 """
 
 from __future__ import annotations
@@ -88,8 +88,9 @@ def _predict_agreement(n_states: int = 200, names=None) -> list[dict]:
     """MuJoCo's raw soft answer against EngineModel.predict_soft over the run's consistent
     states (the initial state and n_states - 1 seeded random ones, crosscheck.checks.sampling) of
     every MuJoCo model with soft rows: the worst miss max |raw - predicted| (scaled as
-    compare.scaled_error), the predicted soft effect's range and the judged ratio
-    (compare.soft_prediction), of the accelerations and (lam_*) the multipliers."""
+    crosscheck.checks.tolerances.scaled_error), the predicted soft effect's range and the judged
+    ratio (crosscheck.checks.tolerances.soft_prediction), of the accelerations and (lam_*) the
+    multipliers."""
     ad, rows = MujocoAdapter(), []
     for name in names or ad.models():
         if name in ad.unsupported():

@@ -1,12 +1,12 @@
 """Wall time of a full `crosscheck run` (every model, default options), cold and warm, in one
-process and on worker processes (docs/compiled.md, "Start-up").
+process and on worker processes (benchmarks/run_time.md).
 
 For each --jobs value: a fresh derivation cache (cold: every derivation and C build), then the
 same cache again (warm). The runs' records are compared with the first run's: the worker
 processes must not change a record.
 
-    PYTHONPATH=$PWD python scripts/startup_times.py            # --jobs 1 and 2, about 4 min
-    PYTHONPATH=$PWD python scripts/startup_times.py --jobs 2 --models slider_crank top_euler
+    python benchmarks/startup_times.py            # --jobs 1 and 2, about 4 min
+    python benchmarks/startup_times.py --jobs 2 --models slider_crank top_euler
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
-"""What other optimization flags would give the C kernels (docs/compiled.md, "The C backend"):
-one model's generated module built with each flag set into a temporary directory, its checked
-single-state forward kernel timed in one process, the sets alternated over three rounds.
+"""What other optimization flags would give the C kernels (benchmarks/reference_speed.md,
+"Compiler flags"): one model's generated module built with each flag set into a temporary
+directory, its checked single-state forward kernel timed in one process, the sets alternated
+over three rounds.
 
-    PYTHONPATH=$PWD python scripts/c_flag_probe.py [model]     # default top_cartesian
+    python benchmarks/c_flag_probe.py [model]     # default top_cartesian
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ own times are in `<cache dir>/run_times.json` after the run (crosscheck/run/orde
 The program's entry (crosscheck.cli.main) runs unchanged, with timestamps around three of its
 functions; run it in a warm cache, on a machine otherwise idle:
 
-    CROSSCHECK_CACHE_DIR=<warm> PYTHONPATH=$PWD python scripts/run_phases.py -- \
+    CROSSCHECK_CACHE_DIR=<warm> python benchmarks/run_phases.py -- \
         --engines pinocchio,mujoco --out /tmp/phases --no-report
 """
 

@@ -1,12 +1,13 @@
-"""Per-call cost of the compiled single-state forward: the figures docs/compiled.md quotes.
+"""What a single-state forward call costs on the numba backend, and where it goes: the
+figures of benchmarks/reference_speed.md, "Why C beside numba".
 
-PYTHONPATH=$PWD CROSSCHECK_BACKEND=numba python scripts/call_overhead.py calls [models...]
-    min us per call over interleaved rounds, at bench's first state: the checked call, the raw
-    call (fresh arrays, and into a preallocated out), forward_into, the kernel through numba's
-    dispatch, the compiled entry point bare and behind the cheapest safe Python guard (and the
-    dispatch in the same Python frame), and Pinocchio's timed call; then each over Pinocchio's.
-PYTHONPATH=$PWD python scripts/call_overhead.py args
-    the cost of calling a one-store @njit function with 6, 5, 4 and 3 arguments.
+    CROSSCHECK_BACKEND=numba python benchmarks/call_overhead.py [models...]
+
+Per model, min us per call over interleaved rounds at bench's first state: the checked call,
+the raw call (fresh arrays, and into a preallocated out), forward_into, the kernel through
+numba's dispatch, the compiled entry point bare and behind the cheapest safe Python guard (and
+the dispatch in the same Python frame), and Pinocchio's timed call; then each over Pinocchio's.
+A cold numba cache compiles each model's kernels first (10-20 s per model).
 """
 
 from __future__ import annotations
@@ -77,49 +78,5 @@ def calls(names) -> None:
         )
 
 
-def args() -> None:
-    from numba import njit
-
-    @njit(error_model="numpy")
-    def f6(q, u, t, p, d, o):
-        o[0] = q[0] + u[0] + t + p[0] + d[0]
-        return 0
-
-    @njit(error_model="numpy")
-    def f5(q, u, t, p, o):
-        o[0] = q[0] + u[0] + t + p[0]
-        return 0
-
-    @njit(error_model="numpy")
-    def f4(x, t, p, o):
-        o[0] = x[0] + t + p[0]
-        return 0
-
-    @njit(error_model="numpy")
-    def f3(x, p, o):
-        o[0] = x[0] + p[0]
-        return 0
-
-    q, u, p, d, o, x = np.zeros(2), np.zeros(2), np.ones(5), np.zeros(1), np.empty(4), np.zeros(4)
-    f6(q, u, 0.0, p, d, o), f5(q, u, 0.0, p, o), f4(x, 0.0, p, o), f3(x, p, o)
-    e6 = f6.overloads[f6.signatures[0]].entry_point
-    env = dict(f6=f6, f5=f5, f4=f4, f3=f3, e6=e6, q=q, u=u, p=p, d=d, o=o, x=x)
-    t = _min_us(
-        {
-            "6 arguments": "f6(q, u, 0.0, p, d, o)",
-            "6, entry point": "e6(q, u, 0.0, p, d, o)",
-            "5 arguments": "f5(q, u, 0.0, p, o)",
-            "4 arguments": "f4(x, 0.0, p, o)",
-            "3 arguments": "f3(x, p, o)",
-        },
-        env,
-    )
-    print(", ".join(f"{k} {v:.3f} us" for k, v in t.items()))
-
-
 if __name__ == "__main__":
-    what = sys.argv[1] if len(sys.argv) > 1 else "calls"
-    if what == "args":
-        args()
-    else:
-        calls(sys.argv[2:] or MODELS)
+    calls(sys.argv[1:] or MODELS)

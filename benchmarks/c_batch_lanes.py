@@ -1,10 +1,11 @@
-"""The C batch's four-lane body (docs/compiled.md, "The C backend"): 10^4 consistent states
-per model, timed through the batch kernel with the parameters shared (splatted once per
-batch) and with one parameter row per state (gathered per block of four, as a sweep runs), and
-through NumericModel.forward_batch; every 37th state is compared with the checked single-state
-call, to the bit.
+"""The C batch's four-lane body (benchmarks/reference_speed.md, "The four-lane batch").
 
-    PYTHONPATH=$PWD python scripts/c_batch_lanes.py [models...]
+10^4 consistent states per model, timed through the batch kernel with the parameters shared
+(splatted once per batch) and with one parameter row per state (gathered per block of four, as
+a sweep runs), and through NumericModel.forward_batch; every 37th state is compared with the
+checked single-state call, to the bit.
+
+    python benchmarks/c_batch_lanes.py [models...]
 """
 
 from __future__ import annotations

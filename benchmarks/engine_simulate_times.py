@@ -3,7 +3,7 @@ every engine model's `simulate` (per class that defines one) and of the referenc
 process (`--jobs 1` is added: with worker processes the parent only waits). Whatever the run
 does besides is the rest of the total.
 
-    CROSSCHECK_CACHE_DIR=<warm> PYTHONPATH=$PWD python scripts/engine_simulate_times.py \\
+    CROSSCHECK_CACHE_DIR=<warm> python benchmarks/engine_simulate_times.py \\
         --out <dir> --no-report [--engines pinocchio,mujoco]
 """
 
