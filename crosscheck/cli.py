@@ -9,7 +9,7 @@ nothing failed exits 4 (incomplete, not passed).
 from __future__ import annotations
 
 import argparse
-import atexit
+import gc
 import os
 import re
 import sys
@@ -50,24 +50,17 @@ def build_parser() -> argparse.ArgumentParser:
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 
 
-def _attach_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
-    """`--q -0.5,0.2` -> `--q=-0.5,0.2` for every option that takes one value, so users can
-    type negative coordinates, speeds and parameters the natural way."""
-    takes_value = set()
-    stack = [parser]
-    while stack:
-        p = stack.pop()
-        for action in p._actions:
-            if isinstance(action, argparse._SubParsersAction):
-                stack.extend(action.choices.values())
-            elif action.option_strings and action.nargs is None:
-                takes_value.update(s for s in action.option_strings if s.startswith("--"))
+def attach_negative_values(argv: list[str]) -> list[str]:
+    """`--q -0.5,0.2` -> `--q=-0.5,0.2`, so users can type negative coordinates, speeds and
+    parameters the natural way. No option of the CLI takes a value that starts with "-" for
+    another purpose, and a flag followed by such a token is refused by argparse either way."""
     out: list[str] = []
     i = 0
     while i < len(argv):
         tok = argv[i]
-        if tok in takes_value and i + 1 < len(argv) and _NEGATIVE_VALUE.match(argv[i + 1]):
-            out.append(f"{tok}={argv[i + 1]}")
+        nxt = argv[i + 1] if i + 1 < len(argv) else ""
+        if tok.startswith("--") and "=" not in tok and _NEGATIVE_VALUE.match(nxt):
+            out.append(f"{tok}={nxt}")
             i += 2
             continue
         out.append(tok)
@@ -103,43 +96,23 @@ def main(argv=None) -> int:
         one_blas_thread()
         no_mujoco_rendering()
     code = _main(argv)
-    if entry and (code == EXIT_INTERRUPTED or not (_running_threads() or _observed())):
-        # CPython kills itself with SIGINT at exit (status -2, not 130) when the interrupt
-        # passed through code run by PyRun_* (some extensions' imports), even though it was
-        # handled here: leave with the status the command promises. And a finished command
-        # has written and closed its files: the interpreter's teardown of every module it
-        # imported (sympy, the engines) would add 0.4-1 s to each command's wall time
-        # (docs/compiled.md, "The warm run's own overheads"), so it is skipped
-        _leave(code)
+    if entry and code == EXIT_INTERRUPTED:
+        # CPython ends a program by SIGINT (status -2, not 130) when an interrupt passed through
+        # code it ran with PyRun_* (some extensions' imports), even one handled here: leave with
+        # the status the command promises. The command has stopped its workers and written
+        # nothing; what atexit would run has nothing left to do.
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe
+                pass
+        os._exit(code)
+    if entry:
+        # The collections of the interpreter's teardown walk every object the models and
+        # engines created: 0.4 s after a run. Frozen objects are skipped (the files are written
+        # and closed; the OS takes the memory back): 0.1 s.
+        gc.freeze()
     return code
-
-
-def _running_threads() -> bool:
-    """Whether a thread other than this one still works (a C build, an executor's worker):
-    the interpreter's normal exit waits for those, os._exit would cut them off."""
-    import threading
-
-    main_thread = threading.main_thread()
-    return any(t is not main_thread and not t.daemon for t in threading.enumerate())
-
-
-def _observed() -> bool:
-    """Whether a profiler or tracer watches this process (`python -m cProfile -m crosscheck`,
-    coverage): it writes what it saw at the normal exit, which os._exit would skip."""
-    return sys.getprofile() is not None or sys.gettrace() is not None
-
-
-def _leave(code: int) -> None:
-    """Exit at once with `code`, after what a normal exit runs first: the standard streams'
-    buffers and the atexit functions (multiprocessing's finalizers release a worker pool's
-    semaphores; without them its resource tracker warns of leaks)."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe (`crosscheck models | head`)
-            pass
-    atexit._run_exitfuncs()
-    os._exit(code)
 
 
 def _main(argv) -> int:
@@ -153,7 +126,7 @@ def _main(argv) -> int:
 
             start_workers_early(argv[1:])
         parser = build_parser()
-        args = parser.parse_args(_attach_negative_values(parser, argv))
+        args = parser.parse_args(attach_negative_values(argv))
         try:
             if hasattr(args, "model_file"):  # before any model name is resolved
                 from crosscheck.commands.arguments import load_model_files
@@ -164,7 +137,6 @@ def _main(argv) -> int:
             return code
         except ModelInputError as exc:
             print(f"crosscheck: error: {exc}", file=sys.stderr)
-            _stop_workers_server()
             return EXIT_USAGE
     except KeyboardInterrupt:
         return _interrupted(args)
@@ -178,7 +150,6 @@ def _main(argv) -> int:
         import traceback
 
         traceback.print_exc()
-        _stop_workers_server()
         print(
             "crosscheck: internal error (a bug, not a failed check; the traceback above "
             "says where)",
@@ -187,18 +158,7 @@ def _main(argv) -> int:
         return EXIT_INTERNAL
 
 
-def _stop_workers_server() -> None:
-    """A command that ends in an error or an interrupt hands nothing more to workers: the
-    server `run` started (early, or for its workers) must not outlive it
-    (crosscheck.runtime.workers.stop_server)."""
-    if "multiprocessing.forkserver" in sys.modules:  # else no server was started
-        from crosscheck.runtime.workers import stop_server
-
-        stop_server()
-
-
 def _interrupted(args) -> int:
-    _stop_workers_server()
     print(
         f"crosscheck: interrupted; no new output written (a command's files are renamed "
         f"into place only once all are complete){_out_note(args)}",

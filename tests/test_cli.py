@@ -233,27 +233,6 @@ def test_the_program_leaves_without_teardown_and_loses_no_output(tmp_path):
     assert bad.returncode == 2 and "unknown model 'no_such_model'" in bad.stderr
 
 
-def test_a_running_thread_keeps_the_normal_exit():
-    """cli._running_threads: a non-daemon thread still working (a C build) makes the program
-    exit normally, which waits for it; a daemon thread changes nothing (an earlier test's C
-    build pool may hold a thread of its own in this process: the baseline)."""
-    import threading
-
-    from crosscheck.cli import _running_threads
-
-    baseline = _running_threads()
-    release = threading.Event()
-    for daemon in (True, False):
-        t = threading.Thread(target=release.wait, daemon=daemon)
-        t.start()
-        try:
-            assert _running_threads() is (True if not daemon else baseline)
-        finally:
-            release.set()
-            t.join()
-        release.clear()
-
-
 def test_a_profiled_program_still_writes_its_profile(tmp_path):
     """Under `python -m cProfile -o F -m crosscheck` (the profiling command docs/compiled.md
     gives) the program exits normally, so the profiler writes F."""

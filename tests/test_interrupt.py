@@ -90,13 +90,13 @@ def test_sigint_on_a_real_run(previous_run, delay):
     one inside PyRun-executed code ended the process by the signal, status -2) and later
     (computing): one line, exit 130, the previous files intact."""
     before = _snapshot(previous_run)
-    # in this process (--jobs 1); tests/test_run_jobs.py interrupts runs on worker processes
-    models = ["pendulum_angle", "slider_crank"]
-    proc = _start(["run", *models, "--jobs", "1", "--out", str(previous_run)])
-    time.sleep(delay)
-    assert proc.poll() is None, "the run ended before it could be interrupted"
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    # in this process (--jobs 1; tests/test_run_jobs.py interrupts runs on worker processes),
+    # every built-in model: 15-26 s warm on the 2-core machine, so every delay lands in the run
+    with _start(["run", "--jobs", "1", "--out", str(previous_run)]) as proc:
+        time.sleep(delay)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     lines = err.strip().splitlines()
@@ -160,21 +160,21 @@ def test_an_interrupt_the_engine_swallowed_still_interrupts(previous_run, monkey
 @pytest.mark.parametrize("delay", [3.0, 4.0, 5.0])
 def test_sigint_during_exudyn_solves(previous_run, delay):
     """The measured case: Exudyn's solver caught Ctrl-C at 3-4 s into a run of slider_crank
-    (exit 0 with every record, or exit 1 with a failed trajectory record). With the compiled
-    stepper that run takes about 6 s warm, so a signal at 5 s could land after its last
-    check (a finished run, exit 0: CI run 18); two models keep every delay inside Exudyn's
-    solves (11.5 s warm: `/usr/bin/time -f %e python -m crosscheck run slider_crank
-    slider_crank_free --engines exudyn --jobs 1 --out <dir>`)."""
+    (exit 0 with every record, or exit 1 with a failed trajectory record). The slider-cranks
+    run first and every Exudyn model follows, so each delay lands inside the run whatever the
+    machine's speed (all of them: 12-24 s warm, `/usr/bin/time -f %e python -m crosscheck run
+    --engines exudyn --jobs 1 --out <dir>`; the two slider-cranks alone took 4.8 s)."""
     before = _snapshot(previous_run)
-    models = ["slider_crank", "slider_crank_free"]
+    models = ["slider_crank", "slider_crank_free", "slider_crank_split", "top_euler"]
+    models += ["top_cartesian", "double_pendulum_3d", "exercise_6_4", "frame_bar"]
     # --jobs 1: the solves run in the process that gets the signal (workers ignore it)
-    proc = _start(
+    with _start(
         ["run", *models, "--engines", "exudyn", "--jobs", "1", "--out", str(previous_run)]
-    )
-    time.sleep(delay)
-    assert proc.poll() is None, "the run ended before it could be interrupted"
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    ) as proc:
+        time.sleep(delay)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert _snapshot(previous_run) == before
 

@@ -167,9 +167,9 @@ def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay, whole_group)
     tag = f"CROSSCHECK_TEST_TAG={uuid.uuid4().hex}"
     key, value = tag.split("=")
     env = {**os.environ, "PYTHONPATH": str(ROOT), key: value}
-    models = ["pendulum_xy", "slider_crank", "top_euler"]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "crosscheck", "run", *models, "--jobs", "2", "--out", "out"],
+    # every built-in model: 15-25 s warm on two workers, so every delay lands in the run
+    with subprocess.Popen(
+        [sys.executable, "-m", "crosscheck", "run", "--jobs", "2", "--out", "out"],
         cwd=tmp_path,
         env=env,
         stdout=subprocess.PIPE,
@@ -179,14 +179,14 @@ def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay, whole_group)
         # and Ctrl-C's default action, as a terminal's shell gives it (pytest may have been
         # started in the background, with SIGINT ignored, and children inherit that)
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
-    time.sleep(delay)
-    assert proc.poll() is None, "the run ended before it could be interrupted"
-    if whole_group:
-        os.killpg(proc.pid, signal.SIGINT)
-    else:
-        proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    ) as proc:
+        time.sleep(delay)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        if whole_group:
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("crosscheck: interrupted"), err

@@ -32,11 +32,13 @@ class _Quiet(argparse.ArgumentParser):
 def start_workers_early(argv: list[str]) -> None:
     """Start the workers' server of a `crosscheck run` that will hand its models to workers,
     before the command line imports the models and engines (about 1 s, which the server
-    imports too): the server's own imports (about 2 s) then run on the other core from the start
-    (docs/compiled.md, "The workers' server starts first"). `argv` follows "run"; a run that
-    will not use workers (one model named, `--jobs 1`, one core), a --model-file run without
-    names (how many models is not known yet), a request for help or an argument the parser
-    refuses start nothing here, and cmd_run starts the server as before where it is needed."""
+    imports too): the server's own imports (about 2 s) then run on the other core from the
+    start. `argv` follows "run". Nothing starts here for a run that will not use workers (one
+    model named, `--jobs 1`, one core), a --model-file run without names (how many models is
+    not known yet), a request for help, or input the command will refuse: an argument the
+    parser refuses, an unknown model or engine name. Refused input therefore never leaves a
+    server behind; input refused later (a model file's contents) leaves the server to end by
+    itself once its imports are done and it sees this process gone."""
     if "-h" in argv or "--help" in argv:
         return
     parser = _Quiet(prog="crosscheck", add_help=False)
@@ -46,8 +48,22 @@ def start_workers_early(argv: list[str]) -> None:
     except Exception:  # anything the full parser will report (or a type check of ours)
         return
     several = len(set(args.models)) > 1 if args.models else not args.model_file
-    if several and (args.jobs or default_workers()) > 1:
-        _start_server(args.engines)
+    if not (several and (args.jobs or default_workers()) > 1):
+        return
+    if _refused_names(args):
+        return
+    _start_server(args.engines)
+
+
+def _refused_names(args) -> bool:
+    """Whether the command will refuse a model or engine name (the registries list the names
+    without importing a model or an engine)."""
+    from crosscheck.engines.entry_points import entry_points
+    from reference import models
+
+    if args.models and not args.model_file and not set(args.models) <= set(models.names()):
+        return True
+    return bool(args.engines) and not set(args.engines) <= set(entry_points())
 
 
 def _start_server(engines) -> None:

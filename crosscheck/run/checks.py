@@ -122,8 +122,10 @@ SOFT_FILE = (
 def _soft_file_trajectories(name, recs, adapters):
     """A soft engine's trajectory records on a user's MJCF file with equality constraints (the
     file's own solref/solimp): the measured figure kept, not judged (SOFT_FILE)."""
+    from reference.mjcf.loader import MjcfImport  # MuJoCo loads only for a user's MJCF file
+
     src = models.user_source(name)
-    if not (hasattr(src, "mj") and src.mj.neq):
+    if not (isinstance(src, MjcfImport) and src.mj.neq):
         return recs
     soft = {a.name for a in adapters if not a.capabilities.exact}
     out = []

@@ -18,13 +18,13 @@ import os
 import threading
 import time
 import traceback
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
 from crosscheck.run.order import hand_out_order, known_times, remember_times, setting_key
 from crosscheck.runtime import interrupts
-from crosscheck.runtime.workers import process_context, start_worker, stop_workers
+from crosscheck.runtime.workers import WorkerPool, process_context, start_worker
 from reference.errors import ModelInputError
 
 # what the workers' server imports before forking them: this module and the checks it runs
@@ -117,11 +117,11 @@ def run_models(
     outcomes: dict[int, tuple] = {}
     setting = jobs[0].setting if jobs else ""
     order = hand_out_order([j.name for j in jobs], known_times(setting))
-    ex = ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=process_context(*WORKER_MODULES, engines=jobs[0].engines if jobs else None),
-        initializer=_start_worker,
-        initargs=(os.getpid(), tuple(model_files)),
+    ex = WorkerPool(
+        workers,
+        process_context(*WORKER_MODULES, engines=jobs[0].engines if jobs else None),
+        _start_worker,
+        (os.getpid(), tuple(model_files)),
     )
     side = _Meanwhile(meanwhile) if meanwhile is not None else None
     try:
@@ -144,12 +144,12 @@ def run_models(
                     progress(jobs[i].name)
             futures = {f: k for f, k in futures.items() if k < first_fault}
     except BaseException:
-        stop_workers(ex)  # Ctrl-C: no waiting for the models in flight
+        ex.stop()  # Ctrl-C: no waiting for the models in flight
         raise
     if first_fault < len(jobs):
-        stop_workers(ex)  # a later model still computing is not waited for
+        ex.stop()  # a later model still computing is not waited for
         _raise(outcomes[first_fault], jobs[first_fault].name)
-    ex.shutdown(wait=True)
+    ex.shutdown()
     remember_times(setting, {jobs[i].name: outcomes[i][4] for i in range(len(jobs))})
     records: list = []
     series: list = []

@@ -86,41 +86,43 @@ def start_server() -> None:
         signal.signal(signal.SIGINT, previous)
 
 
-def stop_workers(executor) -> None:
-    """End the workers now (an interrupt must not wait for a model in flight; they ignore
-    SIGINT), cancel what has not started, and release the pool's pipes and semaphores.
-    The workers are signalled first: once the pool is shutting down its manager thread
-    closes their handles, and a handle then reads as a process that has ended. Python 3.14
-    has terminate_workers; before it the executor's process table is the only handle."""
-    terminate = getattr(executor, "terminate_workers", None)
-    if terminate is not None:  # pragma: no cover - Python >= 3.14
-        terminate()
-    else:
-        for pid in list(getattr(executor, "_processes", None) or {}):
+class WorkerPool:
+    """A ProcessPoolExecutor whose workers report their process ids as they start, so that
+    `stop` ends them at once: an interrupt must not wait for the work in flight, and the
+    workers ignore SIGINT (start_worker). Submit with `submit`, end with `shutdown` (all work
+    done) or `stop` (now)."""
+
+    def __init__(self, workers: int, context, initializer, initargs: tuple = ()):
+        from concurrent.futures import ProcessPoolExecutor
+
+        self._pids = context.SimpleQueue()
+        self.executor = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=context,
+            initializer=_report_pid_then,
+            initargs=(self._pids, initializer, tuple(initargs)),
+        )
+
+    def submit(self, fn, *args):
+        return self.executor.submit(fn, *args)
+
+    def shutdown(self) -> None:
+        self.executor.shutdown(wait=True)
+
+    def stop(self) -> None:
+        """End the workers now, cancel what has not started, release the pool's pipes and
+        semaphores. A worker reports its pid before it takes any work, so every worker busy
+        with a task is in the queue."""
+        while not self._pids.empty():
             try:
-                os.kill(pid, signal.SIGTERM)
+                os.kill(self._pids.get(), signal.SIGTERM)
             except ProcessLookupError:
                 pass
-    executor.shutdown(wait=True, cancel_futures=True)
+        self.executor.shutdown(wait=True, cancel_futures=True)
+        self._pids.close()
 
 
-def stop_server() -> None:
-    """End this process's workers' server, if it started one, without waiting for it: a
-    command that stops on bad input after the early start (start_workers_early) would
-    otherwise leave the server finishing its imports (about 2 s) with the command's stdout and
-    stderr open, and a reader of them through a pipe waits that long for their end. The
-    server ignores SIGINT (start_server), so SIGTERM. multiprocessing keeps the server's pid
-    and its clean-up in private names (checked on Python 3.11); where they are missing, the
-    server is left to end by itself, as before."""
-    from multiprocessing import forkserver
-
-    server = forkserver._forkserver
-    pid = getattr(server, "_forkserver_pid", None)
-    clean_up = getattr(server, "_stop", None)
-    if pid is None or clean_up is None:
-        return
-    try:
-        os.kill(pid, signal.SIGTERM)
-    except ProcessLookupError:
-        pass
-    clean_up()  # closes its pipe, removes its socket file and reaps it
+def _report_pid_then(pids, initializer, initargs: tuple) -> None:
+    """A worker's first act: its pid to the parent, then the pool's own initializer."""
+    pids.put(os.getpid())
+    initializer(*initargs)
