@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from crosscheck.checks import tolerances as C
+from crosscheck.checks.records import record
 from crosscheck.engines.base import Capabilities, EngineAdapter, EngineModel, EngineUnsupported
 from crosscheck.engines.registry import engine_label
 
@@ -260,11 +261,11 @@ def engine_records(
     reference's answers at the states when the caller has them (one solve per state for all
     engines), else they are computed here."""
 
+    # e.g. Example 4 as a ball-joint tree or as free bodies
+    which = {} if variant is None else {"variant": variant}
+
     def rec(*a, **k):
-        r = C.record(name, nm.formulation, adapter.name, *a, **k)
-        if variant is not None:  # e.g. Example 4 as a ball-joint tree or as free bodies
-            r["variant"] = variant
-        return r
+        return record(name, nm.formulation, adapter.name, *a, **k, **which)
 
     try:
         em = build(adapter, name, params, variant, nominal=nm.params)

@@ -1,8 +1,8 @@
-"""Stage-by-stage comparison of the reference with an engine at the same consistent states.
+"""The named tolerances and error metrics the records are judged by.
 
-One record per model x formulation x engine x check x quantity (the `results.json` contract):
-model, formulation, engine, check, quantity, error, tolerance, passed, reason, plus details.
-Each tolerance is named where its comparison is made, with the reason it has that size.
+Each tolerance is named where its comparison is made, with the reason it has that size; the
+records themselves (one per model x formulation x engine x check x quantity, the results.json
+contract) are made by crosscheck.checks.records.record.
 
 Error metric: max |engine - reference| over the compared entries and states, divided by
 max(max |reference|, 1 SI unit). The floor keeps quantities that are legitimately near zero
@@ -108,49 +108,6 @@ METRICS = {
     "relative_miss": "max |(raw - reference) - predicted| / max(max |predicted|, 1e-5), "
     "both scaled as scaled_error",
 }
-
-
-def record(
-    model,
-    formulation,
-    engine,
-    check,
-    quantity,
-    error,
-    tolerance: Tolerance | None,
-    reason: str = "",
-    metric: str = "scaled_error",
-    **details,
-) -> dict:
-    """One results.json record. A record with tolerance None is a skip, with the reason."""
-    base = {
-        "model": model,
-        "formulation": formulation,
-        "engine": engine,
-        "check": check,
-        "quantity": quantity,
-    }
-    if tolerance is None:
-        return {
-            **base,
-            "error": None,
-            "tolerance": None,
-            "passed": None,
-            "skipped": True,
-            "reason": reason,
-            **details,
-        }
-    passed = bool(error is not None and np.isfinite(error) and error <= tolerance.value)
-    return {
-        **base,
-        "error": None if error is None else float(error),
-        "tolerance": tolerance.value,
-        "passed": passed,
-        "skipped": False,
-        "reason": reason or tolerance.reason,
-        "metric": metric,
-        **details,
-    }
 
 
 class WorstCase:

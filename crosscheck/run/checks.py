@@ -10,6 +10,7 @@ from crosscheck.checks import tolerances as C
 from crosscheck.checks.agreement import reference_answers
 from crosscheck.checks.instantaneous import engine_records, reference_answer
 from crosscheck.checks.perturb import parse_perturb, perturbed
+from crosscheck.checks.records import record, reported
 from crosscheck.checks.sampling import consistent_states
 from crosscheck.engines.registry import get_engine
 from reference import NumericModel, models
@@ -61,7 +62,7 @@ def _formulation_records(name, nm, states):
             acc.add(C.scaled_error(b.accelerations, a.accelerations), i)
             lam.add(C.scaled_error(b.multipliers[keep], a.multipliers[keep]), i)
         out.append(
-            C.record(
+            record(
                 name,
                 other,
                 "reference",
@@ -75,7 +76,7 @@ def _formulation_records(name, nm, states):
         )
         if nm.m == 0:
             out.append(
-                C.record(
+                record(
                     name,
                     other,
                     "reference",
@@ -94,7 +95,7 @@ def _formulation_records(name, nm, states):
                 "the formulation: " + "; ".join(f"{k}: {v}" for k, v in dependent.items())
             )
         out.append(
-            C.record(
+            record(
                 name,
                 other,
                 "reference",
@@ -131,15 +132,11 @@ def _soft_file_trajectories(name, recs, adapters):
     out = []
     for r in recs:
         if r["engine"] in soft and r["passed"] is not None:
-            r = {
-                **r,
-                "judged_tolerance": r["tolerance"],
-                "tolerance": None,
-                "passed": None,
-                "skipped": True,
-                "reason": f"{SOFT_FILE} (measured {r['error']:.3g}; the "
-                f"built-in models' bound: {r['reason']})",
-            }
+            r = reported(
+                r,
+                f"{SOFT_FILE} (measured {r['error']:.3g}; the built-in models' bound: "
+                f"{r['reason']})",
+            )
         out.append(r)
     return out
 
@@ -194,7 +191,7 @@ def run(
             series += ser
         else:  # skipped on request: visible in the results, not silently absent
             records.append(
-                C.record(
+                record(
                     name,
                     nm.formulation,
                     "reference",

@@ -28,6 +28,7 @@ import numpy as np
 
 from crosscheck.checks import tolerances as C
 from crosscheck.checks.instantaneous import build, energy_drift, work_energy_balance
+from crosscheck.checks.records import record
 from crosscheck.checks.trajectory.horizon import (
     crossed,
     horizon_before,
@@ -101,7 +102,7 @@ def output_grid(t_end: float) -> np.ndarray:
     return np.linspace(0.0, t_end, n + 1)[steps]
 
 
-def _failed(rec, engine, what: str, exc: Exception) -> dict:
+def _failed(rec, engine, what: str, exc: Exception, **details) -> dict:
     """A failed record for a run that did not finish (step underflow, a projection that does
     not converge, a singular system): the run goes on with the next one."""
     message = (str(exc).splitlines() or [""])[0]
@@ -112,6 +113,7 @@ def _failed(rec, engine, what: str, exc: Exception) -> dict:
         C.Tolerance(0.0, "the run must finish"),
         f"{what} failed: {type(exc).__name__}: {message}",
         failure=True,
+        **details,
     )
 
 
@@ -255,7 +257,7 @@ class _Reference:
     loose_E: float  # and its energy drift (or work-energy balance) there
 
     def rec(self, engine, qty, err, tol, reason="", **k):
-        return C.record(
+        return record(
             self.name,
             self.nm.formulation,
             engine,
@@ -457,7 +459,7 @@ def _engine_run(ctx: _Reference, adapter, em, variant):
     except Exception as exc:
         interrupts.check()  # unless Ctrl-C stopped it (the engine may report that as a failure)
         return [
-            dict(_failed(ctx.rec, adapter.name, f"{adapter.name}'s {integrator} run", exc), **extra)
+            _failed(ctx.rec, adapter.name, f"{adapter.name}'s {integrator} run", exc, **extra)
         ], []
     records, series = [], []
     for k, (label, t, q, u, info) in enumerate(runs):
@@ -525,7 +527,7 @@ def trajectory_records(
     try:
         ctx, records, series = _reference_horizon_run(name, nm, t_end)
     except _RunFailed as failed:
-        rec = lambda engine, qty, err, tol, reason="", **k: C.record(
+        rec = lambda engine, qty, err, tol, reason="", **k: record(
             name, nm.formulation, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k
         )
         return [_failed(rec, "reference", failed.what, failed.exc)] + [

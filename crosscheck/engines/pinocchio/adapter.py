@@ -156,7 +156,7 @@ class PinocchioAdapter(TableAdapter):
     def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
         """A user's MJCF file: each record says which Pinocchio model answered, and one more
         record (reported, not judged) lists what pin's own MJCF parser lost."""
-        from crosscheck.checks.tolerances import record
+        from crosscheck.checks.records import annotated, record
         from crosscheck.engines.pinocchio.parser_findings import findings_isolated, summary
         from crosscheck.engines.pinocchio.user_file import BUILT_FROM
         from reference import models
@@ -164,11 +164,9 @@ class PinocchioAdapter(TableAdapter):
         src = models.user_source(model_name)
         if not records or not hasattr(src, "mj"):
             return records
-        for r in records:
-            r["engine_model"] = BUILT_FROM
         found = findings_isolated(src.path)
         return [
-            *records,
+            *(annotated(r, engine_model=BUILT_FROM) for r in records),
             record(
                 model_name,
                 records[0]["formulation"],
