@@ -183,6 +183,15 @@ def test_opensim_agreement_on_one_model():
     assert acc <= tol and lam <= tol, out
 
 
+def test_opensim_trajectories_on_one_model():
+    pytest.importorskip("opensim")
+    out = _bench("opensim_agreement.py", "--trajectories", "exercise_6_1")
+    rows = [line for line in out.splitlines() if line.startswith("| exercise_6_1")]
+    assert len(rows) == 2, out  # RungeKuttaMerson at 1e-10 and CPodes at 1e-8
+    merson = [c.strip() for c in rows[0].strip("|").split("|")]
+    assert float(merson[3]) < 1e-7 and float(merson[4]) < 1e-7, out  # SIM_TOL of the tests
+
+
 def test_opensim_integrators_on_one_model():
     pytest.importorskip("opensim")
     out = _bench("opensim_integrators.py", "pendulum_xy", "--integrators", "RungeKuttaMerson")
@@ -201,6 +210,12 @@ def test_c_stepper_speed_quick():
     for line in rows:
         assert line.split()[-1] == "c", line
         assert float(line.split()[-2]) <= 1.0, line
+
+
+@needs_cc
+def test_backend_equality_on_one_model():
+    out = _bench("backend_equality.py", "pendulum_xy", env={"CROSSCHECK_BACKEND": "c"})
+    assert re.search(r"pendulum_xy +c against python: (\d+) / \1 outputs equal", out), out
 
 
 @needs_cc
@@ -232,7 +247,8 @@ def test_call_overhead_on_the_numba_backend():
     out = _bench(
         "call_overhead.py", "pendulum_xy", env={"CROSSCHECK_BACKEND": "numba"}, timeout=600
     )
-    assert out.startswith("pendulum_xy: checked") and "over pinocchio" in out, out
+    first = out.splitlines()[0]
+    assert first.startswith("pendulum_xy") and "checked" in first and "over pinocchio" in out, out
 
 
 # ---- benchmarks/: a run's wall time ------------------------------------------------------------
