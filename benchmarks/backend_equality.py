@@ -1,14 +1,13 @@
 """The compiled backend against the pure-Python path it replaces, output by output
 (benchmarks/reference_speed.md, "Equality of the backends").
 
-For each model, one NumericModel on the backend the setting gives (CROSSCHECK_BACKEND: c, or
-numba) and one on the Python path, evaluated at the same 16 consistent states
+For each model, one NumericModel on the backend the setting gives (CROSSCHECK_BACKEND=c) and
+one on the Python path, evaluated at the same 16 consistent states
 (crosscheck.checks.sampling.consistent_states): every output of forward (accelerations,
 multipliers, pivot ratio), matrices (M, f, A, b), residuals, energy and kinematics. Prints how
 many outputs are equal to the bit and the largest relative difference of the others.
 
     CROSSCHECK_BACKEND=c python benchmarks/backend_equality.py [models...]
-    CROSSCHECK_BACKEND=numba python benchmarks/backend_equality.py [models...]
 """
 
 from __future__ import annotations

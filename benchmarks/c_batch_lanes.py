@@ -49,10 +49,10 @@ def measure(name: str) -> str:
         one = nm.forward(Q[i], U[i])
         row = np.r_[one.accelerations, one.multipliers, one.pivot_ratio]
         same &= np.array_equal(np.r_[UD[i], LAM[i], piv[i]], row)
-    kernel = nm._k.get("forward_batch")
-    T, DB = np.zeros(1), nm._db0[None]
-    shared, per_state = nm._pa[None], np.ascontiguousarray(np.tile(nm._pa, (N, 1)))
-    out, st = np.empty((N, nm._nf)), np.empty(N, np.int64)
+    kernel, pa = nm.kernels.batch("forward"), nm.kernel_parameters
+    T, DB = np.zeros(1), nm.kernels.zero_db[None]
+    shared, per_state = pa[None], np.ascontiguousarray(np.tile(pa, (N, 1)))
+    out, st = np.empty((N, nm.n + nm.m + 1)), np.empty(N, np.int64)
     lanes = best_us(lambda: kernel(Q, U, T, shared, DB, out, st))
     rows = best_us(lambda: kernel(Q, U, T, per_state, DB, out, st))
     public = best_us(lambda: nm.forward_batch(Q, U, 0.0))

@@ -32,7 +32,7 @@ def main(names) -> None:
             model = models.get(name)
             for formulation in model.formulations:
                 nm = NumericModel(model, formulation)
-                stem = nm._scalar["__cache_path__"].stem
+                stem = nm.cache_path.stem
                 if stem in seen or codegen.numeric_kkt(nm.n, nm.m):
                     continue
                 seen.add(stem)

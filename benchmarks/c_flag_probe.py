@@ -23,7 +23,7 @@ os.environ["CROSSCHECK_BACKEND"] = "python"  # the generated source only; builds
 from reference import models
 from reference.backends import c_build as cbuild
 from reference.backends import c_source as ckernels
-from reference.backends.numba_backend import import_file
+from reference.backends.kernels import import_file
 from reference.numeric.model import PIVOT_RATIO_MIN, NumericModel
 
 # each set replaces only the optimization level or adds one flag to the backend's own flags
@@ -36,7 +36,7 @@ def main(name: str) -> None:
     base = [f for f in cbuild.CFLAGS if f != "-O2"]
     includes = [f"-I{d}" for d in cbuild._include_dirs()]
     q, u = np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float)
-    out = np.empty(nm._nf)
+    out, pa, db = np.empty(nm.n + nm.m + 1), nm.kernel_parameters, nm.kernels.zero_db
     kernels = []
     with tempfile.TemporaryDirectory() as tmp:
         for i, extra in enumerate(VARIANTS):
@@ -50,7 +50,7 @@ def main(name: str) -> None:
             kernels.append((extra, build_s, import_file(so, modname).forward))
         for _round in range(3):
             for extra, build_s, f in kernels:
-                call = lambda f=f: f(q, u, 0.0, nm._pa, nm._db0, out)
+                call = lambda f=f: f(q, u, 0.0, pa, db, out)
                 us = min(timeit.repeat(call, number=50_000, repeat=5)) / 50_000 * 1e6
                 print(f"{name} {' '.join(extra):24s} build {build_s:5.2f} s  {us:.3f} us per call")
 

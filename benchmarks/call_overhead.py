@@ -1,13 +1,12 @@
-"""What a single-state forward call costs on the numba backend, and where it goes: the
-figures of benchmarks/reference_speed.md, "Why C beside numba".
+"""What a single-state forward call costs, and where it goes, on the model's backend.
 
-    CROSSCHECK_BACKEND=numba python benchmarks/call_overhead.py [models...]
+    python benchmarks/call_overhead.py [models...]
 
-Per model, min us per call over interleaved rounds at bench's first state: the checked call,
-the raw call (fresh arrays, and into a preallocated out), forward_into, the kernel through
-numba's dispatch, the compiled entry point bare and behind the cheapest safe Python guard (and
-the dispatch in the same Python frame), and Pinocchio's timed call; then each over Pinocchio's.
-A cold numba cache compiles each model's kernels first (10-20 s per model).
+Per model, min us per call over interleaved rounds at bench's first state: the checked call
+(NumericModel.forward), the fast call (forward_fast: fresh arrays, and into a preallocated
+out), the backend's forward kernel alone (nm.kernels.function('forward'), into a
+preallocated out), the Python path of each call (what a state the bound C calls cannot take
+goes to), and Pinocchio's timed call; then each over Pinocchio's.
 """
 
 from __future__ import annotations
@@ -35,44 +34,28 @@ def calls(names) -> None:
     from crosscheck.engines.registry import get_engine
     from reference import NumericModel, models
 
-    f64, s8, nd = np.dtype(np.float64), (8,), np.ndarray
     for name in names:
         nm = NumericModel(models.get(name))
         q, u = (np.asarray(x, float) for x in consistent_states(nm, 16)[0])
-        kf = nm._kf
-        ep = kf.overloads[kf.signatures[0]].entry_point
-
-        scratch = np.empty(nm._nf)
-
-        def guarded(q, u, ep=ep, pa=nm._pa, db=nm._db0, out=scratch):
-            if type(q) is nd and type(u) is nd and q.dtype is f64 is u.dtype:
-                if q.strides == s8 == u.strides:
-                    return ep(q, u, 0.0, pa, db, out)
-            return None
-
-        def dispatched(q, u, kf=kf, pa=nm._pa, db=nm._db0, out=scratch):  # guarded's frame
-            return kf(q, u, 0.0, pa, db, out)
-
+        k = nm.kernels
         env = dict(
-            nm=nm, q=q, u=u, buf=np.empty(nm._nf), kf=kf, ep=ep, guarded=guarded,
-            dispatched=dispatched, pa=nm._pa, db=nm._db0,
+            nm=nm, q=q, u=u, buf=np.empty(nm.n + nm.m + 1), kf=k.function("forward"),
+            pa=nm.kernel_parameters, db=k.zero_db,
             pin=get_engine("pinocchio").build(name, nm.params).timed_forward(q, u),
         )  # fmt: skip
         t = _min_us(
             {
                 "checked": "nm.forward(q, u)",
-                "raw": "nm.forward_raw(q, u, 0.0)",
-                "raw-out": "nm.forward_raw(q, u, 0.0, out=buf)",
-                "into": "nm.forward_into(q, u, 0.0, buf)",
-                "dispatch": "kf(q, u, 0.0, pa, db, buf)",
-                "entry point": "ep(q, u, 0.0, pa, db, buf)",
-                "guarded entry point": "guarded(q, u)",
-                "dispatch, same frame": "dispatched(q, u)",
+                "fast": "nm.forward_fast(q, u, 0.0)",
+                "fast-out": "nm.forward_fast(q, u, 0.0, out=buf)",
+                "kernel": "kf(q, u, 0.0, pa, db, buf)",
+                "checked, Python path": "nm._forward_checked(q, u, 0.0)",
+                "fast-out, Python path": "nm._forward_fast_checked(q, u, 0.0, None, buf)",
                 "pinocchio": "pin()",
             },
             env,
         )
-        print(f"{name}: " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
+        print(f"{name} ({nm.backend}): " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
         print(
             "  over pinocchio: " + ", ".join(f"{k} {v / t['pinocchio']:.2f}" for k, v in t.items())
         )

@@ -116,12 +116,12 @@ def _one_coordinate_model():
 
 def _ode_run(nm: NumericModel, y0, t_end, rtol, atol):
     """Plain solve_ivp DOP853 of an unconstrained model (y = (q, u), q' = u)."""
-    fr, nq = nm.forward_raw, nm.nq
+    fr, nq = nm.forward_fast, nm.nq
 
     def fun(t, y):
         yl = y.tolist()
         ud = fr(yl[:nq], yl[nq:], t)[0]
-        return yl[nq:] + list(ud)  # list concatenation (ud is an array on the compiled path)
+        return yl[nq:] + list(ud)  # list concatenation (ud is an array)
 
     sol = solve_ivp(fun, (0.0, t_end), np.asarray(y0, float), method="DOP853", rtol=rtol, atol=atol)
     if not sol.success:

@@ -116,9 +116,7 @@ def _key_and_entries(pkg_root, cache):
         cwd=pkg_root,
     )
     assert run.returncode == 0, run.stderr
-    return key, sorted(
-        p.name for p in cache.glob("kane-*.py") if not p.name.endswith("_numba.py")
-    )  # the kernels' module beside it
+    return key, sorted(p.name for p in cache.glob("kane-*.py"))
 
 
 def test_editing_a_formulation_misses_the_cache(tmp_path):
@@ -146,8 +144,8 @@ def test_editing_a_formulation_misses_the_cache(tmp_path):
     key1, entries1 = _key_and_entries(edited, cache)
     assert key0 != key1
     assert f"{key0}.py" in entries0 and f"{key1}.py" in entries1
-    # each derivation leaves its source and, with the compiled backend, its kernel module
-    # (key-prefixed): the edited copy adds its own files and reuses none of the original's
+    # each derivation leaves its source (key-prefixed): the edited copy adds its own and
+    # reuses none of the original's
     assert set(entries0) < set(entries1), "the original's entry was lost"
     assert all(e.startswith(key1) for e in set(entries1) - set(entries0)), entries1
     assert not [e for e in entries0 if e.startswith(key1)], "the copies share an entry"

@@ -22,7 +22,8 @@ from crosscheck.run.checks import consistent_states
 from reference import NumericModel, models
 from reference.backends import c_build as cbuild
 from reference.backends import c_source as ckernels
-from reference.backends import numba_backend as compiled
+from reference.backends import select
+from reference.backends.kernels import SINGULAR, TIMINGS
 from reference.errors import ModelInputError, SingularSystemError
 
 pytestmark = pytest.mark.skipif(not cbuild.available(), reason="no working C compiler")
@@ -45,13 +46,13 @@ def test_auto_prefers_c_and_c_without_a_compiler_names_the_fix(monkeypatch, tmp_
 def test_a_built_module_is_loaded_not_rebuilt(c_backend, monkeypatch, tmp_path):
     monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
     first = NumericModel(models.get("slider_crank"))
-    stem = first._scalar["__cache_path__"].stem
-    assert compiled.TIMINGS[stem]["built"] is True
+    stem = first.cache_path.stem
+    assert TIMINGS[stem]["built"] is True
     (so,) = tmp_path.glob(f"{stem}_c_*.so")
     before = so.stat().st_mtime_ns
     cbuild._LOADED.clear()  # as a new process would
     again = NumericModel(models.get("slider_crank"))
-    assert compiled.TIMINGS[stem]["built"] is False and so.stat().st_mtime_ns == before
+    assert TIMINGS[stem]["built"] is False and so.stat().st_mtime_ns == before
     q, u = first.model.initial_q, first.model.initial_u
     assert np.array_equal(first.forward(q, u).accelerations, again.forward(q, u).accelerations)
 
@@ -106,7 +107,7 @@ def test_prebuild_compiles_ahead_and_each_model_takes_its_module(c_backend, monk
     monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
     cbuild._LOADED.clear()
     model = models.get("slider_crank")
-    cbuild.prebuild_model(model)
+    select.prebuild_model(model)
     built = [NumericModel(model, f) for f in model.formulations]
     assert all(nm.backend == "c" for nm in built)
     assert len(list(tmp_path.glob("*_c_*.so"))) == len({nm.source for nm in built})
@@ -117,10 +118,11 @@ def test_prebuild_compiles_ahead_and_each_model_takes_its_module(c_backend, monk
     assert np.allclose(a.accelerations, b.accelerations, rtol=1e-11, atol=1e-11)
 
 
-def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_another_backend(
-    c_backend, monkeypatch, tmp_path
+def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_the_python_path(
+    c_backend, monkeypatch, tmp_path, capsys
 ):
-    """Fault injection: a 'compiler' that answers --version and rejects every module."""
+    """Fault injection: a 'compiler' that answers --version and rejects every module. Each
+    module runs on the Python path, and stderr says so in one line per module."""
     cc = tmp_path / "broken-cc"
     cc.write_text(
         '#!/bin/sh\nif [ "$1" = --version ]; then echo broken-cc 1.0; exit 0; fi\n'
@@ -131,14 +133,14 @@ def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_another_backend
     monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path / "cache"))
     cbuild._LOADED.clear()
     model = models.get("pendulum_xy")
-    cbuild.prebuild_model(model)
+    select.prebuild_model(model)
     for f in model.formulations:  # each takes (and so ends) its own failed build
         nm = NumericModel(model, f)
-        stem = nm._scalar["__cache_path__"].stem
-        assert nm.backend != "c"
-        assert (
-            "rejected the module (error: refusing on purpose" in compiled.TIMINGS[stem]["c_error"]
-        )
+        stem = nm.cache_path.stem
+        assert nm.backend == "python"
+        assert "rejected the module (error: refusing on purpose" in TIMINGS[stem]["c_error"]
+        (line,) = capsys.readouterr().err.splitlines()
+        assert line.startswith(f"crosscheck: {stem} runs on the Python path"), line
 
 
 def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypatch, tmp_path):
@@ -163,8 +165,8 @@ def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypa
         assert "-fopenmp" not in cbuild.compile_flags()
         nm = NumericModel(models.get("slider_crank"))
         assert nm.backend == "c"
-        stem = nm._scalar["__cache_path__"].stem
-        assert "c_error" not in compiled.TIMINGS[stem] and compiled.TIMINGS[stem]["built"]
+        stem = nm.cache_path.stem
+        assert "c_error" not in TIMINGS[stem] and TIMINGS[stem]["built"]
         q, u = nm.model.initial_q, nm.model.initial_u
         batch = nm.forward_batch(np.array([q] * 9), np.array([u] * 9), 0.0)
         assert np.array_equal(batch[0][4], nm.forward(q, u).accelerations)
@@ -173,7 +175,7 @@ def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypa
         cbuild._LOADED.clear()
 
 
-def test_a_model_the_printer_cannot_translate_takes_another_backend(
+def test_a_model_the_printer_cannot_translate_takes_the_python_path(
     c_backend, monkeypatch, tmp_path
 ):
     """Fault injection: a printer without sqrt refuses every model's forward (its Cholesky)."""
@@ -181,9 +183,9 @@ def test_a_model_the_printer_cannot_translate_takes_another_backend(
     monkeypatch.setattr(ckernels, "_FUNCTIONS", ckernels._FUNCTIONS - {"sqrt"})
     cbuild._LOADED.clear()
     nm = NumericModel(models.get("pendulum_xy"))
-    stem = nm._scalar["__cache_path__"].stem
-    assert nm.backend != "c"
-    assert "function sqrt" in compiled.TIMINGS[stem]["c_error"]
+    stem = nm.cache_path.stem
+    assert nm.backend == "python"
+    assert "function sqrt" in TIMINGS[stem]["c_error"]
     monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
     ref = NumericModel(models.get("pendulum_xy"))
     q, u = nm.model.initial_q, nm.model.initial_u
@@ -207,22 +209,25 @@ def test_with_params_rebinds_the_c_calls(c_backend, monkeypatch):
     q, u = np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float)
     assert np.array_equal(heavy.forward(q, u).multipliers, ref.forward(q, u).multipliers)
     assert not np.array_equal(nm.forward(q, u).multipliers, ref.forward(q, u).multipliers)
-    _ud, lam, _piv = heavy.forward_raw(q, u, 0.0)
+    _ud, lam, _piv = heavy.forward_fast(q, u, 0.0)
     assert np.array_equal(lam, ref.forward(q, u).multipliers)
 
 
-def test_bound_raw_call_takes_keywords_and_number_types(c_backend):
+def test_bound_fast_call_takes_keywords_and_number_types(c_backend):
     nm = NumericModel(models.get("slider_crank"))
     q, u = np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float)
-    base = nm.forward_raw(q, u, 0.5)
-    out = np.empty(nm._nf)
-    assert nm._craw(q, u, 0.5, out=out) is out and np.array_equal(out[: nm.n], base[0])
+    bound = nm._fast  # the C call forward_fast makes (CKernels.bind)
+    assert type(bound).__name__ == "Bound"
+    base = nm.forward_fast(q, u, 0.5)
+    out = np.empty(nm.n + nm.m + 1)
+    assert bound(q, u, 0.5, out=out) is out and np.array_equal(out[: nm.n], base[0])
     for t in (np.float64(0.5), 0.5, np.float32(0.5)):
-        assert np.array_equal(nm.forward_raw(q, u, t)[1], base[1])
-    shifted = nm._craw(q, u, 0.5, db=np.full(nm.m, 0.1))  # Baumgarte: the Python path
+        assert np.array_equal(nm.forward_fast(q, u, t)[1], base[1])
+    shifted = bound(q, u, 0.5, db=np.full(nm.m, 0.1))  # Baumgarte: the Python path
     assert not np.array_equal(shifted[0], base[0])
+    assert np.array_equal(shifted[0], nm.forward_fast(q, u, 0.5, np.full(nm.m, 0.1))[0])
     with pytest.raises(ModelInputError, match="db offsets"):
-        nm.forward_raw(q, u, 0.5, db=np.zeros(nm.m - 1))
+        nm.forward_fast(q, u, 0.5, db=np.zeros(nm.m - 1))
 
 
 def test_four_lane_batch_equals_the_scalar_kernel_and_judges_each_lane(c_backend):
@@ -243,21 +248,22 @@ def test_four_lane_batch_equals_the_scalar_kernel_and_judges_each_lane(c_backend
     Q[5], U[5] = [math.pi / 2, -math.pi / 2], [8.0, -8.0]
     with pytest.raises(SingularSystemError, match="1 of 10 states are singular; first: index 5"):
         nm.forward_batch(Q, U, 0.25)
-    kf = nm._k.get("forward_batch")
+    k, pa, nf = nm.kernels, nm.kernel_parameters, nm.n + nm.m + 1
+    kf = k.batch("forward")
     N = len(Q)
-    out1, out2 = np.empty((N, nm._nf)), np.empty((N, nm._nf))
+    out1, out2 = np.empty((N, nf)), np.empty((N, nf))
     st1, st2 = np.empty(N, np.int64), np.empty(N, np.int64)
-    T, DB = np.array([0.25]), nm._db0[None]
-    kf(Q, U, T, nm._pa[None], DB, out1, st1)  # shared parameters: splatted
-    kf(Q, U, T, np.tile(nm._pa, (N, 1)), DB, out2, st2)  # one row per state: gathered
-    assert st1.tolist() == st2.tolist() and st1[5] == compiled.SINGULAR
+    T, DB = np.array([0.25]), k.zero_db[None]
+    kf(Q, U, T, pa[None], DB, out1, st1)  # shared parameters: splatted
+    kf(Q, U, T, np.tile(pa, (N, 1)), DB, out2, st2)  # one row per state: gathered
+    assert st1.tolist() == st2.tolist() and st1[5] == SINGULAR
     assert np.array_equal(out1, out2, equal_nan=True)
-    P = np.tile(nm._pa, (N, 1))
+    P = np.tile(pa, (N, 1))
     P[:, 0] *= np.linspace(0.5, 2.0, N)  # a different first parameter in every lane
     kf(Q, U, T, P, np.tile(DB, (N, 1)), out2, st2)
-    one, out = nm._k.get("forward"), np.empty(nm._nf)
+    one, out = k.function("forward"), np.empty(nf)
     for i in range(N):
-        assert one(Q[i], U[i], 0.25, P[i], nm._db0, out) == st2[i]
+        assert one(Q[i], U[i], 0.25, P[i], k.zero_db, out) == st2[i]
         assert np.array_equal(out, out2[i], equal_nan=True)
 
 

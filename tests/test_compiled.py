@@ -1,12 +1,11 @@
-"""The compiled backends (C and numba) against the pure-Python path they replace.
+"""The compiled backend (C) against the pure-Python path it replaces.
 
-All run the same generated straight-line code (reference.backends.c_source prints it as C,
-reference.backends.numba_backend rewrites it for numba), so they must agree to the last bit.
-Measured: bit- identical on every output of forward, matrices, residuals, energy and kinematics at
-16 consistent states of pendulum_xy, slider_crank, double_pendulum_3d, top_cartesian and
-knife_edge (docs/compiled.md). EQUAL_REL leaves room for one reason they could part: an integer
-power x**k, which CPython computes with libm's pow and numba by repeated multiplication (k - 1
-roundings instead of one).
+Both run the same generated straight-line code (reference.backends.c_source prints it as C), so
+they must agree to the last bit. Measured: bit-identical on every output of forward, matrices,
+residuals, energy and kinematics at 16 consistent states of pendulum_xy, slider_crank,
+double_pendulum_3d, top_cartesian and knife_edge (docs/compiled.md); tests/test_backends.py
+holds every kernel of every backend equal to the bit. EQUAL_REL leaves room for one way they
+could part that no model here has: a libm function CPython calls differently from C.
 """
 
 from __future__ import annotations
@@ -19,14 +18,12 @@ import pytest
 from crosscheck.run.checks import consistent_states
 from reference import NumericModel, models
 from reference.backends import c_build as cbuild
-from reference.backends import numba_backend as compiled
 from reference.errors import ModelInputError, SingularSystemError
 
-NEEDS_NUMBA = pytest.mark.skipif(not compiled.numba_available(), reason="numba not installed")
 NEEDS_CC = pytest.mark.skipif(not cbuild.available(), reason="no working C compiler")
-BACKENDS = [pytest.param("c", marks=NEEDS_CC), pytest.param("numba", marks=NEEDS_NUMBA)]
+BACKENDS = [pytest.param("c", marks=NEEDS_CC)]
 
-# a few ulps of the largest entry: what repeated multiplication can add to libm's pow
+# a few ulps of the largest entry
 EQUAL_REL = 1e-14
 
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
@@ -68,10 +65,11 @@ def test_compiled_equals_fallback(monkeypatch, name, backend):
         _same(fast.energy(q, u), slow.energy(q, u), "energy")
         _same(fast.kinematics(q, u), slow.kinematics(q, u), "q'")
         buf = np.empty(fast.n + fast.m + 1)
-        assert fast.forward_into(np.asarray(q, float), np.asarray(u, float), 0.0, buf) == 0
+        kf, pa, db = fast.kernels.function("forward"), fast.kernel_parameters, fast.kernels.zero_db
+        assert kf(np.asarray(q, float), np.asarray(u, float), 0.0, pa, db, buf) == 0
         _same(buf[: fast.n], b.accelerations, "u' written into a preallocated array")
-        raw = fast.forward_raw(q, u, 0.3, db=np.full(max(fast.m, 1), 0.1))
-        ref = slow.forward_raw(list(q), list(u), 0.3, db=[0.1] * max(slow.m, 1))
+        raw = fast.forward_fast(q, u, 0.3, db=np.full(max(fast.m, 1), 0.1))
+        ref = slow.forward_fast(list(q), list(u), 0.3, db=[0.1] * max(slow.m, 1))
         _same(raw[0], ref[0], "raw u' with a b offset")
         _same(raw[1], ref[1], "raw lambda with a b offset")
 
@@ -104,7 +102,7 @@ def test_singular_and_bad_states_raise_the_same_errors(monkeypatch, backend):
             nm.forward(q, u)
         with pytest.raises(SingularSystemError, match="1 of 2 states are singular"):
             nm.forward_batch(np.array([[0.5, -0.5], q]), np.array([[1.0, -1.0], u]))
-        assert not nm.forward_raw(q, u, 0.0)[2] > 1e-12  # raw: the caller tests the ratio
+        assert not nm.forward_fast(q, u, 0.0)[2] > 1e-12  # fast: the caller tests the ratio
         Q, U = np.array([[0.5, -0.5], q, [0.4, -0.4]]), np.array([[1.0, -1.0], u, [0.0, 0.0]])
         for bad in (Q, U):  # a NaN anywhere outranks the singular state before it
             bad[2, 1] = math.nan
@@ -126,21 +124,6 @@ def test_singular_and_bad_states_raise_the_same_errors(monkeypatch, backend):
         assert msgs[0] == msgs[1]
 
 
-@NEEDS_NUMBA
-def test_kernel_module_is_written_once(monkeypatch):
-    """numba's cache keys on the module file: loading the same code again must not rewrite it."""
-    monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
-    nm = NumericModel(models.get("pendulum_xy"))
-    path = nm._scalar["__cache_path__"]
-    kfile = path.parent / f"{path.stem}_numba.py"
-    before = kfile.stat().st_mtime_ns
-    compiled._LOADED.clear()
-    again = NumericModel(models.get("pendulum_xy"))
-    assert kfile.stat().st_mtime_ns == before
-    assert compiled.TIMINGS[path.stem]["written"] is False
-    assert again.backend == "numba"
-
-
 def test_backend_setting(monkeypatch):
     monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
     assert NumericModel(models.get("pendulum_angle")).backend == "python"
@@ -149,24 +132,22 @@ def test_backend_setting(monkeypatch):
         NumericModel(models.get("pendulum_angle"))
 
 
-@NEEDS_NUMBA
-def test_auto_setting_uses_the_python_path_until_a_worker_has_compiled(monkeypatch, tmp_path):
-    """'auto' without a C compiler, on a cold numba cache: the Python path now (no compile in
-    the process), and the background worker's compile makes the next model use the kernels,
-    with the same answer."""
-    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+def test_without_a_compiler_auto_runs_python_and_says_so_once(monkeypatch, tmp_path, capsys):
+    """'auto' without a working C compiler: the Python path, the same numbers, and one line on
+    stderr the first time (the worker processes of a run inherit that it was said)."""
+    from reference.backends import select
+
     monkeypatch.delenv("CROSSCHECK_BACKEND", raising=False)
     monkeypatch.setenv("CROSSCHECK_CC", str(tmp_path / "no-such-cc"))
-    monkeypatch.setenv("CROSSCHECK_BACKGROUND_COMPILE", "0")
-    cold = NumericModel(models.get("pendulum_xy"))
-    assert cold.backend == "python"
-    path = cold._scalar["__cache_path__"]
-    compiled.warm(path.parent / f"{path.stem}_numba.py")  # what the worker runs
-    assert (path.parent / f"{path.stem}_numba.ready").exists()
-    warm = NumericModel(models.get("pendulum_xy"))
-    assert warm.backend == "numba"
-    q, u = cold.model.initial_q, cold.model.initial_u
-    _same(warm.forward(q, u).accelerations, cold.forward(q, u).accelerations, "u'")
+    monkeypatch.setenv(select._TOLD, "")  # restored (unset) after the test
+    nm = NumericModel(models.get("pendulum_xy"))
+    again = NumericModel(models.get("slider_crank"))
+    assert (nm.backend, again.backend) == ("python", "python")
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "no working C compiler" in err[0] and "CROSSCHECK_CC" in err[0]
+    monkeypatch.setenv("CROSSCHECK_BACKEND", "numba")
+    with pytest.raises(ModelInputError, match="numba backend was removed"):
+        NumericModel(models.get("pendulum_xy"))
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

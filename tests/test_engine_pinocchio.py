@@ -707,7 +707,7 @@ def _reference_trajectory(model_name, q0, u0, t_eval):
     n = nm.nq
 
     def rhs(t, y):
-        ud, _lam, _piv = nm.forward_raw(list(y[:n]), list(y[n:]), t)
+        ud, _lam, _piv = nm.forward_fast(list(y[:n]), list(y[n:]), t)
         return np.concatenate([y[n:], ud])
 
     sol = solve_ivp(

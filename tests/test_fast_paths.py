@@ -1,13 +1,12 @@
-"""Bad inputs on every fast single-state path of the compiled forward.
+"""Bad inputs on every fast single-state path of the forward dynamics.
 
-The compiled kernels take one signature (float64 C-contiguous vectors and a float): numba's
-dispatch and the C kernels' argument checks reject anything else with a TypeError (the C
-checked and raw calls hand such a state to the Python method instead), which NumericModel
-turns into a conversion (then the same answer as float64 vectors) or a one-line
-ModelInputError. Each test runs on both compiled backends. The kernel
-does not check its output array's size, so each path that takes a caller's `out` checks it in
-Python: a short one would be written past its end. Each case here is compared with the
-answer at the same state given as float64 vectors on the same model.
+The C kernels take one signature (float64 C-contiguous vectors and a float): their argument
+checks reject anything else with a TypeError (the bound checked and fast calls hand such a
+state to the Python method instead), which NumericModel turns into a conversion (then the same
+answer as float64 vectors) or a one-line ModelInputError. The generated Python takes lists as
+well; it writes into whatever `out` it is given, so NumericModel checks a caller's `out` before
+any kernel writes it. Each test runs on both backends, each case compared with the answer at
+the same state given as float64 vectors on the same model.
 """
 
 from __future__ import annotations
@@ -19,14 +18,14 @@ import pytest
 
 from reference import NumericModel, models
 from reference.backends import c_build as cbuild
-from reference.backends import numba_backend as compiled
+from reference.backends.kernels import OK
 from reference.errors import ModelInputError
 from reference.numeric.model import Forward
 
 MODELS = ("slider_crank", "top_cartesian")
 NEEDS = {
     "c": pytest.mark.skipif(not cbuild.available(), reason="no working C compiler"),
-    "numba": pytest.mark.skipif(not compiled.numba_available(), reason="numba not installed"),
+    "python": (),
 }
 
 
@@ -39,6 +38,10 @@ def nm(request, monkeypatch):
     nm = NumericModel(models.get(name))
     assert nm.backend == backend
     return nm
+
+
+def _nf(nm):
+    return nm.n + nm.m + 1
 
 
 def _state(nm):
@@ -73,12 +76,12 @@ def _equal_variants(x: np.ndarray) -> dict:
 def test_every_input_form_gives_the_float64_answer(nm):
     q, u = _state(nm)
     q, u = (x.astype(np.float32).astype(float) for x in (q, u))  # values float32 holds
-    ref = nm.forward(q, u)
+    ref, nf = nm.forward(q, u), _nf(nm)
     for what, qv in _equal_variants(q).items():
         for name, call in (
             ("forward", lambda qv=qv: nm.forward(qv, u).accelerations),
-            ("forward_raw", lambda qv=qv: nm.forward_raw(qv, u, 0.0)[0]),
-            ("forward_raw(out=)", lambda qv=qv: nm.forward_raw(qv, u, 0.0, out=np.empty(nm._nf))),
+            ("forward_fast", lambda qv=qv: nm.forward_fast(qv, u, 0.0)[0]),
+            ("forward_fast(out=)", lambda qv=qv: nm.forward_fast(qv, u, 0.0, out=np.empty(nf))),
         ):
             got = np.asarray(call(), float)[: nm.n]
             assert np.array_equal(got, ref.accelerations), f"{name} with q as {what}"
@@ -92,8 +95,8 @@ def test_integer_state_is_converted_not_misread(nm):
     qi, ui = np.round(q).astype(np.int64), np.round(u).astype(np.int64)
     want = nm.forward(qi.astype(float), ui.astype(float))
     assert np.array_equal(nm.forward(qi, ui).accelerations, want.accelerations)
-    assert np.array_equal(nm.forward_raw(qi, ui, 0)[1], want.multipliers)
-    out = nm.forward_raw(qi, ui, 0, out=np.empty(nm._nf))
+    assert np.array_equal(nm.forward_fast(qi, ui, 0)[1], want.multipliers)
+    out = nm.forward_fast(qi, ui, 0, out=np.empty(_nf(nm)))
     assert np.array_equal(out[: nm.n], want.accelerations)
     assert nm.forward(q, u, 0).pivot_ratio == nm.forward(q, u, 0.0).pivot_ratio  # int t
 
@@ -116,14 +119,14 @@ def test_bad_state_is_a_clear_error_on_every_path(nm, bad):
         q, match = np.empty(0), "expected .* coordinates"
     with pytest.raises(ModelInputError, match=match):
         nm.forward(q, u, t)
-    if bad in ("nan", "inf t"):  # the raw call: NaN in, NaN out (the caller's ratio test)
-        assert np.isnan(nm.forward_raw(q, u, t)[0]).all()
-        assert np.isnan(nm.forward_raw(q, u, t, out=np.zeros(nm._nf))).all()
+    if bad in ("nan", "inf t"):  # the fast call: NaN in, NaN out (the caller's ratio test)
+        assert np.isnan(nm.forward_fast(q, u, t)[0]).all()
+        assert np.isnan(nm.forward_fast(q, u, t, out=np.zeros(_nf(nm)))).all()
         return
     with pytest.raises(ModelInputError, match=match):
-        nm.forward_raw(q, u, t)
+        nm.forward_fast(q, u, t)
     with pytest.raises(ModelInputError, match=match):
-        nm.forward_raw(q, u, t, out=np.empty(nm._nf))
+        nm.forward_fast(q, u, t, out=np.empty(_nf(nm)))
 
 
 def _bad_outs(nf: int) -> dict:
@@ -145,58 +148,61 @@ def _bad_outs(nf: int) -> dict:
 
 def test_bad_out_is_a_clear_error_and_nothing_is_written(nm):
     q, u = _state(nm)
-    for what, out in _bad_outs(nm._nf).items():
+    for what, out in _bad_outs(_nf(nm)).items():
         before = np.array(out, copy=True) if isinstance(out, np.ndarray) else None
         with pytest.raises(ModelInputError, match="out must be a writable C-contiguous") as e:
-            nm.forward_raw(q, u, 0.0, out=out)
+            nm.forward_fast(q, u, 0.0, out=out)
         assert "\n" not in str(e.value), what
-        with pytest.raises(ModelInputError, match="out must be a writable C-contiguous"):
-            nm.forward_into(q, u, 0.0, out)
         if before is not None and what not in ("short", "long"):  # those hold garbage
             assert np.array_equal(np.asarray(out), before, equal_nan=True), what
 
 
-def test_forward_into_refuses_what_its_kernel_cannot_read(nm):
+def test_the_kernel_refuses_what_it_cannot_read(nm):
+    """The kernel layer beneath forward_fast: float64 vectors and a number in, a status out;
+    on C anything else is a TypeError (nothing is read or written), the generated Python
+    converts what holds numbers and refuses the rest with a TypeError too."""
     q, u = _state(nm)
-    out = np.empty(nm._nf)
-    assert nm.forward_into(q, u, 0.0, out) == compiled.OK
+    kf, pa, db = nm.kernels.function("forward"), nm.kernel_parameters, nm.kernels.zero_db
+    out = np.empty(_nf(nm))
+    assert kf(q, u, 0.0, pa, db, out) == OK
     assert np.array_equal(out[: nm.n], nm.forward(q, u).accelerations)
-    for qv in _variants(q).values():
-        if (
+    for what, qv in _variants(q).items():
+        vector = (
             isinstance(qv, np.ndarray)
             and qv.ndim == 1
             and qv.flags.c_contiguous
             and qv.flags.aligned
             and qv.dtype == float
-            and (qv.flags.writeable or nm.backend == "c")  # numba types read-only apart
-        ):
-            continue  # a float64 vector: accepted
-        with pytest.raises(ModelInputError, match="float64 vectors"):
-            nm.forward_into(qv, u, 0.0, out)
-    with pytest.raises(ModelInputError, match="float64 vectors"):
-        nm.forward_into(q.astype(np.int64), u, 0.0, out)
+        )
+        if vector or nm.kernels.takes_sequences:
+            assert kf(qv, u, 0.0, pa, db, out) == OK, what
+            assert np.array_equal(out[: nm.n], nm.forward(q, u).accelerations), what
+            continue
+        with pytest.raises(TypeError):
+            kf(qv, u, 0.0, pa, db, out)
+    with pytest.raises(TypeError):
+        kf(["a", *q.tolist()[1:]], u, 0.0, pa, db, out)
 
 
 def test_out_call_returns_the_callers_array_and_the_raw_triple_is_fresh(nm):
     q, u = _state(nm)
-    out = np.empty(nm._nf)
-    assert nm.forward_raw(q, u, 0.0, out=out) is out
-    ud, lam, piv = nm.forward_raw(q, u, 0.0)
-    ud2, _lam2, _ = nm.forward_raw(q + 0.01, u, 0.0)
+    out = np.empty(_nf(nm))
+    assert nm.forward_fast(q, u, 0.0, out=out) is out
+    ud, lam, piv = nm.forward_fast(q, u, 0.0)
+    ud2, _lam2, _ = nm.forward_fast(q + 0.01, u, 0.0)
     assert not np.shares_memory(ud, ud2)  # integrators keep stage results
     assert out[-1] == piv and isinstance(piv, float)
     assert np.array_equal(out[: nm.n], ud) and np.array_equal(out[nm.n : -1], lam)
 
 
-def test_python_backend_out_call_matches(monkeypatch):
-    monkeypatch.setenv("CROSSCHECK_BACKEND", "python")
-    nm = NumericModel(models.get("slider_crank"))
+def test_lists_on_the_fast_call_match_vectors(nm):
     q, u = _state(nm)
-    out = nm.forward_raw(q.tolist(), u.tolist(), 0.0, out=np.empty(nm._nf))
-    ud, lam, piv = nm.forward_raw(q.tolist(), u.tolist(), 0.0)
+    out = nm.forward_fast(q.tolist(), u.tolist(), 0.0, out=np.empty(_nf(nm)))
+    ud, lam, piv = nm.forward_fast(q.tolist(), u.tolist(), 0.0)
     assert np.array_equal(out, np.r_[ud, lam, piv])
+    assert np.array_equal(out, nm.forward_fast(q, u, 0.0, out=np.empty(_nf(nm))))
     with pytest.raises(ModelInputError, match="out must be"):
-        nm.forward_raw(q.tolist(), u.tolist(), 0.0, out=np.empty(nm._nf - 1))
+        nm.forward_fast(q.tolist(), u.tolist(), 0.0, out=np.empty(_nf(nm) - 1))
 
 
 def test_forward_record_keeps_the_dataclass_behaviour(nm):
@@ -213,11 +219,10 @@ def test_forward_record_keeps_the_dataclass_behaviour(nm):
     assert not a.accelerations.any()
 
 
-def test_bench_names_every_reference_call_and_the_out_ratio(monkeypatch):
+def test_bench_names_every_reference_call_and_the_out_ratio():
     from crosscheck.bench import forward as bench
     from crosscheck.engines.registry import get_engine
 
-    monkeypatch.setenv("CROSSCHECK_BACKEND", "c" if cbuild.available() else "numba")
     recs = bench._model_forward_records("pendulum_xy", True, [get_engine("pinocchio")])
     by_path = {r["path"]: r for r in recs}
     for path, call in bench.PATHS.items():

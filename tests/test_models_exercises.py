@@ -495,7 +495,7 @@ def test_knife_edge_constraint_force_does_no_work_and_energy_is_conserved():
 
     # along a trajectory: K stays constant although the sled turns and drifts
     def rhs(t, s):
-        ud, _, _ = nm.forward_raw(list(s[:3]), list(s[3:]), t)
+        ud, _, _ = nm.forward_fast(list(s[:3]), list(s[3:]), t)
         return np.concatenate([s[3:], ud])
 
     q0, u0 = np.array(nm.model.initial_q), np.array(nm.model.initial_u)

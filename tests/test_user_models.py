@@ -103,9 +103,9 @@ def test_mjcf_ten_body_gripper():
 @pytest.mark.slow
 def test_mjcf_every_joint_and_equality_type():
     """Free and ball joints (quaternions with their norm rows), slide spring, armature,
-    damping, weld and a quadratic joint coupling (derivation ~3 min cold). Its generated code
-    is too deeply nested for the numba backend's AST passes, so NumericModel keeps it on the
-    pure-Python path (the same numbers)."""
+    damping, weld and a quadratic joint coupling (derivation ~3 min cold). Where its generated
+    code is nested deeper than the C printer recurses, NumericModel keeps it on the pure-Python
+    path (the same numbers)."""
     assert worst_error("spatial_mix", "kane") < TOL_MJCF
 
 
@@ -145,10 +145,10 @@ def test_fourbar_connect_has_a_dependent_row_and_minimum_norm_multipliers():
 
 
 def test_fourbar_integrates_with_dependent_rows():
-    """forward_raw and forward_batch take the redundant path too (integrators use them)."""
+    """forward_fast and forward_batch take the redundant path too (integrators use them)."""
     imp, nm = imported("fourbar_connect"), numeric("fourbar_connect", "kane")
     q, u = list(imp.model.initial_q), list(imp.model.initial_u)
-    ud, lam, piv = nm.forward_raw(q, u, 0.0)
+    ud, lam, piv = nm.forward_fast(q, u, 0.0)
     UD, _LAM, _piv = nm.forward_batch(np.array([q, q]), np.array([u, u]))
     np.testing.assert_allclose(UD[1], ud, rtol=1e-13, atol=1e-13)
     assert piv > 1e-12 and len(lam) == 3

@@ -1,10 +1,10 @@
 """Forward-dynamics speed: one evaluation of the accelerations and multipliers at a state,
 timed on every path:
 - reference paths, each record's `call` field naming the exact call (PATHS): `single` (the
-  checked public call), `single-raw` (the unchecked call integrators use, fresh arrays out),
+  checked public call), `single-raw` (the fast call integrators use, fresh arrays out),
   `single-raw-out` (the same call writing into the caller's preallocated array, as
-  Pinocchio's timed call writes into its own data), `single-into` (the bare kernel call),
-  `batched` (10^4 states in one call);
+  Pinocchio's timed call writes into its own data), `single-into` (the backend's forward
+  kernel alone), `batched` (10^4 states in one call);
 - `baseline`: the plain route a user would write first, sympy lambdify of M, f, A, b (numpy)
   plus np.linalg.solve of the KKT matrix, single state and batched (np.linalg.solve on a stack);
 - each engine's constrained forward call at the same state, timed through the adapter's
@@ -29,14 +29,14 @@ PATHS = {
     "single": "NumericModel.forward(q, u): the checked public call (sizes, finiteness, pivot "
     "test; a bad state raises); returns a Forward record of fresh arrays (on the C backend one "
     "C call builds it)",
-    "single-raw": "NumericModel.forward_raw(q, u, t): the unchecked call the integrators use "
+    "single-raw": "NumericModel.forward_fast(q, u, t): the fast call the integrators use "
     "(sizes checked, no raise on a singular KKT matrix, NaN in -> NaN out); returns fresh "
     "(u', lambda) arrays and the pivot ratio",
-    "single-raw-out": "NumericModel.forward_raw(q, u, t, out=buf): the same raw call writing "
+    "single-raw-out": "NumericModel.forward_fast(q, u, t, out=buf): the same fast call writing "
     "u' | lambda | pivot ratio into the caller's preallocated float64 array (the counterpart of "
     "Pinocchio's timed call, which returns its preallocated data.ddq)",
-    "single-into": "NumericModel.forward_into(q, u, t, buf): the compiled kernel alone (its "
-    "argument checks: C's or numba's dispatch, and the out size check), output into a "
+    "single-into": "nm.kernels.function('forward')(q, u, t, pa, db, buf): the backend's "
+    "forward kernel alone (reference.backends.kernels; its own argument checks), output into a "
     "preallocated array, status returned",
     "batched": "NumericModel.forward_batch(Q, U): 10^4 states in one call, per state",
 }
@@ -131,14 +131,15 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
             )
 
     rec("single", 1, lambda: nm.forward(q, u))
-    raw, buf = nm.forward_raw, np.empty(nm.n + nm.m + 1)
-    # each backend's native inputs: float64 vectors for the kernels, lists for Python
+    raw, buf = nm.forward_fast, np.empty(nm.n + nm.m + 1)
+    # each backend's native inputs: float64 vectors for C, lists for the generated Python
     qr, ur = (q, u) if nm.backend != "python" else (q.tolist(), u.tolist())
     rec("single-raw", 1, lambda: raw(qr, ur, 0.0))
     rec("single-raw-out", 1, lambda: raw(qr, ur, 0.0, out=buf))
-    if nm.backend != "python" and not nm.numeric_kkt:  # the kernel alone, into an array
-        into = nm.forward_into
-        rec("single-into", 1, lambda: into(q, u, 0.0, buf))
+    k = nm.kernels
+    if k.has("forward"):  # the kernel alone, into an array (none where the solve is numeric)
+        kf, pa, db = k.function("forward"), nm.kernel_parameters, k.zero_db
+        rec("single-into", 1, lambda: kf(qr, ur, 0.0, pa, db, buf))
     reps = int(np.ceil(BATCH / Q.shape[0]))
     QB, UB = np.tile(Q, (reps, 1))[:BATCH], np.tile(U, (reps, 1))[:BATCH]
     rec("batched", BATCH, per_call_seconds(lambda: nm.forward_batch(QB, UB), repeats=5))
@@ -207,10 +208,10 @@ def _ratios(name, recs) -> dict:
     calls over each engine's call (targets <= 0.5 and <= 0.25 against every engine with exact
     multipliers), and each engine's loop over the batched reference per state (target >= 20)."""
     from crosscheck.engines.registry import get_engine
-    from reference.backends import numba_backend as compiled
+    from reference.backends import select
 
     t = {r["path"]: r["us_per_state"] for r in recs if r.get("us_per_state") is not None}
-    out: dict = {"model": name, "backend": compiled.backend()}
+    out: dict = {"model": name, "backend": select.backend()}
     if "single" not in t:
         return out
     met = {}

@@ -83,7 +83,7 @@ def unconstrained(model):
 
 def _forward_loop(nm: NumericModel, Q, U):
     """A callable making the compiled forward call at every state (the backend's inputs)."""
-    raw = nm.forward_raw
+    raw = nm.forward_fast
     if nm.backend == "python":
         Q, U = Q.tolist(), U.tolist()
 
@@ -225,8 +225,8 @@ print(json.dumps(time.perf_counter() - t0))
 def _fresh_process_construction(name: str, cache: str) -> float:
     """Seconds of NumericModel(model) in a new interpreter using the cache directory `cache`
     (the Model object is built before the clock starts, as in this process)."""
-    # the Python backend: the derivation cache's saving alone (numba's kernel compile and its
-    # own cache are a separate saving, timed in the bench's "compiled" section)
+    # the Python backend: the derivation cache's saving alone (the C build and its own cache
+    # are a separate saving, timed in the bench's "compiled" section)
     env = {**os.environ, "CROSSCHECK_CACHE_DIR": cache, "CROSSCHECK_BACKEND": "python"}
     r = subprocess.run(
         [sys.executable, "-c", _CONSTRUCT, name],

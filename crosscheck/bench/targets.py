@@ -92,7 +92,7 @@ def targets(
     out[f"forward_single_vs_{e}"] = {
         "statement": "single-state reference forward dynamics no slower than Pinocchio's "
         "constrained call on the same model: ratio = pin / ref >= 1 for the checked "
-        "call NumericModel.forward (met), ratio_raw for the unchecked forward_raw "
+        "call NumericModel.forward (met), ratio_raw for the fast forward_fast "
         "the integrators use (met_raw); pinocchio_call_us is the native call alone "
         "(for 'kkt' models J and gamma are evaluated outside it); reference and "
         "Pinocchio are timed back to back in interleaved rounds",
@@ -270,10 +270,6 @@ FORWARD_COST = {
     "(argument checks in C, about 0.1-0.2 us) plus the straight-line arithmetic; the checked "
     "call adds the output arrays and the Forward record, built in the same C call "
     "(docs/compiled.md)",
-    "numba": "the generated KKT solve compiled by numba: its cost is about 0.6 us of crossing "
-    "from Python into the kernel (numba's dispatch ~0.25 us, the compiled entry's unboxing of "
-    "the arrays ~0.4 us) plus the straight-line arithmetic; the checked call adds a fresh "
-    "output array, two views and the Forward record (docs/compiled.md)",
     "python": "the generated forward is straight-line Python on floats: its cost is the "
     "interpreter's ~20-40 ns per arithmetic operation times the operation count of the "
     "generated KKT solve; the checked call adds state validation and numpy conversion of the "
@@ -308,7 +304,7 @@ def forward_pair(name: str, engine: str | None = None, rounds: int = 3) -> dict:
         ref, raw, pin = [], [], []
         for _ in range(rounds):
             ref.append(per_call_seconds(lambda: nm.forward(q, u), repeats=3)["median"])
-            raw.append(per_call_seconds(lambda: nm.forward_raw(ql, ul, 0.0), repeats=3)["median"])
+            raw.append(per_call_seconds(lambda: nm.forward_fast(ql, ul, 0.0), repeats=3)["median"])
             if call is not None:
                 pin.append(per_call_seconds(call, repeats=3)["median"])
         out.update(

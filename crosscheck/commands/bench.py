@@ -27,14 +27,6 @@ def cmd_bench(args) -> int:
     from crosscheck.runtime.output import write_atomic
 
     t_start = time.perf_counter()
-    # the benchmark times the compiled kernels: build them here if the cache is cold (C where
-    # a compiler works; else numba, which the 'auto' default would leave to a background
-    # worker and time the Python path meanwhile)
-    import os
-
-    from reference.backends import c_build as cbuild
-
-    os.environ.setdefault("CROSSCHECK_BACKEND", "c" if cbuild.available() else "numba")
     # the same rules as `run`: bad names exit 2 up front
     names = resolve_models(args.models, getattr(args, "user_models", None))
     requested = resolve_engines(args.engines)  # unknown or unimportable: exit 2
@@ -46,23 +38,17 @@ def cmd_bench(args) -> int:
         print(f"[{time.perf_counter() - t_start:6.1f} s] {msg}", file=sys.stderr, flush=True)
 
     result = {"meta": meta(sys.argv[1:]), "forward": forward_records(names, args.quick, engines)}
-    from reference.backends import numba_backend as compiled
+    from reference.backends import kernels, select
 
-    # per generated module: on the C backend printing the C source, building it (c_build_s,
+    # per generated module on the C backend: printing the C source, building it (c_build_s,
     # 0 when the cache held it) and importing it, and c_error where the printer or compiler
-    # refused it; on numba writing the source, importing it, and each kernel's first call (a
-    # compile, or a load from numba's on-disk cache: from_cache says which)
+    # refused it (that module ran on the Python path)
     result["forward_ratios"] = forward_ratios(result["forward"])
     result["forward_paths"] = dict(PATHS)
-    from reference.backends.codegen import cache_dir
-
     result["compiled"] = {
-        "backend": compiled.backend(),
-        "threads": compiled.threads(),
-        "modules": dict(compiled.TIMINGS),
-        "background_compile_s": {
-            stem: compiled.worker_times(stem, cache_dir()) for stem in compiled.TIMINGS
-        },
+        "backend": select.backend(),
+        "threads": select.threads(),
+        "modules": dict(kernels.TIMINGS),
     }
     log("forward records done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason

@@ -14,7 +14,7 @@ from crosscheck.checks.records import record, reported
 from crosscheck.checks.sampling import consistent_states
 from crosscheck.engines.registry import get_engine
 from reference import NumericModel, models
-from reference.backends import c_build as cbuild
+from reference.backends import select
 from reference.generic import generic_parameters
 
 __all__ = ["consistent_states", "generic_model", "parse_perturb", "perturbed", "run"]
@@ -166,7 +166,7 @@ def run(
         # only the first model waits for its compiler
         for ahead in model_names[k : k + 2] if k == 0 else model_names[k + 1 : k + 2]:
             upcoming = models.get(ahead)
-            cbuild.prebuild_model(upcoming, upcoming.formulations[:1])
+            select.prebuild_model(upcoming, upcoming.formulations[:1])
         nm = NumericModel(model)
         states = consistent_states(nm, n_states)
         records += _formulation_records(name, nm, states)

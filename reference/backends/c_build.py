@@ -7,8 +7,8 @@ any of them builds a new file and two checkouts never overwrite each other's. It
 to a temporary name and renamed into place, so processes that build the same module at once
 each get a complete file.
 
-The compiler is CROSSCHECK_CC, else CC, else `cc`. Where none works the models fall back to
-numba (or the Python path); bench.json's `compiled` says which backend ran and why.
+The compiler is CROSSCHECK_CC, else CC, else `cc`. Where none works the models run on the
+Python path (reference.backends.select); bench.json's `compiled` says which backend ran and why.
 """
 
 from __future__ import annotations
@@ -31,10 +31,9 @@ from reference.backends.c_source import (
     HEADERS,
     MODULE_NAME,
     RUNTIME,
-    UnsupportedExpression,
     c_source,
 )
-from reference.backends.numba_backend import TIMINGS, Kernels, import_file
+from reference.backends.kernels import TIMINGS, Kernels, import_file
 
 # -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
 # -fno-math-errno: sqrt compiles to the instruction (the result is the same; only errno,
@@ -236,51 +235,38 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
     return target, modname, _compile(text, stem, target, modname, flags)
 
 
-def prebuild_model(model, formulations=None) -> None:
-    """Start the C builds of `formulations` of `model` (default all), deriving what the cache
-    lacks, so that each compiles while the next is derived and the first is checked
-    (crosscheck run calls this with the first formulation before it builds the model's
-    NumericModels). Does nothing off the C backend; a module the printer refuses is left to
-    NumericModel, which records why."""
-    from reference.backends import codegen
-    from reference.backends import numba_backend as compiled
-    from reference.formulations import derive
-    from reference.numeric.model import PIVOT_RATIO_MIN, resolve_parameters
-
-    if compiled.backend() != "c":
-        return
-    for f in formulations or model.formulations:
-        scalar, _batched, src = codegen.load_compiled(
-            lambda f=f: derive(model, f), model, f, resolve_parameters(model)
-        )
-        n, m = len(model.speeds), scalar["META"]["m"]
-        if codegen.numeric_kkt(n, m):
-            continue
-        try:
-            text, _sizes = c_source(
-                src, len(model.coordinates), n, len(model.parameters), m, PIVOT_RATIO_MIN
-            )
-        except (UnsupportedExpression, RecursionError):
-            continue
-        prebuild(text, scalar["__cache_path__"].stem, codegen.cache_dir())
-
-
 class CKernels(Kernels):
-    """The C module's kernels behind reference.backends.numba_backend.Kernels' interface. The prange
-    name (`<F>_batch_parallel`) is the same OpenMP loop: its threads are set per call."""
+    """The C module's kernels (ckernel_runtime.h): the single-state and batch kernels, the
+    bound forward calls and the whole-run stepper."""
 
-    def _compile(self, kname: str):
-        return getattr(self.module, kname.replace("_batch_parallel", "_batch"))
+    name = "c"
 
-    def bind(self, pa, db, forward_type, slow):
-        """The forward call bound to parameters `pa` and offsets `db` (ckernel_runtime.h)."""
-        return self.module.bind("forward", pa, db, forward_type, slow)
+    def __init__(self, module, sizes: dict, dims: tuple[int, int, int, int]):
+        super().__init__(sizes, dims)
+        self.module = module
+
+    def function(self, fname: str):
+        self._known(fname)
+        return getattr(self.module, fname)
+
+    def batch(self, fname: str):
+        """The batch loop: OpenMP threads as set_threads set them (serial by default)."""
+        self._known(fname)
+        return getattr(self.module, fname + "_batch")
 
     def set_threads(self, k: int) -> None:
         self.module.set_threads(k)
 
+    def bind(self, pa, db, record, checked, fast):
+        """The checked and fast forward calls in one C call each, the parameters and offsets
+        copied in; a state they cannot take on their fast path goes to `checked` or `fast`
+        with the same arguments (ckernel_runtime.h, Bound)."""
+        bind = self.module.bind
+        return bind("forward", pa, db, record, checked), bind("forward", pa, db, None, fast)
+
+    @property
     def stepper(self):
-        """The module's whole-run DOP853 stepper (ckernel_stepper.h; integrate_compiled)."""
+        """The module's whole-run DOP853 stepper (ckernel_stepper.h)."""
         return self.module.step
 
 
@@ -288,15 +274,16 @@ _LOADED: dict[tuple, CKernels] = {}
 
 
 def load_kernels(
-    src: str, stem: str, directory: Path, nq: int, n: int, npar: int, m: int, pmin: float
+    src: str, stem: str, directory: Path, dims: tuple[int, int, int, int], pmin: float
 ) -> CKernels:
-    """The C kernels of generated module `src`, built if needed, once per process. Raises
-    BuildError (compiler missing or failing) or ckernels.UnsupportedExpression."""
+    """The C kernels of generated module `src` (dims: coordinates, speeds, parameters,
+    constraint rows), built if needed, once per process. Raises BuildError (compiler missing
+    or failing) or c_source.UnsupportedExpression."""
     key = (stem, str(directory), hashlib.sha256(src.encode()).hexdigest(), pmin)
     hit = _LOADED.get(key)
     if hit is None:
         t0 = time.perf_counter()
-        text, sizes = c_source(src, nq, n, npar, m, pmin)
+        text, sizes = c_source(src, *dims, pmin)
         t1 = time.perf_counter()
         path, modname, build_s = build(text, stem, directory)
         t2 = time.perf_counter()
@@ -313,5 +300,5 @@ def load_kernels(
                 "import_s": time.perf_counter() - t2,
             }
         )
-        hit = _LOADED[key] = CKernels(mod, sizes, stem, nq, n, npar, m)
+        hit = _LOADED[key] = CKernels(mod, sizes, dims)
     return hit

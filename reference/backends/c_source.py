@@ -1,9 +1,9 @@
 """C source of the generated code: the same expressions as reference.backends.codegen's
 Python module, printed as C functions that a C compiler builds into a CPython extension.
 
-Why C beside numba: a call into a numba kernel costs about 0.6 us before any arithmetic (its
-dispatch and argument unboxing), a CPython METH_FASTCALL function about 0.25 us, and gcc builds
-a model's straight-line code in about a second where numba's type inference takes 10-20 s
+Why C: a CPython METH_FASTCALL function costs about 0.25 us to call, where a numba kernel,
+the compiled backend before it, cost about 0.6 us before any arithmetic, and gcc builds a
+model's straight-line code in about a second where numba's type inference took 10-20 s
 (docs/compiled.md, "The C backend"). The expressions are printed from the same ast the Python
 path runs, operation for operation and in the same order (every binary operation
 parenthesized, no -ffast-math, no FMA contraction), with libm's sin, cos, sqrt and pow as
@@ -11,7 +11,7 @@ CPython calls them, so the results equal the Python path's (tests/test_compiled.
 
 Each generated function F becomes `static int F_body(qa, ua, t, pa, db, out)`: inputs read
 from double arrays by index (pa = the parameters, then the Schur references), outputs written
-group after group into `out`, a status returned (reference.backends.numba_backend's codes). The
+group after group into `out`, a status returned (reference.backends.kernels' codes). The
 Python-facing wrappers, argument checks and batch loops are the hand-written runtime,
 reference/backends/ckernel_runtime.h, which the generated file includes after its bodies. forward
 also gets `forward_body4`, the same expressions on four states at once (one SIMD lane per state),
@@ -24,7 +24,7 @@ import ast
 import math
 from pathlib import Path
 
-from reference.backends.numba_backend import NOT_DEFINED, OK, SINGULAR, output_groups
+from reference.backends.kernels import NOT_DEFINED, OK, SINGULAR, output_groups
 
 RUNTIME = Path(__file__).with_name("ckernel_runtime.h")
 LANES = Path(__file__).with_name("ckernel_lanes.h")
@@ -40,7 +40,7 @@ _CONSTANTS = {"pi": repr(math.pi)}
 
 class UnsupportedExpression(ValueError):
     """The generated code holds a construct this printer does not translate (the model then
-    stays on the numba or Python backend, which run the same expressions)."""
+    runs on the Python backend, the same expressions)."""
 
 
 class _Printer:

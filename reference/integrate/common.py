@@ -99,10 +99,10 @@ class Trajectory:
 
     def residuals(self) -> tuple[np.ndarray, np.ndarray]:
         """Position residuals f(q, t) (N x m_c) and velocity residuals A u + a0 (N x m)."""
-        res, p = self.nm._scalar["residuals"], self.nm.p
+        res = self.nm.residuals
         P, V = [], []
         for t, q, u in zip(self.t, self.q, self.u, strict=True):
-            pos, vel = res(q.tolist(), u.tolist(), float(t), p)
+            pos, vel = res(q, u, float(t))
             P.append(pos)
             V.append(vel)
         return (
@@ -120,12 +120,9 @@ class Trajectory:
 
     def energy(self) -> np.ndarray:
         """K + V at the outputs."""
-        en, p = self.nm._scalar["energy"], self.nm.p
+        en = self.nm.energy
         return np.array(
-            [
-                sum(en(q.tolist(), u.tolist(), float(t), p)[0][:2])
-                for t, q, u in zip(self.t, self.q, self.u, strict=True)
-            ]
+            [sum(en(q, u, float(t))) for t, q, u in zip(self.t, self.q, self.u, strict=True)]
         )
 
     def energy_drift(self) -> float | None:
@@ -234,22 +231,21 @@ class Problem:
 
     def __init__(self, nm: NumericModel, energy: bool):
         self.nm = nm
-        self.p = nm.p
         self.nq, self.n, self.m = nm.nq, nm.n, nm.m
         f = _facts(nm)
         self.rates = f["rates"]
         self.rheonomic = f["rheonomic"]
         self.mc = f["mc"]
         self.work = energy
-        self.fr = nm.forward_raw
-        # compiled kernels on the C or numba backend (arrays in and out), the generated Python
-        # on the fallback (lists): every call below works with either
+        self.fr = nm.forward_fast
+        # float64 vectors into the C kernels, lists into the generated Python (its fastest
+        # input); vectors out of both
         self.arrays = nm.backend != "python"
-        self.kin = nm.raw_function("kinematics")
-        self.res = nm.raw_function("residuals")
-        self.pjac = nm.raw_function("position_jacobian")
-        self.mat = nm.raw_function("matrices")
-        self.en = nm.raw_function("energy")
+        self.kin = nm.fast_function("kinematics")
+        self.res = nm.fast_function("residuals")
+        self.pjac = nm.fast_function("position_jacobian")
+        self.mat = nm.fast_function("matrices")
+        self.en = nm.fast_function("energy")
         # u = 0 for the position-only calls (f(q, t), df/dq): in the kernels' own input type
         self.zeros_u = np.zeros(self.n) if self.arrays else [0.0] * self.n
         self.stats = {
@@ -263,7 +259,7 @@ class Problem:
         self.pmin = [math.inf]
 
     def singular(self, t, q, piv) -> NoReturn:
-        msg = self.nm._singular_message(q, piv)
+        msg = self.nm.singular_message(q, piv)
         err = SingularSystemError(f"at t = {t:.6g}: {msg}")
         err.t_singular = float(t)  # where the run stopped (crosscheck.checks.trajectory.horizon)
         raise err
@@ -286,7 +282,7 @@ class Problem:
         """q' = N(q, u, t); a parametrization singularity (3-1-3 angles at sin(theta2) = 0)
         is an error that says so, not a bare ZeroDivisionError."""
         try:
-            return self.kin(q, u, t, self.p)[0]
+            return self.kin(q, u, t)[0]
         except (ZeroDivisionError, ValueError, OverflowError) as exc:
             raise SingularSystemError(
                 f"{self.nm.model.name}: at t = {t:.6g} the kinematic equations q' = N(q, u) are "
@@ -296,9 +292,9 @@ class Problem:
 
     def power(self, q, u, t, lam) -> float:
         """Power of the applied loads plus that of rheonomic constraints (-lambda . a0)."""
-        P = self.en(q, u, t, self.p)[0][2]
+        P = self.en(q, u, t)[0][2]
         if self.rheonomic and len(lam):
-            a0 = self.res(q, self.zeros_u, t, self.p)[1]
+            a0 = self.res(q, self.zeros_u, t)[1]
             P -= sum(l * a for l, a in zip(lam, a0, strict=True))
         return P
 
@@ -332,7 +328,7 @@ class Problem:
     def constraint_jacobian(self, t, y):
         """The position Jacobian df/dq at the state y (flat, row-major)."""
         q = self.full(t, y)[0]
-        return self.pjac(np.array(q) if self.arrays else q, self.zeros_u, t, self.p)[0]
+        return self.pjac(np.array(q) if self.arrays else q, self.zeros_u, t)[0]
 
     def dense_state(self, t, y):
         """A state interpolated by the solver's dense output, as it is recorded."""

@@ -56,9 +56,10 @@ def setting(stepper: str | None) -> str:
 def why_not(run, integrator: str, method: str) -> str | None:
     """Why this run cannot take the compiled stepper, or None when it can."""
     nm = run.nm
-    stepper = getattr(nm._k, "stepper", None)
-    if nm.backend != "c" or stepper is None or nm._kf is None:
+    if nm.kernels.stepper is None:
         return f"the model runs on the {nm.backend} backend (the stepper is in the C module)"
+    if not nm.kernels.has("forward"):
+        return "the model's KKT solve is numeric (the stepper runs the unrolled forward kernel)"
     if integrator != "DOP853":
         return f"integrator {integrator} (the compiled stepper is DOP853's)"
     if method not in COMPILED_METHODS:
@@ -81,7 +82,9 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
             raise ModelInputError(f"{run.nm.model.name}: stepper='c' cannot run: {reason}")
         prob.stats["stepper"] = f"python ({reason})"
         return False
-    nm, k = run.nm, run.nm._k
+    nm, k = run.nm, run.nm.kernels
+    step = k.stepper
+    assert step is not None  # why_not said so
     run._tolerances(len(y))  # W's tolerances, where it is carried (as the Python loop's)
     # scipy's start (f0, the first step size) from scipy's own DOP853: LeanDOP853's extra set-up
     # is for its Python stages, which do not run here
@@ -107,7 +110,7 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         k.offsets["energy"][0][0] + 2,  # the power of the loads (Problem.power)
         int(prob.rates),
     )
-    status, T, Y, TE, YE, nfev, nsteps, pmin, nproj, niter, t_stop, _y = k.stepper()(
+    status, T, Y, TE, YE, nfev, nsteps, pmin, nproj, niter, t_stop, _y = step(
         np.ascontiguousarray(solver.y, float),
         np.ascontiguousarray(solver.f, float),
         (
@@ -123,8 +126,8 @@ def run_compiled(run, y, t0: float, t_end: float, stepper: str) -> bool:
         ),
         tableau,
         te,
-        nm._pa,
-        nm._db0,
+        nm.kernel_parameters,
+        k.zero_db,
         options,
         (PROJECTION_TOL, PROJECTION_FAIL, *baumgarte),
     )
@@ -180,10 +183,17 @@ def _monitor(run, T, Q) -> None:
     mc, nq, N = prob.mc, prob.nq, len(T)
     if not mc or not N:
         return
-    out = np.empty((N, nm._k.total["position_jacobian"]))
+    k = nm.kernels
+    out = np.empty((N, k.total["position_jacobian"]))
     st = np.empty(N, np.int64)
-    nm._k.get("position_jacobian_batch")(
-        np.ascontiguousarray(Q), np.zeros((N, nm.n)), T, nm._pa[None], nm._db0[None], out, st
+    k.batch("position_jacobian")(
+        np.ascontiguousarray(Q),
+        np.zeros((N, nm.n)),
+        T,
+        nm.kernel_parameters[None],
+        k.zero_db[None],
+        out,
+        st,
     )
     if (st != 0).any():  # a Jacobian that is not finite: the state-by-state monitor
         for t, q in zip(T, Q, strict=True):

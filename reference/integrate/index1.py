@@ -22,7 +22,7 @@ class Index1(Problem):
         pmin = self.pmin
         size = nq + n + (1 if work else 0)
         nl = n + self.m
-        # u' | lambda | ratio written into one buffer the RHS reuses (forward_raw's `out`):
+        # u' | lambda | ratio written into one buffer the RHS reuses (forward_fast's `out`):
         # no fresh vectors per call; fun's own result stays fresh (the solver keeps it), and
         # fun.into(t, y, out) writes y' into a row the caller owns
         buf = np.empty(nl + 1)
@@ -66,7 +66,7 @@ class Baumgarte(Index1):
 
         def offset(q, u, t):
             # A u' = b - 2 alpha (A u + a0) - beta^2 f(q, t), the last on position rows only
-            pos, vel = self.res(q, u, t, self.p)
+            pos, vel = self.res(q, u, t)
             pos, vel, mc = as_floats(pos), as_floats(vel), self.mc
             return [-two_a * v - (b2 * pos[j] if j < mc else 0.0) for j, v in enumerate(vel)]
 

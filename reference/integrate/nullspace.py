@@ -51,14 +51,14 @@ class Nullspace(Problem):
     # -- partition --
     def _A(self, q, u, t):
         if self.mc == self.m and self.rates:
-            return np.array(self.pjac(q, self.zeros_u, t, self.p)[0], float).reshape(self.m, self.n)
-        return np.array(self.mat(q, u, t, self.p)[2], float).reshape(self.m, self.n)
+            return np.array(self.pjac(q, self.zeros_u, t)[0], float).reshape(self.m, self.n)
+        return np.array(self.mat(q, u, t)[2], float).reshape(self.m, self.n)
 
     def partition(self, q, u, t):
         q, u = list(map(float, q)), list(map(float, u))
         self.stats["partitions"] += 1
         if self.mc:
-            J = np.array(self.pjac(q, self.zeros_u, t, self.p)[0], float).reshape(self.mc, self.nq)
+            J = np.array(self.pjac(q, self.zeros_u, t)[0], float).reshape(self.mc, self.nq)
             _, R, P = sla.qr(J, pivoting=True, mode="economic")
             d = np.abs(np.diag(R))
             if not d[-1] > RANK_TOL * d[0]:
@@ -110,7 +110,7 @@ class Nullspace(Problem):
         dep = self.dep_q
         if not dep:
             return q
-        mc, nq, p, zu = self.mc, self.nq, self.p, self.zeros_u
+        mc, nq, zu = self.mc, self.nq, self.zeros_u
         qd = list(self.qd_cache)
         J0 = self.J_last
         if J0 is not None:  # dq_d = -J_d^-1 J_i dq_i: first-order accurate start
@@ -127,7 +127,7 @@ class Nullspace(Problem):
             q[i] = qd[k]
         tol = NEWTON_TOL * (1.0 + max(abs(v) for v in q))
         for it in range(NEWTON_MAX_ITER + 1):
-            pos = self.res(q, zu, t, p)[0]
+            pos = self.res(q, zu, t)[0]
             if max(abs(v) for v in pos) <= tol:
                 break
             if it == NEWTON_MAX_ITER:
@@ -139,7 +139,7 @@ class Nullspace(Problem):
                     f"{self.nm.model.name}: dependent coordinates did not converge at t = "
                     f"{t:.6g} (|f| = {max(map(abs, pos)):.2e}); the partition degenerated"
                 )
-            J = self.pjac(q, zu, t, p)[0]
+            J = self.pjac(q, zu, t)[0]
             try:
                 if mc == 1:
                     q[dep[0]] -= float(pos[0]) / float(J[dep[0]])  # raises on 0
@@ -157,7 +157,7 @@ class Nullspace(Problem):
             self.stats["newton_iterations"] += 1
         self.qd_cache = [q[i] for i in dep]
         self.qi_last = list(qi)
-        self.J_last = self.pjac(q, zu, t, p)[0]
+        self.J_last = self.pjac(q, zu, t)[0]
         return q
 
     def u_of(self, q, ui, t):
@@ -166,12 +166,12 @@ class Nullspace(Problem):
             u[i] = ui[k]
         if not self.m:
             return u
-        r0 = self.res(q, u, t, self.p)[1]  # A_i u_i + a0 (dependent speeds still 0)
+        r0 = self.res(q, u, t)[1]  # A_i u_i + a0 (dependent speeds still 0)
         dep = self.dep_u
         if self.mc == self.m and self.rates:
             A = self.J_last  # df/dq at this q (set by q_of)
         else:
-            A = self.mat(q, u, t, self.p)[2]
+            A = self.mat(q, u, t)[2]
         if self.m == 1:
             u[dep[0]] = -float(r0[0]) / float(A[dep[0]])
         else:

@@ -56,15 +56,15 @@ class Projection(Index1):
         so the check that ends the iteration also gives project_u its residual (f does not
         depend on u). Arithmetic on lists of floats (a few entries: numpy's per-call cost is
         larger than the work), the kernels called with their own input type (`vec`)."""
-        mc, nq, p, res, pjac, vec = self.mc, self.nq, self.p, self.res, self.pjac, self.vec
+        mc, nq, res, pjac, vec = self.mc, self.nq, self.res, self.pjac, self.vec
         zu, qk, uk = self.zeros_u, vec(q), vec(u)
         tol = PROJECTION_TOL * (1.0 + max(map(abs, q), default=0.0))
         for it in range(PROJECTION_MAX_ITER + 1):
-            pos, vel = res(qk, uk, t, p)
+            pos, vel = res(qk, uk, t)
             err = max(map(abs, as_floats(pos)), default=0.0)
             if err <= tol or it == PROJECTION_MAX_ITER:
                 break
-            J = as_floats(pjac(qk, zu, t, p)[0])
+            J = as_floats(pjac(qk, zu, t)[0])
             try:
                 dq = min_norm_correction(J, mc, nq, as_floats(pos), self.nm.redundant)
             except np.linalg.LinAlgError:
@@ -87,10 +87,10 @@ class Projection(Index1):
         """u - A^T (A A^T)^-1 (A u + a0), and A where it is the position Jacobian (None else)."""
         A = None
         if self.mc == self.m and self.rates:
-            A = self.pjac(qk, self.zeros_u, t, self.p)[0]  # A = df/dq when u = q'
+            A = self.pjac(qk, self.zeros_u, t)[0]  # A = df/dq when u = q'
             Al = A
         else:
-            Al = self.mat(qk, self.vec(u), t, self.p)[2]
+            Al = self.mat(qk, self.vec(u), t)[2]
         du = min_norm_correction(as_floats(Al), self.m, self.n, vel, self.nm.redundant)
         return [a + b for a, b in zip(u, du, strict=True)], A
 

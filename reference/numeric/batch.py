@@ -1,8 +1,8 @@
 """Batched forward dynamics of NumericModel (a mixin): N states in one call.
 
-The compiled path runs the serial (or threaded) batch kernel of reference.backends.c_build or
-reference.backends.numba_backend; the Python path the generated vectorized code; models with
-dependent rows one numeric solve per state.
+The backend's batch kernel runs every state (reference.backends.kernels: C's serial or OpenMP
+loop, or the generated code on numpy arrays); a model whose KKT solve is numeric runs its
+solve state by state.
 """
 
 from __future__ import annotations
@@ -13,34 +13,57 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from reference.backends import numba_backend as compiled
+from reference.backends import select
+from reference.backends.kernels import NOT_FINITE, OK, PIVOT_RATIO_MIN, SINGULAR, Kernels
 from reference.errors import ModelInputError, SingularSystemError
+from reference.system import Model
 
 
 class BatchedForward:
     """NumericModel's batched forward (split out of reference/numeric/model.py for its size)."""
 
-    model: Any
+    model: Model
     n: int
     nq: int
     m: int
     p: tuple
     sref: tuple
-    _k: Any
+    _k: Kernels
+    _kf: Callable[..., int]
     _numeric: bool
-    _batched: dict
-    _no_db: tuple
     _pa: np.ndarray
     _db0: np.ndarray
     _nf: int
-    _fail: Callable[..., None]  # NumericModel's methods used here
-    _singular_message: Callable[..., str]
-    _forward_redundant: Callable[..., Any]
+    _fail: Callable[..., Any]  # NumericModel's methods used here
+    singular_message: Callable[..., str]
 
     def forward_batch(
         self, Q: ArrayLike, U: ArrayLike, t: Any = 0.0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """u' and lambda for N states at once: Q (N x nq), U (N x n). Returns (UD, LAM, piv)."""
+        """u' and lambda at N states in one call, checked as NumericModel.forward.
+
+        Parameters
+        ----------
+        Q : array_like
+            The coordinates, N x nq.
+        U : array_like
+            The speeds, N x n.
+        t : float or array_like, optional
+            One time for every state, or one per state; default 0.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            UD (N x n), LAM (N x m) and the pivot ratios (N).
+
+        Raises
+        ------
+        ModelInputError
+            Arrays of the wrong shape, or NaN or infinity in any state.
+        SingularSystemError
+            The KKT matrix is singular at some states (the message counts them and names the
+            first), or the expressions are not defined at one.
+        """
         Q = np.asarray(Q, dtype=float)
         U = np.asarray(U, dtype=float)
         if Q.ndim != 2 or Q.shape[1] != self.nq or U.shape != (Q.shape[0], self.n):
@@ -49,84 +72,56 @@ class BatchedForward:
                 f"got {Q.shape} and {U.shape}"
             )
         N = Q.shape[0]
-        compiled_path = self._k is not None and not self._numeric
-        # the C batch tests each state's finiteness itself (status NOT_FINITE); numba's
-        # inlined batch loop and the Python path do not
-        kernel_checks = compiled_path and hasattr(self._k, "bind")
-        if not kernel_checks and not (np.isfinite(Q).all() and np.isfinite(U).all()):
-            raise self._not_finite_batch()
-        if (
-            self._numeric
-        ):  # one rank-revealing numeric solve per state (reference.numeric.redundant)
-            UD, LAM, piv = self._forward_batch_redundant(Q, U, t)
-        elif compiled_path:
-            UD, LAM, piv = self._forward_batch_compiled(Q, U, t)
+        Q, U = np.ascontiguousarray(Q), np.ascontiguousarray(U)
+        T = np.ascontiguousarray(np.atleast_1d(np.asarray(t, float)))
+        out = np.empty((N, self._nf))
+        st = np.empty(N, np.int64)
+        if self._numeric:  # one rank-revealing numeric solve per state
+            self._forward_each(Q, U, T, out, st)
         else:
-            UD, LAM, piv = self._forward_batch_python(Q, U, t)
-        from reference.numeric.model import (
-            PIVOT_RATIO_MIN,  # defined beside the single-state pivot test
-        )
-
-        bad = ~(piv > PIVOT_RATIO_MIN)
+            k = self._k
+            k.set_threads(select.threads())
+            k.batch("forward")(Q, U, T, self._batch_parameters(N), self._db0[None], out, st)
+        bad = (st != OK) & (st != SINGULAR)
         if bad.any():
+            if (st == NOT_FINITE).any() or not np.isfinite(T).all():
+                raise ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
             i = int(np.argmax(bad))
+            self._fail(int(st[i]), Q[i], U[i])
+        n, nl = self.n, self.n + self.m
+        UD, LAM, piv = out[:, :n], out[:, n:nl], out[:, nl]
+        singular = ~(piv > PIVOT_RATIO_MIN)
+        if singular.any():
+            i = int(np.argmax(singular))
             raise SingularSystemError(
-                f"{bad.sum()} of {N} states are singular; first: index {i}. "
-                + self._singular_message(Q[i], float(piv[i]))
+                f"{singular.sum()} of {N} states are singular; first: index {i}. "
+                + self.singular_message(Q[i], float(piv[i]))
             )
         return UD, LAM, piv
 
-    def _not_finite_batch(self) -> ModelInputError:
-        return ModelInputError(f"{self.model.name}: batched states contain NaN or infinity")
-
-    def _forward_batch_redundant(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
-        rows = [self._forward_redundant(Q[i].tolist(), U[i].tolist(), t) for i in range(len(Q))]
-        UD = np.array([r[0] for r in rows], float).reshape(len(Q), self.n)
-        LAM = np.array([r[1] for r in rows], float).reshape(len(Q), self.m)
-        return UD, LAM, np.array([r[2] for r in rows], float)
-
-    def _forward_batch_python(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
-        N = Q.shape[0]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ud, lam, piv = self._batched["forward"](Q.T, U.T, t, self.p, self.sref, self._no_db)
-        UD = np.empty((N, self.n))
-        for i, c in enumerate(ud):
-            UD[:, i] = c
-        LAM = np.empty((N, self.m))
-        for i, c in enumerate(lam):
-            LAM[:, i] = c
-        return UD, LAM, np.broadcast_to(np.asarray(piv, float), (N,))
-
-    def _forward_batch_compiled(self, Q: np.ndarray, U: np.ndarray, t: Any) -> tuple:
-        """The serial (or, with CROSSCHECK_THREADS > 1, prange) batch kernel. The parameters,
-        Schur references and t may be per-state arrays
-        (crosscheck.commands.sweep.reference_batch)."""
-        N = Q.shape[0]
-        T = np.ascontiguousarray(np.atleast_1d(np.asarray(t, float)))
+    def _batch_parameters(self, N: int) -> np.ndarray:
+        """The kernels' P: this model's `pa` as one row, or one row per state where the
+        parameters or Schur references are arrays of N (crosscheck.sweep.worker's
+        reference_batch gives each sample its own)."""
         cols = list(self.p) + list(self.sref)
-        if any(np.ndim(c) for c in cols):
-            P = np.empty((N, len(cols)))
-            for j, c in enumerate(cols):
-                P[:, j] = c
-        else:
-            P = self._pa[None]
-        out = np.empty((N, self._nf))
-        st = np.empty(N, np.int64)
-        name = "forward_batch" if compiled.threads() == 1 else "forward_batch_parallel"
-        if hasattr(self._k, "set_threads"):  # the C loop: OpenMP threads, set per call
-            self._k.set_threads(compiled.threads())
-        elif name != "forward_batch":
-            import numba
+        if not any(np.ndim(c) for c in cols):
+            return self._pa[None]
+        P = np.empty((N, len(cols)))
+        for j, c in enumerate(cols):
+            P[:, j] = c
+        return P
 
-            numba.set_num_threads(min(compiled.threads(), numba.config.NUMBA_NUM_THREADS))  # type: ignore[attr-defined]  # set at import, not in numba's stubs
-        self._k.get(name)(
-            np.ascontiguousarray(Q), np.ascontiguousarray(U), T, P, self._db0[None], out, st
-        )
-        bad = (st != compiled.OK) & (st != compiled.SINGULAR)
-        if bad.any():
-            if (st == compiled.NOT_FINITE).any() or not np.isfinite(T).all():
-                raise self._not_finite_batch()
-            i = int(np.argmax(bad))
-            self._fail(int(st[i]), Q[i], U[i])
-        n, nm = self.n, self.n + self.m
-        return out[:, :n], out[:, n:nm], out[:, nm]
+    def _forward_each(
+        self, Q: np.ndarray, U: np.ndarray, T: np.ndarray, out: np.ndarray, st: np.ndarray
+    ) -> None:
+        """The forward kernel state by state (the numeric solve), statuses as a batch's."""
+        P = self._batch_parameters(len(Q))
+        for i in range(len(Q)):
+            st[i] = self._kf(
+                Q[i],
+                U[i],
+                float(T[i if len(T) > 1 else 0]),
+                P[i if len(P) > 1 else 0],
+                self._db0,
+                out[i],
+            )

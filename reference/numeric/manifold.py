@@ -24,16 +24,31 @@ class ManifoldProjection:
     model: Any
     n: int
     nq: int
-    p: tuple
-    _scalar: dict
     _state: Callable[..., Any]  # NumericModel's methods used here
+    _call: Callable[..., np.ndarray]
     residuals: Callable[..., Any]
     matrices: Callable[..., Any]
 
     def check_consistent(
         self, q: ArrayLike, u: ArrayLike, t: float = 0.0, tol: float = MANIFOLD_TOL
     ) -> None:
-        """Refuse a state off the constraint manifold, saying by how much."""
+        """Refuse a state off the constraint manifold, saying by how much.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+        tol : float, optional
+            The largest |f(q, t)| (scaled by 1 + max |q|) and |A u + a0| (by 1 + max |u|)
+            accepted, default MANIFOLD_TOL.
+
+        Raises
+        ------
+        OffManifoldError
+            A residual above the tolerance; the message gives both and the way out.
+        """
         pos, vel = self.residuals(q, u, t)
         worst_p = float(np.max(np.abs(pos))) if pos.size else 0.0
         worst_v = float(np.max(np.abs(vel))) if vel.size else 0.0
@@ -48,8 +63,32 @@ class ManifoldProjection:
     def project(
         self, q: ArrayLike, u: ArrayLike, t: float = 0.0, tol: float = 1e-13, max_iter: int = 50
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Closest consistent state: Gauss-Newton on f(q, t) = 0 (minimum-norm steps in q),
-        then the velocity projection u <- u - A^+ (A u + a0). Raises when it cannot converge."""
+        """The closest consistent state: Gauss-Newton on f(q, t) = 0 (minimum-norm steps in
+        q), then the velocity projection u <- u - A^+ (A u + a0).
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state to project.
+        t : float, optional
+            Time, default 0.
+        tol : float, optional
+            Gauss-Newton stops at |f| <= tol (1 + max |q|), default 1e-13.
+        max_iter : int, optional
+            Gauss-Newton steps allowed, default 50.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The projected (q, u).
+
+        Raises
+        ------
+        ModelInputError
+            A bad state (as NumericModel.forward).
+        OffManifoldError
+            Gauss-Newton did not converge (the constraints may have no solution near q).
+        """
         q, u, t = self._state(q, u, t)
         q, u = np.array(q), np.array(u)
         cs_f = self.model.configuration_constraints
@@ -77,7 +116,4 @@ class ManifoldProjection:
 
     def _position_jacobian(self, q: ArrayLike, t: float) -> np.ndarray:
         """df/dq (Eq. 4's a_jk of the configuration constraints), for the projection."""
-        (Aq,) = self._scalar["position_jacobian"](
-            list(np.asarray(q, float)), [0.0] * self.n, t, self.p
-        )
-        return np.array(Aq, float).reshape(-1, self.nq)
+        return self._call("position_jacobian", q, np.zeros(self.n), t).reshape(-1, self.nq)

@@ -1,14 +1,26 @@
 """Numeric evaluation of a model: forward dynamics (u', lambda), residuals, energy, projection.
 
-`NumericModel` wraps the compiled code of reference.backends.codegen with validation: parameters are
-checked once at construction, states on every public call (sizes, finiteness), and a KKT solve
-whose pivots collapse raises instead of returning a wrong number.
+`NumericModel` runs a model's generated code (reference.backends.codegen) on the kernels of its
+backend (reference.backends.select: C where a compiler works, else the generated Python) with
+validation: parameters are checked once at construction, states on every checked call (sizes,
+finiteness), and a KKT solve whose pivots collapse raises instead of returning a wrong number.
+
+Forward dynamics has one checked call and one fast one:
+
+- ``forward(q, u, t)``: the checked call; a Forward record, or an error naming the problem;
+- ``forward_fast(q, u, t, db=None, out=None)``: the integrators' and benchmarks' call; u',
+  lambda and the pivot ratio (or the same written into `out`), NaN in and NaN out, no raise on
+  a singular matrix (the caller tests the ratio); only what the kernel checks cheaply (sizes,
+  an expression not defined at the state) raises;
+- ``forward_batch(Q, U, t)``: N states in one checked call (reference.numeric.batch).
+
+The other generated functions have their checked calls (matrices, kinematics, residuals,
+energy) and, for the integrators, `fast_function(name)`.
 """
 
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -16,74 +28,73 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from reference.backends import codegen
-from reference.backends import numba_backend as compiled
+from reference.backends import codegen, select
+from reference.backends.kernels import NOT_FINITE, OK, PIVOT_RATIO_MIN, SINGULAR, Kernels
+from reference.backends.python_kernels import PythonKernels
 from reference.constraints import check_independent
 from reference.errors import ModelInputError, SingularSystemError
 from reference.formulations import derive
 from reference.numeric import redundant
 from reference.numeric.batch import BatchedForward
-from reference.numeric.manifold import MANIFOLD_TOL, ManifoldProjection  # noqa: F401  (MANIFOLD_TOL: public here)
+from reference.numeric.manifold import MANIFOLD_TOL, ManifoldProjection
+from reference.numeric.validate import StateValidation, resolve_parameters
 from reference.system import Model
 
-# A pivot of M or of the Schur complement S below this fraction of its original diagonal entry
-# means the KKT matrix is singular to working precision: 1e-12 leaves 4 digits of a double's 16
-# for the answer, the least a validation suite can call a number.
-PIVOT_RATIO_MIN = 1e-12
+__all__ = ["MANIFOLD_TOL", "PIVOT_RATIO_MIN", "Forward", "NumericModel", "resolve_parameters"]
 
 _ND = np.ndarray
 _empty = np.empty
 _new = object.__new__  # a Forward built by slot stores: no dataclass __init__ call (hot path)
 
 
-def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str, float]:
-    """The model's parameter values with `overrides`, checked: names, finiteness, signs."""
-    overrides = dict(overrides or {})
-    names = [p.name for p in model.parameters]
-    unknown = sorted(set(overrides) - set(names))
-    if unknown:
-        raise ModelInputError(
-            f"unknown parameter(s) {unknown} for model {model.name!r}; valid: {', '.join(names)}"
-        )
-    values, problems = {}, []
-    for p in model.parameters:
-        v = overrides.get(p.name, p.default)
-        try:
-            v = float(v)
-        except (TypeError, ValueError):
-            problems.append(f"{p.name}={v!r} is not a number")
-            continue
-        if not math.isfinite(v):
-            problems.append(f"{p.name}={v} is not finite")
-        elif p.positive and v <= 0:
-            problems.append(f"{p.name}={v} must be > 0 ({p.description})")
-        elif p.nonnegative and v < 0:
-            problems.append(f"{p.name}={v} must be >= 0 ({p.description})")
-        values[p.name] = v
-    if problems:
-        raise ModelInputError(f"model {model.name!r}: " + "; ".join(problems))
-    return values
-
-
-def _floats(x: Any) -> list[float]:
-    """Values as a list of Python floats (the compiled code is fastest on plain floats)."""
-    if type(x) is np.ndarray:
-        if x.ndim == 1 and x.dtype == np.float64:  # the common case, kept cheap
-            return x.tolist()
-        return x.astype(float, copy=False).reshape(-1).tolist()
-    return [float(v) for v in x]
-
-
 @dataclass(slots=True)  # slots: a cheaper construction on the checked call's hot path
 class Forward:
-    accelerations: np.ndarray  # u'
-    multipliers: np.ndarray  # lambda, constraint order (minimum norm when rows are dependent)
+    """Forward dynamics at one state: what NumericModel.forward returns.
+
+    Parameters
+    ----------
+    accelerations : numpy.ndarray
+        u', one entry per speed.
+    multipliers : numpy.ndarray
+        lambda, one entry per constraint row in the model's order (the minimum-norm one where
+        the rows are dependent).
+    pivot_ratio : float
+        The smallest pivot of the KKT solve over its reference (> PIVOT_RATIO_MIN here).
+    rank : int or None
+        The rank of A where the model allows dependent rows, else None.
+    """
+
+    accelerations: np.ndarray
+    multipliers: np.ndarray
     pivot_ratio: float
-    rank: int | None = None  # rank of A where the model allows dependent rows, else None
+    rank: int | None = None
 
 
-class NumericModel(BatchedForward, ManifoldProjection):
-    """Compiled numeric model for one formulation and one parameter set."""
+class NumericModel(BatchedForward, ManifoldProjection, StateValidation):
+    """A model's equations of motion, evaluated for one formulation and one parameter set.
+
+    Parameters
+    ----------
+    model : Model
+        The model (validated here).
+    formulation : str, optional
+        'lagrange', 'dalembert' or 'kane'; default the model's first.
+    params : dict, optional
+        Parameter values replacing the model's defaults (resolve_parameters).
+    backend : {None, 'python'}, optional
+        'python' keeps this model on the generated Python code whatever CROSSCHECK_BACKEND
+        says: for a model evaluated at a few states only, where a C build (about a second)
+        would cost more than it saves. None takes the setting (reference.backends.select).
+
+    Raises
+    ------
+    ModelInputError
+        A bad model, formulation, parameter value or backend name; CROSSCHECK_BACKEND=c
+        without a working C compiler.
+    SingularSystemError
+        The KKT matrix is singular at the model's initial state (the parameters or the
+        constraint rows are wrong).
+    """
 
     def __init__(
         self,
@@ -92,10 +103,6 @@ class NumericModel(BatchedForward, ManifoldProjection):
         params: dict | None = None,
         backend: str | None = None,
     ):
-        """``backend="python"`` keeps this model on the uncompiled path whatever the setting
-        (reference.backends.numba_backend.backend): for a model evaluated at a few states only,
-        where a compile would cost more than it saves (1-2 s of the C compiler per module,
-        scripts/c_build_times.py). None takes the setting."""
         if backend not in (None, "python"):
             raise ModelInputError(
                 f"backend {backend!r}: a model can ask for 'python' (the uncompiled path) or "
@@ -108,95 +115,91 @@ class NumericModel(BatchedForward, ManifoldProjection):
         self.p = tuple(self.params[p.name] for p in model.parameters)
         # the code (and its choice of an augmented solve) depends on the model only: it is
         # generated once with the declared defaults, and the parameters are arguments
-        self._scalar, self._batched, self.source = codegen.load_compiled(
+        scalar, batched, self.source = codegen.load_compiled(
             lambda: derive(model, self.formulation),
             model,
             self.formulation,
             resolve_parameters(model),
         )
+        self.cache_path = scalar["__cache_path__"]  # the derivation cache entry
+        meta = scalar["META"]
         self.n = len(model.speeds)
         self.nq = len(model.coordinates)
-        self.m = self._scalar["META"]["m"]
+        self.m = meta["m"]
+        self._augmented = meta["augmented"]
         self.redundant = bool(getattr(model, "redundant_constraints", False))
         # a numeric KKT solve per state: dependent rows allowed, or a model too large for the
         # unrolled solve (codegen.UNROLL_KKT_MAX); either way the rank-revealing solve
-        self.numeric_kkt = self._scalar["META"].get("kkt") == "numeric"
+        self.numeric_kkt = meta.get("kkt") == "numeric"
         self._numeric = self.redundant or self.numeric_kkt
+        dims = (self.nq, self.n, len(self.p), self.m)
+        self._py = PythonKernels(scalar, batched, self.source, dims)
         self.rank = self.m  # rank of A at the initial state (below m only if redundant)
+        self._last_rank: int | None = None  # rank of A at the last numeric solve
         self.sref = self._schur_reference()
-        self._no_db = (0.0,) * self.m
-        self._k = self._kernels(backend or compiled.backend())
-        # every single-state kernel compiled or loaded here (the batch kernels on first use)
-        # (no forward kernel where the solve is numeric: dependent rows or a large model)
-        self._kf: Any = None if self._numeric or self._k is None else self._k.get("forward")
-        if self._k is not None:  # the other single-state kernels too: a first-use compile
-            for name in compiled.FUNCTIONS:  # must not land inside a timed or wall-bounded
-                if name in self._k.sizes:  # call (simulate's max_wall_s, a benchmark loop)
-                    self._k.get(name)
+        self._k: Kernels = select.kernels(self._py, self.source, self.cache_path.stem, backend)
         self._nlam = self.n + self.m
+        self._nf = self._nlam + 1
         self._pack()
 
-    def _kernels(self, which: str) -> Any:
-        """The compiled kernels of this model's code on backend `which`: C
-        (reference.backends.c_build), else numba, else None (the pure-Python path). A model the C
-        printer cannot translate, or a compiler that rejects it, takes numba; the reason is in
-        bench.json's `compiled`."""
-        if which == "python" or codegen.numeric_kkt(self.n, self.m):
-            # numba's compile of a large model's long straight-line M, A code costs more than
-            # the run (docs/scaling.md); a small model with dependent rows keeps its kernels
-            # for M, A, residuals and energy (its forward is the numeric solve either way)
-            return None
-        path = self._scalar["__cache_path__"]
-        args = (self.source, path.stem, path.parent, self.nq, self.n, len(self.p), self.m)
-        if which == "c":
-            from reference.backends import c_build as cbuild
-            from reference.backends import c_source as ckernels
-
-            try:
-                return cbuild.load_kernels(*args, PIVOT_RATIO_MIN)
-            except (cbuild.BuildError, ckernels.UnsupportedExpression, RecursionError) as exc:
-                compiled.TIMINGS.setdefault(path.stem, {})["c_error"] = str(exc)
-                if not compiled.numba_available():
-                    return None
-        try:
-            return compiled.load_kernels(*args, PIVOT_RATIO_MIN)
-        except RecursionError:
-            # expressions nested deeper than Python's ast printer goes (a large user model):
-            # this model stays on the pure-Python path, the same numbers, only slower
-            return None
-
     def _pack(self) -> None:
-        """Parameters and Schur references as one array (the kernels' _pa), zero b offsets,
-        `_fast`: what the compiled forward calls read, one attribute to unpack instead of
-        six (None where forward has no kernel: the Python backend or a numeric KKT solve),
-        and on the C backend `_cforward`/`_craw`: the checked and raw calls bound to these
-        parameters, one C call each (reference/backends/ckernel_runtime.h; any state they cannot
-        take on their fast path goes to `_forward_checked`/`_forward_raw_checked` unchanged)."""
-        self._pa = np.array(self.p + self.sref, float)
-        self._db0 = np.zeros(max(self.m, 1))
-        self._nf = self.n + self.m + 1
-        kf = None if self._numeric else self._kf
-        self._fast = None if kf is None else (kf, self._nf, self._pa, self._db0, self.n, self._nlam)
-        bind = getattr(self._k, "bind", None) if kf is not None else None
-        self._cforward = (
-            None if bind is None else bind(self._pa, self._db0, Forward, self._forward_checked)
-        )
-        self._craw = (
-            None if bind is None else bind(self._pa, self._db0, None, self._forward_raw_checked)
-        )
+        """What the calls read, for this parameter set: the kernels' parameters `_pa` (the
+        parameters, then the Schur references), no b offsets `_db0`, the forward kernel `_kf`
+        (the numeric solve where there is no unrolled one), and the checked and fast forward
+        calls as the backend binds them (on C one C call each, which hands any state it cannot
+        take on its fast path to _forward_checked / _forward_fast_checked unchanged)."""
+        k = self._k
+        self._pa = k.pack(self.p, self.sref)
+        self._db0 = k.zero_db
+        if self._numeric:
+            self._kf: Callable[..., int] = self._numeric_forward
+            self._checked, self._fast = self._forward_checked, self._forward_fast_checked
+        else:
+            self._kf = k.function("forward")
+            self._checked, self._fast = k.bind(
+                self._pa, self._db0, Forward, self._forward_checked, self._forward_fast_checked
+            )
 
     @property
     def backend(self) -> str:
-        """'c', 'numba' or 'python': what this model's calls run."""
-        if self._k is None:
-            return "python"
-        return "c" if hasattr(self._k, "bind") else "numba"
+        """'c' or 'python': the backend this model's calls run on."""
+        return self._k.name
+
+    @property
+    def kernels(self) -> Kernels:
+        """This model's kernels (reference.backends.kernels): the unchecked layer beneath the
+        calls here, for the compiled stepper and the benchmarks."""
+        return self._k
+
+    @property
+    def kernel_parameters(self) -> np.ndarray:
+        """The kernels' `pa` for this parameter set: the parameters, then the Schur
+        references."""
+        return self._pa
 
     def with_params(self, params: dict | None) -> NumericModel:
-        """The same compiled model with other parameter values, without reading and compiling
-        the code again (2-30 ms): the code depends on the model only, the values are
-        arguments. The Schur reference is recomputed, so a singular parameter set raises here
-        exactly as in the constructor."""
+        """The same model and code with other parameter values.
+
+        The code depends on the model only and the values are arguments, so nothing is read or
+        built again (2-30 ms saved). The Schur references are recomputed.
+
+        Parameters
+        ----------
+        params : dict or None
+            Parameter values replacing the model's defaults (not this model's values).
+
+        Returns
+        -------
+        NumericModel
+            A new model sharing this one's kernels.
+
+        Raises
+        ------
+        ModelInputError
+            A bad parameter name or value.
+        SingularSystemError
+            The KKT matrix is singular at the initial state with these values.
+        """
         nm = copy.copy(self)
         nm.params = resolve_parameters(self.model, params)
         nm.p = tuple(nm.params[p.name] for p in self.model.parameters)
@@ -210,17 +213,21 @@ class NumericModel(BatchedForward, ManifoldProjection):
         if self.m == 0:
             return ()
         q, u = list(map(float, self.model.initial_q)), list(map(float, self.model.initial_u))
-        M, _f, A, _b = self._scalar["matrices"](q, u, 0.0, self.p)
-        M = np.array(M, float).reshape(self.n, self.n)
-        A = np.array(A, float).reshape(self.m, self.n)
-        if self._scalar["META"]["augmented"]:
-            M = M + A.T @ A * (np.trace(M) / self.n) / max((A * A).sum() / self.m, 1e-300)
-        names = self.model.constraint_names or tuple(f"c{j + 1}" for j in range(self.m))
+        py, n, m = self._py, self.n, self.m
+        out = np.empty(py.total["matrices"])
+        st = py.function("matrices")(q, u, 0.0, py.pack(self.p, (1.0,) * m), out)
+        if st:
+            self._fail(st, q, u)
+        nn, nf, na = n * n, n * n + n, n * n + n + m * n
+        M, A = out[:nn].reshape(n, n), out[nf:na].reshape(m, n)
+        if self._augmented:
+            M = M + A.T @ A * (np.trace(M) / n) / max((A * A).sum() / m, 1e-300)
+        names = self.model.constraint_names or tuple(f"c{j + 1}" for j in range(m))
         if not self.redundant:
             check_independent(A, names, where=f"the initial state of {self.model.name}")
         if self._numeric:  # remember the rank, solve numerically (reference.numeric.redundant)
             self.rank, _s = redundant.numerical_rank(A)
-            return (1.0,) * self.m
+            return (1.0,) * m
         S = A @ np.linalg.solve(M, A.T)
         d = np.diag(S).copy()
         if not np.all(np.isfinite(d)) or np.any(d <= 0):
@@ -230,360 +237,349 @@ class NumericModel(BatchedForward, ManifoldProjection):
             )
         return tuple(float(x) for x in d)
 
-    # ---- validation --------------------------------------------------------------------
-    def _state(self, q: ArrayLike, u: ArrayLike, t: float) -> tuple[list, list, float]:
-        """Validated state as Python float lists (cheap: this runs on every public call)."""
+    # ---- forward dynamics ----------------------------------------------------------------
+    def forward(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
+        """u' and lambda at one state (Eqs. 5-9 with A u' = b), checked.
+
+        Parameters
+        ----------
+        q : array_like
+            The coordinates, one number each.
+        u : array_like
+            The speeds, one number each.
+        t : float, optional
+            Time (rheonomic constraints and loads), default 0.
+
+        Returns
+        -------
+        Forward
+            u', lambda and the pivot ratio, in fresh arrays.
+
+        Raises
+        ------
+        ModelInputError
+            Wrong sizes, values that are not numbers, NaN or infinity (the message names the
+            coordinates or speeds expected).
+        SingularSystemError
+            The KKT matrix is singular at this state (a kinematic singularity, redundant
+            rows), or the derived equations are not defined there (gimbal lock); the message
+            says which and how to move past it.
+        """
+        # through a local: `self._checked(...)` compiles to a method load, which Python 3.11
+        # cannot specialize for an instance attribute (measured 15-25 ns more per call)
+        checked = self._checked
+        return checked(q, u, t)  # type: ignore[no-any-return]
+
+    def forward_fast(
+        self, q: ArrayLike, u: ArrayLike, t: float = 0.0, db: Any = None, out: Any = None
+    ) -> Any:
+        """u', lambda and the pivot ratio at one state, with only the kernel's own checks:
+        the integrators' and benchmarks' call.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state; float64 vectors are the fast case (anything else is converted first).
+        t : float, optional
+            Time, default 0.
+        db : array_like, optional
+            An offset of the constraint rows' right side, A u' = b + db (Baumgarte's terms).
+        out : numpy.ndarray, optional
+            A writable C-contiguous float64 vector of n + m + 1: u' | lambda | the ratio are
+            written into it and it is returned.
+
+        Returns
+        -------
+        tuple or numpy.ndarray
+            (u', lambda, pivot ratio), the vectors fresh views of one array; or `out`. A state
+            with NaN or infinity gives NaN; a singular KKT matrix gives its ratio (test it
+            against PIVOT_RATIO_MIN) and no raise.
+
+        Raises
+        ------
+        ModelInputError
+            Wrong sizes, values that are not numbers, a short `db`, an `out` the kernel cannot
+            write (each would otherwise read or write past an array's end).
+        SingularSystemError
+            The derived equations are not defined at this state (gimbal lock).
+        """
+        fast = self._fast  # a local, as in forward
+        return fast(q, u, t, db, out)
+
+    def _solve(self, q: Any, u: Any, t: Any, db: Any, out: Any) -> tuple:
+        """The forward kernel at one state, its inputs converted where it refuses them: the
+        state as the kernel took it, and the kernel's status. A refused `out` is an error."""
+        kf = self._kf
+        if not self._k.takes_sequences and (type(q) is not _ND or type(u) is not _ND):
+            q, u, t = self._arrays(q, u, t)
         try:
-            ql, ul, t = _floats(q), _floats(u), float(t)
-        except (TypeError, ValueError) as exc:
-            raise ModelInputError(
-                f"{self.model.name}: state values must be numbers ({exc})"
-            ) from None
-        if len(ql) != self.nq:
-            raise ModelInputError(
-                f"{self.model.name}: expected {self.nq} coordinates "
-                f"({', '.join(s.name for s in self.model.coordinates)}), got {len(ql)}"
-            )
-        if len(ul) != self.n:
-            raise ModelInputError(
-                f"{self.model.name}: expected {self.n} speeds "
-                f"({', '.join(s.name for s in self.model.speeds)}), got {len(ul)}"
-            )
-        if not math.isfinite(sum(ql) + sum(ul) + t) and not (
-            all(map(math.isfinite, ql)) and all(map(math.isfinite, ul)) and math.isfinite(t)
-        ):
-            raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
-        return ql, ul, t
+            st = kf(q, u, t, self._pa, db, out)
+        except TypeError:  # not float64 vectors and a number, or an `out` it cannot write
+            if not self._out_ok(out):
+                raise self._bad_out(out) from None
+            q, u, t = self._arrays(q, u, t)
+            st = kf(q, u, t, self._pa, db, out)
+        return q, u, t, st
 
-    def _arrays(self, q: ArrayLike, u: ArrayLike, t: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """(q, u, t) as the kernels take them: writable contiguous float64 vectors and a float
-        (the slow path: the kernels accept only that signature, anything else is converted
-        here). Sizes and finiteness are checked inside the kernel (compiled.STATUS)."""
-        try:
-            return (
-                np.array(q, dtype=float).reshape(-1),
-                np.array(u, dtype=float).reshape(-1),
-                float(t),
-            )
-        except (TypeError, ValueError) as exc:
+    def _forward_checked(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
+        """forward off the bound call: every conversion, check and error message."""
+        out = _empty(self._nf)
+        q, u, t, st = self._solve(q, u, t, self._db0, out)
+        if st:
+            self._fail(st, q, u, out)
+        n, nl = self.n, self._nlam
+        f = _new(Forward)
+        f.accelerations, f.multipliers, f.pivot_ratio, f.rank = (
+            out[:n],
+            out[n:nl],
+            out.item(nl),
+            self._last_rank if self._numeric else None,
+        )
+        return f
+
+    def _forward_fast_checked(
+        self, q: ArrayLike, u: ArrayLike, t: float = 0.0, db: Any = None, out: Any = None
+    ) -> Any:
+        """forward_fast off the bound call: conversions, the size checks, NaN out."""
+        if db is not None and len(db) < self.m:  # a kernel would read past its end
             raise ModelInputError(
-                f"{self.model.name}: state values must be numbers ({exc})"
-            ) from None
+                f"{self.model.name}: db offsets the {self.m} constraint rows' right side; "
+                f"got {len(db)} values"
+            )
+        if out is None:
+            buf = _empty(self._nf)
+        elif type(out) is _ND and out.shape == (self._nf,):  # the rest: the kernel's checks
+            buf = out
+        else:  # a kernel writes the first n + m + 1 entries of a longer one
+            raise self._bad_out(out)
+        q, u, t, st = self._solve(q, u, t, self._db0 if db is None else np.asarray(db, float), buf)
+        if st and st != SINGULAR:
+            if st != NOT_FINITE:
+                self._fail(st, q, u)
+            buf[:] = np.nan  # NaN in, NaN out (the caller's ratio test)
+        if out is not None:
+            return out
+        n, nl = self.n, self._nlam
+        return buf[:n], buf[n:nl], buf.item(nl)
 
-    def _fail(self, status: int, q: ArrayLike, u: ArrayLike, out: Any = None) -> None:
-        """The error of a kernel's nonzero status, worded as on the pure-Python path."""
-        if status in (compiled.BAD_Q_SIZE, compiled.BAD_U_SIZE, compiled.NOT_FINITE):
-            self._state(q, u, 0.0)  # raises the size or finiteness error
-            raise ModelInputError(f"{self.model.name}: state contains NaN or infinite values")
-        if status == compiled.SINGULAR:
-            raise SingularSystemError(self._singular_message(q, float(out[-1])))
-        if status == compiled.NOT_DEFINED:
-            raise self._undefined(q)
-        raise RuntimeError(f"{self.model.name}: compiled kernel returned status {status}")
+    def _numeric_forward(self, q: Any, u: Any, t: Any, pa: Any, db: Any, out: Any) -> int:
+        """The forward kernel of a model whose KKT solve is numeric: M, f, A, b from the
+        backend's matrices kernel, then reference.numeric.redundant's rank-revealing solve."""
+        if not self._out_ok(out):  # as the kernels refuse what they cannot write
+            raise TypeError("out must be a writable C-contiguous float64 vector of n + m + 1")
+        mats = _empty(self._k.total["matrices"])
+        st = self._k.function("matrices")(q, u, t, pa, mats)
+        if st:
+            return st  # type: ignore[no-any-return]
+        n, m = self.n, self.m
+        nn, nf, na = n * n, n * n + n, n * n + n + m * n
+        ud, lam, piv, self._last_rank = redundant.solve(
+            mats[:nn].reshape(n, n),
+            mats[nn:nf],
+            mats[nf:na].reshape(m, n),
+            mats[na:] + np.asarray(db, float)[:m],
+            rank_expected=self.rank,
+            augment=self._augmented,
+            where=self.model.name,
+        )
+        out[:n], out[n : n + m], out[n + m] = ud, lam, piv
+        return OK if piv > PIVOT_RATIO_MIN else SINGULAR
 
-    def _call(self, name: str, q: ArrayLike, u: ArrayLike, t: float) -> Any:
-        """Run the checked kernel `name` at one state: its flat output array."""
-        out = np.empty(self._k.total[name])
-        f = self._k.get(name)
-        if type(q) is not _ND or type(u) is not _ND:
+    # ---- the other generated functions -------------------------------------------------
+    def _call(self, name: str, q: ArrayLike, u: ArrayLike, t: float) -> np.ndarray:
+        """The kernel of generated function `name` at one state, checked: its output array."""
+        k = self._k
+        out = _empty(k.total[name])
+        f = k.function(name)
+        if not k.takes_sequences and (type(q) is not _ND or type(u) is not _ND):
             q, u, t = self._arrays(q, u, t)
         try:
             st = f(q, u, t, self._pa, out)
-        except TypeError:  # not float64 vectors and a float: convert, then call
+        except TypeError:  # not float64 vectors and a number: convert, then call
             q, u, t = self._arrays(q, u, t)
             st = f(q, u, t, self._pa, out)
         if st:
             self._fail(st, q, u)
         return out
 
-    # ---- single state ------------------------------------------------------------------
-    def forward(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
-        """u' and lambda at one state (Eqs. 5-9 with A u' = b)."""
-        cf = self._cforward
-        if cf is not None:  # one C call; any state it cannot take goes to _forward_checked
-            return cf(q, u, t)  # type: ignore[no-any-return]
-        return self._forward_checked(q, u, t)
+    def fast_function(self, name: str) -> Callable[..., tuple]:
+        """The integrators' call of generated function `name`, with only the kernel's checks.
 
-    def _forward_checked(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Forward:
-        """forward through the kernel-signature call or the Python path: every conversion,
-        check and error message."""
-        fast = self._fast
-        if fast is not None:  # the compiled kernel; dependent rows take the rank-revealing solve
-            kf, nf, pa, db0, n, nl = fast
-            out = _empty(nf)
-            if type(q) is not _ND or type(u) is not _ND:  # lists: convert first (a failed
-                q, u, t = self._arrays(q, u, t)  # dispatch costs numba ~1 ms to explain)
+        Parameters
+        ----------
+        name : str
+            'matrices', 'kinematics', 'residuals', 'position_jacobian' or 'energy'.
+
+        Returns
+        -------
+        callable
+            f(q, u, t) -> the function's output groups, views of one fresh float64 array
+            (NaN where the state holds NaN or infinity). It raises ModelInputError for wrong
+            sizes and SingularSystemError where the expressions are not defined at the state.
+
+        Raises
+        ------
+        KeyError
+            No generated function `name` (no 'forward' where the KKT solve is numeric).
+        """
+        k = self._k
+        f, total, offs = k.function(name), k.total[name], k.offsets[name]
+        pa, arrays, convert = self._pa, self._arrays, not k.takes_sequences
+
+        def call(q: Any, u: Any, t: float) -> tuple:
+            out = _empty(total)
+            if convert and (type(q) is not _ND or type(u) is not _ND):
+                q, u, t = arrays(q, u, t)
             try:
-                st = kf(q, u, t, pa, db0, out)
-            except TypeError:  # not float64 vectors and a float: convert, then call
-                q, u, t = self._arrays(q, u, t)
-                st = kf(q, u, t, pa, db0, out)
+                st = f(q, u, t, pa, out)
+            except TypeError:  # not float64 vectors and a number: convert, then call
+                q, u, t = arrays(q, u, t)
+                st = f(q, u, t, pa, out)
             if st:
-                self._fail(st, q, u, out)
-            f = _new(Forward)
-            f.accelerations, f.multipliers, f.pivot_ratio, f.rank = (
-                out[:n],
-                out[n:nl],
-                out.item(nl),
-                None,
-            )
-            return f
-        q, u, t = self._state(q, u, t)
-        if self._numeric:
-            ud, lam, piv = self.forward_raw(q, u, t)
-            if not piv > PIVOT_RATIO_MIN:
-                raise SingularSystemError(self._singular_message(q, piv))
-            return Forward(
-                np.asarray(ud, float), np.asarray(lam, float), float(piv), self._last_rank
-            )
-        try:
-            ud, lam, piv = self._scalar["forward"](q, u, t, self.p, self.sref, self._no_db)
-        except ValueError:  # sqrt of a negative pivot
-            piv = -1.0
-        except ZeroDivisionError:  # a zero pivot, or a coordinate singularity in M, f, A, b
-            self.matrices(q, u, t)  # raises the latter's error
-            piv = -1.0
-        if not piv > PIVOT_RATIO_MIN:
-            raise SingularSystemError(self._singular_message(q, piv))
-        return Forward(np.array(ud, dtype=float), np.array(lam, dtype=float), float(piv))
-
-    def forward_raw(
-        self, q: ArrayLike, u: ArrayLike, t: float, db: Any = None, out: Any = None
-    ) -> Any:
-        """Fast path for integrators: (u', lambda, pivot ratio) without raising on a singular
-        KKT matrix (the caller tests the ratio); NaN in, NaN out. Sizes are still checked (an
-        unchecked compiled read past an array's end would return garbage). `db` offsets the
-        constraint rows' right side: A u' = b + db (Baumgarte). Lists or float64 vectors in;
-        fresh vectors out on the compiled backend, lists on the Python one. With `out` (a
-        writable float64 vector of n + m + 1, as forward_into's): u' | lambda | the ratio are
-        written into it and `out` itself is returned, on either backend."""
-        cr = self._craw
-        if cr is not None:  # one C call; anything it cannot take goes to _forward_raw_checked
-            return cr(q, u, t, db, out)
-        return self._forward_raw_checked(q, u, t, db, out)
-
-    def _forward_raw_checked(
-        self, q: ArrayLike, u: ArrayLike, t: float, db: Any = None, out: Any = None
-    ) -> Any:
-        """forward_raw through the kernel-signature call or the Python path."""
-        if db is not None and len(db) < self.m:  # a kernel would read past its end
-            raise ModelInputError(
-                f"{self.model.name}: db offsets the {self.m} constraint rows' right side; "
-                f"got {len(db)} values"
-            )
-        fast = self._fast
-        if fast is None:
-            return self._forward_raw_other(q, u, t, db, out)
-        kf, nf, pa, db0, n, nl = fast
-        buf = _empty(nf) if out is None else out
-        db = db0 if db is None else np.asarray(db, float)
-        if type(q) is not _ND or type(u) is not _ND:
-            q, u, t = self._arrays(q, u, t)
-        try:
-            # numba's kernel does not check its output's size: it would write past the end of
-            # a shorter one (its type, dimensions, layout and writability: numba's dispatch;
-            # the C kernel checks all of these and raises TypeError)
-            if buf is out and len(out) != nf:
-                raise self._bad_out(out)
-            st = kf(q, u, t, pa, db, buf)
-        except TypeError:  # lists (the Python path's inputs), or a bad `out`
-            if out is not None and self._out_ok(out) is False:
-                raise self._bad_out(out) from None
-            q, u, t = self._arrays(q, u, t)
-            st = kf(q, u, t, pa, db, buf)
-        if st and st != compiled.SINGULAR:
-            if st != compiled.NOT_FINITE:
-                self._fail(st, q, u)
-            buf[:] = np.nan  # as the Python path: NaN in, NaN out (the caller's ratio test)
-        if out is not None:
-            return out
-        return buf[:n], buf[n:nl], buf.item(nl)
-
-    def _forward_raw_other(self, q: Any, u: Any, t: float, db: Any, out: Any) -> Any:
-        """forward_raw off the kernel: the rank-revealing solve or the generated Python."""
-        if out is not None and not self._out_ok(out):
-            raise self._bad_out(out)
-        if self._numeric:
-            res = self._forward_redundant(q, u, t, db)
-        else:
-            res = self._scalar["forward"](
-                q, u, t, self.p, self.sref, self._no_db if db is None else db
-            )
-        if out is None:
-            return res
-        n, nl = self.n, self._nlam
-        out[:n], out[n:nl], out[nl] = res
-        return out
-
-    def _out_ok(self, out: Any) -> bool:
-        """A caller's output array the kernel can write: float64, C-contiguous, aligned,
-        writable, n + m + 1 long."""
-        return (
-            type(out) is _ND
-            and out.dtype == np.float64
-            and out.shape == (self._nf,)
-            and bool(out.flags.c_contiguous and out.flags.aligned and out.flags.writeable)
-        )
-
-    def _bad_out(self, out: Any) -> ModelInputError:
-        what = f"{type(out).__name__} {getattr(out, 'dtype', '')} of shape {np.shape(out)}" + (
-            "" if not isinstance(out, _ND) or out.flags.writeable else ", read-only"
-        )
-        return ModelInputError(
-            f"{self.model.name}: out must be a writable C-contiguous float64 vector of "
-            f"n + m + 1 = {self._nf} (u', lambda, pivot ratio), got {what}; allocate it with "
-            f"numpy.empty({self._nf})"
-        )
-
-    def forward_into(self, q: ArrayLike, u: ArrayLike, t: float, out: np.ndarray) -> int:
-        """The bare compiled forward: u', lambda and the pivot ratio written into `out`
-        (float64, n + m + 1: out[:n] = u', out[n:n+m] = lambda, out[-1] = the ratio), a
-        status returned (reference.backends.numba_backend: 0 ok, 4 singular; sizes and finiteness
-        are checked in the kernel). q, u: float64 vectors (the kernel's argument checks, C's or
-        numba's dispatch, look at the types; anything else is a ModelInputError). The
-        compiled backend only, and a model whose solve is unrolled (not numeric_kkt)."""
-        if self._kf is None:
-            raise ModelInputError(
-                f"{self.model.name}: forward_into needs the compiled unrolled forward; this model "
-                f"has {'no compiled backend' if self._k is None else 'a numeric KKT solve'} "
-                f"(use forward or forward_raw)"
-            )
-        try:
-            if len(out) != self._nf:  # the kernel would write past the end of a shorter one
-                raise self._bad_out(out)
-            return self._kf(q, u, t, self._pa, self._db0, out)
-        except TypeError:
-            if not self._out_ok(out):
-                raise self._bad_out(out) from None
-            raise ModelInputError(
-                f"{self.model.name}: forward_into takes q, u as float64 vectors and t as a "
-                f"number (got {type(q).__name__}, {type(u).__name__}, {type(t).__name__}); "
-                f"convert them with numpy.asarray(x, float) or call forward_raw"
-            ) from None
-
-    def raw_function(self, name: str) -> Callable[..., Any]:
-        """f(q, u, t, p) -> the output groups of generated function `name` (residuals,
-        kinematics, energy, matrices, position_jacobian): the integrators' unchecked calls.
-        On the compiled backend the groups are views of one output array and `p` must be
-        this model's own parameter tuple (the kernel reads the packed copy, self._pa)."""
-        if self._k is None:
-            return self._scalar[name]
-        f, total, offs, pa = self._k.get(name), self._k.total[name], self._k.offsets[name], self._pa
-        arrays = self._arrays
-
-        def call(q: Any, u: Any, t: float, p: Any = None) -> tuple:
-            out = np.empty(total)
-            if type(q) is not _ND or type(u) is not _ND:
-                q, u, t = arrays(q, u, t)
-            try:
-                st = f(q, u, t, pa, out)
-            except TypeError:  # lists: convert, then call
-                q, u, t = arrays(q, u, t)
-                st = f(q, u, t, pa, out)
-            if st and st != compiled.NOT_FINITE:  # NaN in, NaN out, as the Python path
-                self._fail(st, q, u)
+                if st != NOT_FINITE:
+                    self._fail(st, q, u)
+                out[:] = np.nan
             return tuple(out[a:b] for a, b in offs)
 
         return call
 
-    def _forward_redundant(self, q: Any, u: Any, t: float, db: Any = None) -> Any:
-        """forward_raw for models with dependent rows (reference.numeric.redundant): lists out."""
-        M, f, A, b = self._scalar_call("matrices", q, u, t)
-        n, m = self.n, self.m
-        b = np.array(b, float) + (np.asarray(db, float) if db is not None else 0.0)
-        ud, lam, piv, self._last_rank = redundant.solve(
-            np.array(M, float).reshape(n, n),
-            np.array(f, float),
-            np.array(A, float).reshape(m, n),
-            b,
-            rank_expected=self.rank,
-            augment=self._scalar["META"]["augmented"],
-            where=self.model.name,
-        )
-        return ud.tolist(), lam.tolist(), piv
-
-    def _undefined(self, q: ArrayLike) -> SingularSystemError:
-        return SingularSystemError(
-            f"{self.model.name}: the derived equations are not defined at q = "
-            f"{np.round(np.asarray(q, float), 6).tolist()} (a division by zero: a coordinate "
-            f"singularity such as gimbal lock of Euler angles, where these coordinates cannot "
-            f"express the motion). Move the state away from this pose, or describe the body "
-            f"with singularity-free coordinates (Euler parameters)."
-        )
-
-    def _scalar_call(self, name: str, q: list, u: list, t: float, *extra: Any) -> Any:
-        """A pure-Python generated function; its ZeroDivisionError is the coordinate
-        singularity the compiled kernels report as NOT_DEFINED."""
-        try:
-            return self._scalar[name](q, u, t, self.p, *extra)
-        except ZeroDivisionError:
-            raise self._undefined(q) from None
-
-    def _singular_message(self, q: ArrayLike, piv: float) -> str:
-        at = np.round(np.asarray(q, float), 6).tolist()
-        return (
-            f"{self.model.name}: the KKT matrix is singular at q = {at} "
-            f"(pivot ratio {piv:.1e} <= {PIVOT_RATIO_MIN:.0e}): the constraint rows are "
-            f"dependent there (a kinematic singularity or redundant constraints) or M is not "
-            f"definite on their null space. Move the state away from this pose or remove "
-            f"the redundant constraints."
-        )
-
     def matrices(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[np.ndarray, ...]:
-        """M (n x n), f (n), A (m x n), b (m) at a state: the EquationsOfMotion contract."""
+        """M, f, A, b at one state: M u' - f = A^T lambda, A u' = b.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            M (n x n), f (n), A (m x n), b (m), views of one fresh array.
+
+        Raises
+        ------
+        ModelInputError
+            A bad state (as forward).
+        SingularSystemError
+            The expressions are not defined at this state.
+        """
         n, m = self.n, self.m
-        if self._k is not None:
-            out = self._call("matrices", q, u, t)
-            nn, nf, na = n * n, n * n + n, n * n + n + m * n
-            return (out[:nn].reshape(n, n), out[nn:nf], out[nf:na].reshape(m, n), out[na:])
-        q, u, t = self._state(q, u, t)
-        M, f, A, b = self._scalar_call("matrices", q, u, t)
-        return (
-            np.array(M, float).reshape(n, n),
-            np.array(f, float),
-            np.array(A, float).reshape(m, n),
-            np.array(b, float),
-        )
+        out = self._call("matrices", q, u, t)
+        nn, nf, na = n * n, n * n + n, n * n + n + m * n
+        return (out[:nn].reshape(n, n), out[nn:nf], out[nf:na].reshape(m, n), out[na:])
 
     def kinematics(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> np.ndarray:
-        if self._k is not None:
-            return self._call("kinematics", q, u, t)
-        q, u, t = self._state(q, u, t)
-        return np.array(self._scalar_call("kinematics", q, u, t)[0], float)
+        """q' = N(q, u, t), checked.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        numpy.ndarray
+            One rate per coordinate.
+
+        Raises
+        ------
+        ModelInputError
+            A bad state (as forward).
+        SingularSystemError
+            The expressions are not defined at this state.
+        """
+        return self._call("kinematics", q, u, t)
 
     def residuals(
         self, q: ArrayLike, u: ArrayLike, t: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Position residuals f(q, t) and velocity residuals A u + a0."""
-        if self._k is not None:
-            out = self._call("residuals", q, u, t)
-            k = self._k.sizes["residuals"][0]
-            return out[:k], out[k:]
-        q, u, t = self._state(q, u, t)
-        pos, vel = self._scalar_call("residuals", q, u, t)
-        return np.array(pos, float), np.array(vel, float)
+        """The constraints' residuals at one state, checked.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The position residuals f(q, t) and the velocity residuals A u + a0.
+
+        Raises
+        ------
+        ModelInputError
+            A bad state (as forward).
+        SingularSystemError
+            The expressions are not defined at this state.
+        """
+        out = self._call("residuals", q, u, t)
+        k = self._k.sizes["residuals"][0]
+        return out[:k], out[k:]
 
     def energy(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> tuple[float, float]:
-        """Kinetic and potential energy (gravity from the bodies plus the model's springs)."""
-        if self._k is not None:
-            out = self._call("energy", q, u, t)
-            return float(out[0]), float(out[1])
-        q, u, t = self._state(q, u, t)
-        (K, V, _P), *_ = self._scalar_call("energy", q, u, t)
-        return float(K), float(V)
+        """Kinetic and potential energy at one state (gravity from the bodies plus the model's
+        springs), checked.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        tuple of float
+            (K, V).
+
+        Raises
+        ------
+        ModelInputError
+            A bad state (as forward).
+        SingularSystemError
+            The expressions are not defined at this state.
+        """
+        out = self._call("energy", q, u, t)
+        return float(out[0]), float(out[1])
 
     def power_balance(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> dict[str, float]:
-        """Work-energy terms at a state: dE/dt (exact gradient of E = K + V along the motion),
-        the power of the applied loads, and the power of the constraint forces
-        u . A^T lambda = -lambda . a0 on the manifold (zero for scleronomic constraints)."""
+        """The work-energy terms at one state, checked.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        dict
+            'dE_dt' (the exact rate of E = K + V along the motion), 'load_power' (of the
+            applied loads), 'constraint_power' (u . A^T lambda = -lambda . a0 on the manifold:
+            zero for scleronomic constraints) and 'energy' (K + V).
+
+        Raises
+        ------
+        ModelInputError, SingularSystemError
+            As forward.
+        """
         q, u, t = self._state(q, u, t)
-        (K, V, P), dEdq, dEdu, (dEdt,) = self._scalar["energy"](q, u, t, self.p)
+        en = self._call("energy", q, u, t)  # K, V, P | dE/dq | dE/du | dE/dt
+        _kvp, (a, b), (c, d), (e, _e) = self._k.offsets["energy"]
+        K, V, P = en[0], en[1], en[2]
         fw = self.forward(q, u, t)
         qdot = self.kinematics(q, u, t)
-        u = np.asarray(u)
-        dE = float(np.dot(dEdq, qdot) + np.dot(dEdu, fw.accelerations) + dEdt)
+        un = np.asarray(u)
+        dE = float(np.dot(en[a:b], qdot) + np.dot(en[c:d], fw.accelerations) + en[e])
         _, _, A, _ = self.matrices(q, u, t)
-        P_c = float(fw.multipliers @ (A @ u)) if self.m else 0.0
+        P_c = float(fw.multipliers @ (A @ un)) if self.m else 0.0
         return {
             "dE_dt": dE,
             "load_power": float(P),
