@@ -4,9 +4,9 @@
     records = crosscheck.check("my_mechanism.xml")              # or a .py file, a name, a Model
     crosscheck.assert_passes("my_mechanism.xml", engines=["mujoco"])   # in a pytest test
 
-The records are the same dicts `crosscheck run` writes to results.json (crosscheck.checks.tolerances
-.record): model, engine, check, quantity, error, tolerance, passed (None: reported or skipped,
-with the reason).
+The records are the same dicts `crosscheck run` writes to results.json (docs/results.md):
+model, engine, check, quantity, error, tolerance, passed (None: reported or skipped, with the
+reason).
 """
 
 from __future__ import annotations
@@ -40,27 +40,104 @@ def _names(model) -> list[str]:
 
 def check(
     model: str | os.PathLike | object,
-    engines: Iterable[str] | None = None,
+    engines: Iterable[str] | str | None = None,
     *,
     states: int = 6,
     trajectories: bool = False,
     t_end: float = 5.0,
 ) -> list[dict]:
-    """Cross-check a model (a built-in or registered name, an MJCF/Python file, or a Model)
-    against the engines (default: every registered engine that imports here) at `states`
-    consistent states, and, with trajectories=True, over t_end seconds; returns the records."""
+    """Cross-check a model against the engines, as `crosscheck run` does.
+
+    Parameters
+    ----------
+    model : str, path-like or reference.system.Model
+        A built-in or registered model name, an MJCF (.xml) or Python (.py) model file, or a
+        Model object.
+    engines : iterable of str, or str, optional
+        Engine names (a string is read as comma-separated names, as on the command line).
+        Default: every registered engine that imports here.
+    states : int, default 6
+        Consistent states per model for the instantaneous checks (1 to MAX_STATES).
+    trajectories : bool, default False
+        Also compare trajectories over `t_end` seconds.
+    t_end : float, default 5.0
+        Trajectory horizon in seconds: finite, > 0 and at most the CLI's --t-end bound.
+
+    Returns
+    -------
+    list of dict
+        The records, as in results.json (docs/results.md).
+
+    Raises
+    ------
+    reference.errors.ModelInputError
+        Every bad argument at once (an unknown model or engine, a count or horizon out of
+        range), before any work.
+    TypeError
+        `model` is none of the accepted kinds.
+    """
     from crosscheck.commands.arguments import resolve_engines
     from crosscheck.run.checks import run
 
+    engine_list = _engine_names(engines)
+    _check_numbers(states, t_end)
     names = _names(model)
     # as the CLI: every registered engine that imports here unless some are named
-    engine_names = resolve_engines(list(engines) if engines is not None else None)
+    engine_names = resolve_engines(engine_list)
     records, _series = run(names, engine_names, states, trajectories=trajectories, t_end=t_end)
     return records
 
 
+# the largest `states` the API takes: the CLI's --states has no use for more (each state is one
+# comparison per engine; a sweep is the tool for many states)
+MAX_STATES = 10_000
+
+
+def _engine_names(engines) -> list[str] | None:
+    """Engine names from an iterable, or a string read as comma-separated names."""
+    if engines is None:
+        return None
+    if isinstance(engines, str):
+        return [n.strip() for n in engines.split(",") if n.strip()]
+    return [str(e) for e in engines]
+
+
+def _check_numbers(states, t_end) -> None:
+    """Every problem with the counts and the horizon, raised once."""
+    import math
+
+    from crosscheck.commands.arguments import MAX_T_END
+    from reference.errors import ModelInputError
+
+    problems = []
+    if isinstance(states, bool) or not isinstance(states, int) or not 1 <= states <= MAX_STATES:
+        problems.append(f"states={states!r}: give a whole number from 1 to {MAX_STATES}")
+    try:
+        t = float(t_end)
+    except (TypeError, ValueError):
+        t = math.nan
+    if not (math.isfinite(t) and 0 < t <= MAX_T_END):
+        problems.append(
+            f"t_end={t_end!r}: give a finite horizon in seconds, > 0 and <= {MAX_T_END:g}"
+        )
+    if problems:
+        raise ModelInputError("check(): " + "; ".join(problems))
+
+
 def failures(records: list[dict]) -> list[dict]:
-    """The failed records, worst first (error over tolerance)."""
+    """The failed records, worst first.
+
+    Parameters
+    ----------
+    records : list of dict
+        Records as `check` returns them.
+
+    Returns
+    -------
+    list of dict
+        The records with ``passed`` False, by error over tolerance, largest first (a
+        non-finite error first of all).
+    """
     failed = [r for r in records if r["passed"] is False]
     return sorted(
         failed,
@@ -75,7 +152,17 @@ def failures(records: list[dict]) -> list[dict]:
 
 
 def message(r: dict) -> str:
-    """One record as a line: what failed, by how much, against which bound and why."""
+    """One failed record as a line: what failed, by how much, against which bound and why.
+
+    Parameters
+    ----------
+    r : dict
+        A record with a tolerance (not a skip).
+
+    Returns
+    -------
+    str
+    """
     err = "non-finite" if r["error"] is None else f"{r['error']:.3e}"
     return (
         f"{r['model']} {r['engine']} {r['check']} {r['quantity']}: error {err} > "
@@ -83,9 +170,26 @@ def message(r: dict) -> str:
     )
 
 
-def assert_passes(model, engines: Iterable[str] | None = None, **kw) -> list[dict]:
-    """check(), then raise AssertionError with the worst failed record's message (and the
-    count of the others); returns the records when nothing failed."""
+def assert_passes(model, engines: Iterable[str] | str | None = None, **kw) -> list[dict]:
+    """`check`, for a test: fail with the worst failed record's message.
+
+    Parameters
+    ----------
+    model, engines, **kw
+        As for `check`.
+
+    Returns
+    -------
+    list of dict
+        The records, when none failed.
+
+    Raises
+    ------
+    AssertionError
+        Some record failed: the message is the worst one's, with the count of the others.
+    reference.errors.ModelInputError
+        As for `check`.
+    """
     records = check(model, engines, **kw)
     failed = failures(records)
     if failed:

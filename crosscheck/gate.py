@@ -311,11 +311,9 @@ def load_baseline(path: str) -> dict:
     data = load_json(path, "baseline")
     try:
         check_results(data, path)
-    except ReportInputError:
+    except ReportInputError as exc:  # the schema's own words: which field, where, and why
         raise GateInputError(
-            f'baseline file {path!r} has no "records" list of objects (is it '
-            f"a baseline written by `crosscheck gate --update`, or a "
-            f"results.json?)"
+            f"baseline: {exc} (a baseline is written by `crosscheck gate --update`)"
         ) from None
     b = data.get("bench")
     if b is not None and not (

@@ -30,7 +30,22 @@ FORMULATIONS = ("lagrange", "dalembert", "kane")
 
 @dataclass(frozen=True)
 class Parameter:
-    """A physical parameter: the textbook's symbol in ASCII, a value with SI unit, and its role."""
+    """A physical parameter: the textbook's symbol in ASCII, a value with SI unit, and its role.
+
+    Parameters
+    ----------
+    name : str
+        The textbook's symbol in ASCII (``m``, ``L``, ``I_zz``); also the sympy symbol's name.
+    default : float
+        The value a model is evaluated at unless overridden (``--set``, NumericModel's params).
+    unit : str
+        Its SI unit.
+    description : str
+        What it is, in a few words.
+    positive, nonnegative : bool
+        Its admissible range: masses, lengths and inertias > 0; damping, stiffness, gravity
+        >= 0. NumericModel refuses a value outside it.
+    """
 
     name: str
     default: float
@@ -48,10 +63,21 @@ class Parameter:
 class Body:
     """A rigid body (or, with zero inertia and omega, a particle).
 
-    mass: its mass; inertia: central inertia matrix in body-fixed components; omega: angular
-    velocity, body-fixed components; v_G: mass-center velocity, components in `v_frame`;
-    r_G: inertial position of the mass center (for the gravity potential and the engines);
-    R: rotation matrix body -> inertial (columns are the body axes in inertial components).
+    Parameters
+    ----------
+    name : str
+    mass : sympy expression
+    v_G : sympy Matrix (3x1)
+        Mass-center velocity, components in `v_frame`.
+    v_frame : {"inertial", "body"}
+    inertia : sympy Matrix (3x3)
+        Central inertia matrix in body-fixed components (zero for a particle).
+    omega : sympy Matrix (3x1)
+        Angular velocity, body-fixed components (zero for a particle).
+    r_G : sympy Matrix (3x1), optional
+        Inertial position of the mass center (the gravity potential, the engines' models).
+    R : sympy Matrix (3x3), optional
+        Rotation body -> inertial: its columns are the body axes in inertial components.
     """
 
     name: str
@@ -66,7 +92,16 @@ class Body:
 
 @dataclass(frozen=True)
 class Force:
-    """An applied force F at a point moving with velocity v (same frame components)."""
+    """An applied force at a point.
+
+    Parameters
+    ----------
+    name : str
+    velocity : sympy Matrix (3x1)
+        The velocity of the point it acts at.
+    force : sympy Matrix (3x1)
+        The force, in the same frame's components as `velocity`.
+    """
 
     name: str
     velocity: sp.Matrix
@@ -75,10 +110,18 @@ class Force:
 
 @dataclass(frozen=True)
 class Torque:
-    """An applied torque acting on a body with angular velocity omega (same frame components).
+    """An applied torque on a body.
 
     For a torque between two bodies (a motor, a torsional spring-damper) give the relative
     angular velocity: the generalized force is torque . d(omega)/d(speed), Eqs. 5-9.
+
+    Parameters
+    ----------
+    name : str
+    omega : sympy Matrix (3x1)
+        The angular velocity of the body it acts on (or the relative one, above).
+    torque : sympy Matrix (3x1)
+        The torque, in the same frame's components as `omega`.
     """
 
     name: str
@@ -88,13 +131,55 @@ class Torque:
 
 @dataclass(frozen=True)
 class Model:
-    """A constrained mechanical system as the unit declares it.
+    """A constrained mechanical system as the unit declares it: frozen data, validated by
+    `validate` (every problem collected and raised once).
 
-    coordinates q, speeds u, kinematics q' = N(q, u, t) (one expression per coordinate; for
-    Lagrange's and d'Alembert's models u_k = q'_k). Configuration constraints f_j(q, t) = 0
-    (Eq. 1) are written so that df_j/dt gives the textbook's velocity row exactly (Eqs. 2-4),
-    because sign and scale of each multiplier follow its row. Motion constraints are written as
-    expressions linear in the speeds, A u + a0 (Eq. 8).
+    Parameters
+    ----------
+    name : str
+        The registry name (``crosscheck models``).
+    source : str
+        Where it comes from ("Example 2(b)", "MJCF file F").
+    title : str
+    parameters : tuple of Parameter
+    coordinates, speeds : tuple of sympy Symbol
+        q and u.
+    kinematics : tuple of sympy expressions
+        q' = N(q, u, t), one per coordinate; Lagrange's and d'Alembert's models need u = q'.
+    bodies : tuple of Body
+    formulations : tuple of str
+        Which of "lagrange", "dalembert", "kane" apply.
+    initial_q, initial_u : tuple of float
+        A consistent initial state.
+    gravity : sympy Matrix (3x1)
+        Inertial components.
+    loads : tuple of Force or Torque
+    potential : sympy expression
+        Springs' potential energy (gravity's is derived from the bodies).
+    configuration_constraints : tuple of sympy expressions
+        f_j(q, t) = 0 (Eq. 1), written so that df_j/dt gives the textbook's velocity row
+        exactly (Eqs. 2-4): each multiplier's sign and scale follow its row.
+    motion_constraints : tuple of sympy expressions
+        A u + a0, linear in the speeds (Eq. 8).
+    constraint_names : tuple of str
+        One per row, configuration rows first.
+    geometry_note : str
+        Assumptions made where the textbook's figure was lost.
+    multiplier_meaning : str
+        What the multipliers are physically (Addendum).
+    energy_conserved : bool
+        No non-conservative loads and scleronomic constraints: K + V is conserved.
+    formulation_dependent_rows : tuple of (str, str)
+        Rows whose multiplier depends on the formulation, with the reason (the motion does
+        not): the Euler-parameter normalization row of the top (Exercise 6.6).
+    state_sampler : callable, optional
+        ``(rng, params) -> (q, u)``, a consistent state.
+    redundant_constraints : bool
+        Dependent rows are allowed (a planar loop closed by a 3-D MJCF connect): the numeric
+        model then gives the unique u' and A^T lambda and the minimum-norm lambda with the
+        rank (reference.numeric.redundant). False keeps the unit's rule rank(A) = m (Eq. 4).
+    t : sympy Symbol
+        Time.
     """
 
     name: str
@@ -110,8 +195,7 @@ class Model:
     initial_u: tuple[float, ...]
     gravity: sp.Matrix = field(default_factory=lambda: sp.zeros(3, 1))
     loads: tuple[Force | Torque, ...] = ()
-    # springs; gravity's potential is derived from the bodies (sympy's zero is an immutable
-    # singleton, so one default object shared by every Model is safe)
+    # sympy's zero is an immutable singleton, so one default shared by every Model is safe
     potential: sp.Expr = sp.Integer(0)  # noqa: RUF009
     configuration_constraints: tuple[sp.Expr, ...] = ()
     motion_constraints: tuple[sp.Expr, ...] = ()
@@ -119,15 +203,8 @@ class Model:
     geometry_note: str = ""  # assumptions where the textbook's figure was lost
     multiplier_meaning: str = ""  # what lambda is physically (Addendum)
     energy_conserved: bool = False  # no non-conservative loads, scleronomic constraints
-    # constraint rows whose multiplier depends on the formulation, with the reason (the motion
-    # does not): e.g. the Euler-parameter normalization row of the top (Exercise 6.6)
     formulation_dependent_rows: tuple[tuple[str, str], ...] = ()
     state_sampler: Callable | None = None  # rng, params -> (q, u) consistent (optional)
-    # Dependent constraint rows are allowed (user models: a planar loop closed by a 3-D MJCF
-    # `connect` has a row that repeats the others). NumericModel then solves on the independent
-    # rows, gives the unique u' and A^T lambda and the minimum-norm lambda with the rank
-    # (reference.numeric.redundant); False keeps the unit's rule that rank(A) = m (Eq. 4
-    # discussion).
     redundant_constraints: bool = False
     t: sp.Symbol = field(default_factory=lambda: sp.Symbol("t", real=True))
 
@@ -148,9 +225,18 @@ class Model:
         )
 
     def time_derivative(self, expr: Any, accelerations: Any = None) -> Any:
-        """Total time derivative, substituting q' = N(q, u, t) and u' = `accelerations` symbols.
+        """Total time derivative of an expression of (q, u, t).
 
-        With accelerations None the u' terms are dropped (useful for bias terms).
+        Parameters
+        ----------
+        expr : sympy expression or Matrix
+        accelerations : sequence of sympy Symbol, optional
+            The symbols standing for u'. None drops the u' terms (bias terms).
+
+        Returns
+        -------
+        sympy expression or Matrix
+            d(expr)/dt with q' = N(q, u, t) substituted.
         """
         if isinstance(expr, sp.MatrixBase):
             return expr.applyfunc(lambda e: self.time_derivative(e, accelerations))
@@ -161,7 +247,14 @@ class Model:
         return out
 
     def load_power(self) -> sp.Expr:
-        """Power of the applied loads (forces and torques; gravity and springs excluded)."""
+        """Power of the applied loads.
+
+        Returns
+        -------
+        sympy expression
+            Sum of force . velocity and torque . omega (gravity and springs excluded: they are
+            in the potential).
+        """
         P = sp.Integer(0)
         for ld in self.loads:
             if isinstance(ld, Force):
@@ -171,10 +264,17 @@ class Model:
         return P
 
     def content_hash(self) -> str:
-        """A hash of everything that defines the equations (for the derivation cache). The name
-        is left out: it is the cache entry's readable prefix, not part of the physics. Kept on
-        the instance after the first call: the model is frozen, and printing its expressions
-        costs about 9 ms, on every NumericModel built from it."""
+        """A hash of everything that defines the equations (the derivation cache's key).
+
+        The name is left out: it is the cache entry's readable prefix, not physics. Kept on the
+        instance after the first call: the model is frozen, and printing its expressions costs
+        about 9 ms on every NumericModel built from it.
+
+        Returns
+        -------
+        str
+            20 hexadecimal digits.
+        """
         if "_content_hash" not in self.__dict__:
             object.__setattr__(self, "_content_hash", self._hash_content())
         return self.__dict__["_content_hash"]
@@ -197,7 +297,14 @@ class Model:
         return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:20]
 
     def validate(self) -> None:
-        """Collect every inconsistency in the declaration and raise once."""
+        """Check the declaration.
+
+        Raises
+        ------
+        reference.errors.ModelDefinitionError
+            Every inconsistency at once (sizes, unknown formulations, undeclared symbols,
+            asymmetric inertia, a motion constraint not linear in the speeds...).
+        """
         problems: list[str] = []
         n, nu = len(self.coordinates), len(self.speeds)
         if len(self.kinematics) != n:

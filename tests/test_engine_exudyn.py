@@ -22,7 +22,8 @@ import pytest
 from crosscheck.checks.instantaneous import build
 from crosscheck.checks.perturb import check_perturb_changes
 from crosscheck.checks.sampling import random_consistent_state, random_params
-from crosscheck.engines.base import EngineAdapter, EngineUnsupported, resolve_params
+from crosscheck.engines.base import EngineAdapter, EngineUnsupported
+from crosscheck.engines.building import resolve_params
 from crosscheck.engines.exudyn import ExudynAdapter
 from crosscheck.engines.exudyn.trajectory import ExudynIntegrationError
 from reference.errors import ModelInputError

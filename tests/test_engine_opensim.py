@@ -25,7 +25,8 @@ from scipy.integrate import solve_ivp
 from crosscheck.checks.instantaneous import build
 from crosscheck.checks.perturb import check_perturb_changes
 from crosscheck.checks.sampling import random_consistent_state
-from crosscheck.engines.base import EngineAdapter, EngineUnsupported, resolve_params
+from crosscheck.engines.base import EngineAdapter, EngineUnsupported
+from crosscheck.engines.building import resolve_params
 from crosscheck.engines.opensim import OpenSimAdapter
 from crosscheck.engines.opensim.engine_model import INTEGRATORS
 from reference.errors import ModelInputError

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 
 import pytest
@@ -51,3 +52,39 @@ def test_check_refuses_an_unknown_name():
 
     with pytest.raises(ModelInputError, match="unknown model"):
         crosscheck.check("no_such_model")
+
+
+@pytest.mark.parametrize(
+    "kw,problem",
+    [
+        ({"states": 0}, "states=0"),
+        ({"states": 2.5}, "states=2.5"),
+        ({"states": True}, "states=True"),
+        ({"states": 10**20}, "states=100000000000000000000"),
+        ({"t_end": float("nan")}, "t_end=nan"),
+        ({"t_end": float("inf")}, "t_end=inf"),
+        ({"t_end": 0}, "t_end=0"),
+    ],
+)
+def test_check_refuses_bad_numbers_before_any_work(kw, problem):
+    from reference.errors import ModelInputError
+
+    with pytest.raises(ModelInputError, match=re.escape(problem)):
+        crosscheck.check("pendulum_xy", ["mujoco"], **kw)
+
+
+def test_check_names_every_bad_number_at_once():
+    from reference.errors import ModelInputError
+
+    with pytest.raises(ModelInputError) as exc:
+        crosscheck.check("pendulum_xy", ["mujoco"], states=-1, t_end=-2.0)
+    assert "states=-1" in str(exc.value) and "t_end=-2.0" in str(exc.value)
+
+
+def test_an_engines_string_is_comma_separated_names_not_letters():
+    records = crosscheck.check("pendulum_xy", "mujoco", states=1)
+    assert {r["engine"] for r in records} == {"reference", "mujoco"}
+    from reference.errors import ModelInputError
+
+    with pytest.raises(ModelInputError, match="'muj'"):
+        crosscheck.check("pendulum_xy", "muj", states=1)

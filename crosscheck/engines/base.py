@@ -10,18 +10,15 @@ do at all) and, per built model, the optional answers (``mass_matrix`` returns N
 ``mass_matrix_note`` saying why). Everything a capability promises is checked for every
 registered engine on every model it claims by tests/test_engine_contract.py.
 
-What every adapter would otherwise write again is here once: TableAdapter (models, variants
-and build from a table of engine models, through lookup_builder and resolve_params) and
-check_state (a reference state's sizes and finiteness, as the reference checks them).
+What every adapter would otherwise write again is in crosscheck.engines.building.
 """
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -34,13 +31,6 @@ __all__ = [
     "EngineModel",
     "EngineTrajectory",
     "EngineUnsupported",
-    "ModelTable",
-    "TableAdapter",
-    "check_state",
-    "is_user_model",
-    "lookup_builder",
-    "resolve_params",
-    "table_variants",
 ]
 
 
@@ -52,28 +42,47 @@ class EngineUnsupported(Exception):
 class Capabilities:
     """What an engine can answer, declared once by its adapter.
 
-    multipliers: forward() maps constraint forces onto the reference's multipliers (a model
-        may still return None with ``multipliers_note``, e.g. a minimal-coordinate tree).
-    exact: the answers solve the rigid KKT system (False: regularized, soft constraints).
-    rigid_recovery: a soft engine's forward() also returns the rigid answer recovered from
-        its own soft output (``EngineForward.rigid_accelerations`` / ``rigid_multipliers``).
-    mass_matrix: built models give the mass matrix (and forcing) in reference speeds where
-        the coordinates map linearly (else None with ``mass_matrix_note``).
-    nonholonomic: velocity-level (non-integrable) constraint rows can be expressed.
-    integrators: the engine's own integrators accepted by ``simulate``; () means the engine
-        has no trajectories in this suite. The first is the one `crosscheck run` uses.
-    adaptive_integrators: the subset of ``integrators`` that control their error (they take
-        ``rtol``); the others take a fixed ``timestep``.
-    reference_integrators: the subset of ``adaptive_integrators`` that are the reference's
-        own stepper (reference.integrate.rk.LeanDOP853, driven by solve_ivp): their error per
-        rtol is the reference's, which the trajectory check measures in the run, so it does
-        not integrate the engine a second time to estimate it.
-    variants: some models have several engine models (``EngineAdapter.variants``).
-    soft_prediction: built models predict their raw soft answer from the reference's rigid
-        answer and the engine's documented regularization alone (``EngineModel.predict_soft``),
-        without reading the engine's constraint solution: the ``*_soft_vs_predicted`` records.
-    soft_limit: built models with soft rows give the same model with a stiffer regularization
+    Parameters
+    ----------
+    multipliers : bool
+        forward() maps constraint forces onto the reference's multipliers (a model may still
+        return None with ``multipliers_note``, e.g. a minimal-coordinate tree).
+    exact : bool
+        The answers solve the rigid KKT system (False: regularized, soft constraints).
+    rigid_recovery : bool
+        A soft engine's forward() also returns the rigid answer recovered from its own soft
+        output (``EngineForward.rigid_accelerations`` / ``rigid_multipliers``).
+    mass_matrix : bool
+        Built models give the mass matrix (and forcing) in reference speeds where the
+        coordinates map linearly (else None with ``mass_matrix_note``).
+    nonholonomic : bool
+        Velocity-level (non-integrable) constraint rows can be expressed.
+    integrators : tuple of str
+        The engine's own integrators accepted by ``simulate``; () means no trajectories in
+        this suite. The first is the one `crosscheck run` uses.
+    variants : bool
+        Some models have several engine models (``EngineAdapter.variants``).
+    adaptive_integrators : tuple of str
+        The subset of ``integrators`` that control their error (they take ``rtol``); the others
+        take a fixed ``timestep``.
+    soft_prediction : bool
+        Built models predict their raw soft answer from the reference's rigid answer and the
+        engine's documented regularization alone (``EngineModel.predict_soft``), without
+        reading the engine's constraint solution: the ``*_soft_vs_predicted`` records.
+    soft_limit : bool
+        Built models with soft rows give the same model with a stiffer regularization
         (``EngineModel.stiffened``): the trajectories' rigid-limit record extrapolates to it.
+    reference_integrators : tuple of str
+        The subset of ``adaptive_integrators`` that are the reference's own stepper
+        (reference.integrate.rk.LeanDOP853): their error per rtol is the reference's, which the
+        trajectory check measures in the run, so the engine is not integrated a second time to
+        estimate it.
+
+    Raises
+    ------
+    ValueError
+        An adaptive integrator not among ``integrators``, or a reference integrator not among
+        ``adaptive_integrators``.
     """
 
     multipliers: bool
@@ -99,6 +108,7 @@ class Capabilities:
             )
 
     def as_dict(self) -> dict[str, Any]:
+        """The capabilities as JSON data (``crosscheck engines --json``, results' meta)."""
         return {
             "multipliers": self.multipliers,
             "exact": self.exact,
@@ -116,18 +126,27 @@ class Capabilities:
 
 @dataclass
 class EngineForward:
-    """Engine answer at one state, in reference coordinates.
+    """An engine's answer at one state, in the reference's coordinates.
 
-    accelerations: u' in the reference model's speed order.
-    multipliers: lambda in the reference model's constraint order, or None when the engine
-        model has no constraint forces that map to them (``multipliers_note`` says why).
-    rigid_accelerations / rigid_multipliers: soft engines only (Capabilities.rigid_recovery):
-        the rigid answer recovered from the engine's own soft output.
-    predicted_acceleration_error / predicted_multiplier_error: soft engines, at a state where
-        the answer is regularized: (raw - rigid) as the regularization predicts it; None where
-        the engine model has no soft rows (its answer is then exact).
-    iterations: solver iterations (0: no solve, 1: a direct solve), None if not reported.
-    raw: engine-native quantities worth reporting (residuals, impedance, ...), floats or arrays.
+    Parameters
+    ----------
+    accelerations : ndarray
+        u' in the reference model's speed order.
+    multipliers : ndarray or None
+        lambda in the reference model's constraint order (sign and scale of the textbook's
+        rows), or None when the engine model has no constraint forces that map to them.
+    raw : dict
+        Engine-native quantities worth reporting (residuals, impedance...), floats or arrays.
+    multipliers_note : str, optional
+        Why ``multipliers`` is None.
+    rigid_accelerations, rigid_multipliers : ndarray, optional
+        Soft engines only (Capabilities.rigid_recovery): the rigid answer recovered from the
+        engine's own soft output.
+    iterations : int, optional
+        Solver iterations (0: no solve, 1: a direct solve); None if not reported.
+    predicted_acceleration_error, predicted_multiplier_error : ndarray, optional
+        Soft engines, at a state where the answer is regularized: raw - rigid as the
+        regularization predicts it; None where the model has no soft rows (then exact).
     """
 
     accelerations: np.ndarray
@@ -142,7 +161,8 @@ class EngineForward:
 
     @property
     def soft(self) -> bool:
-        """The answer is regularized here: compare its rigid recovery, predict the raw one."""
+        """Whether the answer is regularized here (compare its rigid recovery, predict the raw
+        one)."""
         return (
             self.rigid_accelerations is not None and self.predicted_acceleration_error is not None
         )
@@ -150,14 +170,34 @@ class EngineForward:
 
 @dataclass
 class EngineTrajectory:
-    """A trajectory computed by the engine, mapped to reference (q, u) at the requested times.
+    """A trajectory computed by the engine, mapped to the reference's (q, u) at the requested
+    times.
 
-    violation / velocity_violation: the engine-side constraint residuals per output time (zeros
-    for a model without constraints); energy: the engine's K + V per output time; wall_s: time
-    spent in the engine's stepping (mapping excluded where the engine allows); steps: number of
-    engine steps or right-hand-side evaluations; setting: the integrator setting used;
-    failure: None when the integration reached the last time, else why it stopped; warnings:
-    engine warnings that fired (name -> count; a run with any is not a trajectory of the model).
+    Parameters
+    ----------
+    t : ndarray
+        Output times.
+    q, u : ndarray
+        The reference's coordinates and speeds, one row per output time.
+    violation, velocity_violation : ndarray
+        The engine-side constraint residuals per output time (zeros without constraints).
+    energy : ndarray
+        The engine's K + V per output time.
+    integrator : str
+        The engine integrator used.
+    setting : dict
+        Its setting (rtol or timestep...).
+    wall_s : float, optional
+        Time in the engine's stepping (mapping excluded where the engine allows).
+    steps : int, optional
+        Engine steps or right-hand-side evaluations.
+    raw : dict
+        Engine-native figures worth reporting.
+    failure : str, optional
+        None when the integration reached the last time, else why it stopped.
+    warnings : dict
+        Engine warnings that fired (name -> count): a run with any is not a trajectory of the
+        model.
     """
 
     t: np.ndarray
@@ -192,26 +232,102 @@ class EngineModel(ABC):
 
     @abstractmethod
     def to_engine_state(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Reference (q, u) -> engine state (qpos/q, qvel/v)."""
+        """Map a reference state to the engine's.
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A consistent reference state.
+
+        Returns
+        -------
+        tuple of ndarray
+            The engine's positions and velocities (qpos/q, qvel/v).
+        """
 
     @abstractmethod
     def from_engine_state(self, qe: np.ndarray, ve: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Engine state -> reference (q, u) (the inverse map, tested both ways)."""
+        """Map an engine state back to the reference's (the inverse of `to_engine_state`,
+        tested both ways).
+
+        Parameters
+        ----------
+        qe, ve : ndarray
+            The engine's positions and velocities.
+
+        Returns
+        -------
+        tuple of ndarray
+            The reference's (q, u).
+        """
 
     @abstractmethod
     def forward(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> EngineForward:
-        """Accelerations and constraint forces at a consistent reference state."""
+        """The engine's accelerations and constraint forces at a state.
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A consistent reference state.
+        t : float
+            Time (rheonomic constraints).
+
+        Returns
+        -------
+        EngineForward
+            In the reference's speeds and constraint rows.
+
+        Raises
+        ------
+        EngineUnsupported
+            The engine model cannot answer at this state, with the reason.
+        """
 
     @abstractmethod
     def energy(self, q: np.ndarray, u: np.ndarray) -> tuple[float, float]:
-        """(kinetic, potential) in the engine, same datum as the reference."""
+        """The engine's kinetic and potential energy at a state, on the reference's datum.
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A reference state.
+
+        Returns
+        -------
+        tuple of float
+            (kinetic, potential).
+        """
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray | None:
-        """Engine mass matrix in reference speeds, or None (``mass_matrix_note`` says why)."""
+        """The engine's mass matrix in the reference's speeds.
+
+        Parameters
+        ----------
+        q : ndarray
+            Reference coordinates.
+
+        Returns
+        -------
+        ndarray or None
+            None where the speeds do not map linearly (``mass_matrix_note`` says why).
+        """
         return None
 
     def forcing(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray | None:
-        """The reference's f (applied forces minus velocity products) from the engine, or None."""
+        """The reference's f (applied forces minus velocity products) from the engine.
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A reference state.
+        t : float
+            Time.
+
+        Returns
+        -------
+        ndarray or None
+            None where the engine does not give it.
+        """
         return None
 
     def simulate(
@@ -224,27 +340,91 @@ class EngineModel(ABC):
         rtol: float | None = None,
         timestep: float | None = None,
     ) -> EngineTrajectory:
-        """Integrate from a consistent reference state with one of the adapter's integrators:
-        adaptive ones take ``rtol``, fixed-step ones ``timestep``."""
+        """Integrate from a consistent reference state with one of the engine's integrators.
+
+        Parameters
+        ----------
+        q0, u0 : ndarray
+            A consistent reference state.
+        t_eval : sequence of float
+            Output times, the first the initial time.
+        integrator : str
+            One of ``Capabilities.integrators``.
+        rtol : float, optional
+            For adaptive integrators.
+        timestep : float, optional
+            For fixed-step integrators.
+
+        Returns
+        -------
+        EngineTrajectory
+
+        Raises
+        ------
+        EngineUnsupported
+            The engine has no trajectories in this suite, or not with this integrator.
+        """
         raise EngineUnsupported(f"{self.engine} has no trajectories in this suite")
 
     def predict_soft(
         self, q: np.ndarray, u: np.ndarray, reference_accelerations: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray | None]:
-        """The raw soft (accelerations, multipliers) this model should return at a consistent
-        reference state, predicted from the reference's accelerations and the engine's
-        documented regularization, never from its constraint solution
-        (Capabilities.soft_prediction); raises EngineUnsupported where it cannot."""
+        """The raw soft answer this model should give, predicted from the reference's
+        accelerations and the engine's documented regularization, never from its constraint
+        solution (Capabilities.soft_prediction).
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A consistent reference state.
+        reference_accelerations : ndarray
+            The reference's u' there.
+
+        Returns
+        -------
+        tuple
+            (accelerations, multipliers or None) as the engine should return them.
+
+        Raises
+        ------
+        EngineUnsupported
+            Where the engine cannot predict it.
+        """
         raise EngineUnsupported(f"{self.engine} does not predict its soft answer")
 
     def stiffened(self, factor: float) -> EngineModel:
-        """The same model (same parameters) with its soft rows' time constant divided by
-        ``factor`` (Capabilities.soft_limit)."""
+        """The same model with its soft rows' time constant divided by `factor`
+        (Capabilities.soft_limit).
+
+        Parameters
+        ----------
+        factor : float
+            > 1: stiffer.
+
+        Returns
+        -------
+        EngineModel
+
+        Raises
+        ------
+        EngineUnsupported
+            The engine has no stiffer soft model.
+        """
         raise EngineUnsupported(f"{self.engine} has no stiffer soft model")
 
     def timed_forward(self, q: np.ndarray, u: np.ndarray) -> Callable[[], Any]:
-        """A callable making only the engine's native forward call at a state already mapped
-        (what `crosscheck bench` times); the default times the whole forward()."""
+        """What `crosscheck bench` times: the engine's native forward call alone.
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A consistent reference state, mapped once before the callable is returned.
+
+        Returns
+        -------
+        callable
+            No arguments; the default times the whole forward().
+        """
         return lambda: self.forward(q, u)
 
     # the parameter values the adapter's maps (state, acceleration and multiplier maps, raw
@@ -260,8 +440,15 @@ class EngineModel(ABC):
 
     def fingerprint(self) -> str:
         """A digest of the built engine model's physics (masses, inertias, geometry, gravity,
-        loads): two builds differ in it exactly when their dynamics can differ, so a parameter
-        perturbation that leaves it unchanged is refused as doing nothing."""
+        loads).
+
+        Two builds differ in it exactly when their dynamics can differ, so a parameter
+        perturbation that leaves it unchanged is refused as doing nothing.
+
+        Returns
+        -------
+        str
+        """
         raise NotImplementedError(f"{type(self).__name__} has no fingerprint")
 
 
@@ -278,141 +465,95 @@ class EngineAdapter(ABC):
 
     @property
     def display_name(self) -> str:
+        """The engine's name in prose: ``label``, else ``name``."""
         return self.label or self.name
 
     @abstractmethod
     def models(self) -> tuple[str, ...]:
-        """The reference models this engine expresses (built-in names)."""
+        """The reference models this engine expresses.
+
+        Returns
+        -------
+        tuple of str
+            Registry names.
+        """
 
     def unsupported(self) -> dict[str, str]:
-        """Reference models the engine cannot express, each with the reason (shown as a skip)."""
+        """The reference models the engine cannot express.
+
+        Returns
+        -------
+        dict of str to str
+            Model name -> the reason, shown in its skip records.
+        """
         return {}
 
     def variants(self, model_name: str) -> tuple[str | None, ...]:
-        """The engine models of one reference model; the first is build's default."""
+        """The engine models of one reference model.
+
+        Parameters
+        ----------
+        model_name : str
+
+        Returns
+        -------
+        tuple of (str or None)
+            Variant names; the first is `build`'s default.
+        """
         return (None,)
 
     @abstractmethod
     def build(
         self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
     ) -> EngineModel:
-        """Engine model for a reference model; raises EngineUnsupported with the reason."""
+        """The engine's model of a reference model.
+
+        Parameters
+        ----------
+        model_name : str
+        params : dict of str to float, optional
+            Parameter values (defaults filled in); None: the model's defaults.
+        variant : str, optional
+            One of `variants`; None: the first.
+
+        Returns
+        -------
+        EngineModel
+
+        Raises
+        ------
+        EngineUnsupported
+            The engine cannot express the model, with the reason.
+        reference.errors.ModelInputError
+            An unknown model, parameter or variant.
+        """
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
-        """The tolerance of this engine's exact (rigid or recovered rigid) answer on a model,
-        with the reason it is that size; the default is the round-off bound of a KKT solve."""
+        """The tolerance of this engine's exact (rigid or recovered rigid) answer on a model.
+
+        Parameters
+        ----------
+        model_name : str
+
+        Returns
+        -------
+        Tolerance
+            With the reason for its size; the default is the round-off bound of a KKT solve.
+        """
         return EXACT_KKT
 
     def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
-        """An engine's own notes on its instantaneous records of a model (e.g. which engine
-        model answered a user's file, and what the engine's own file parser lost); the default
-        adds nothing."""
+        """The engine's own notes on its instantaneous records of a model (which engine model
+        answered a user's file, what the engine's own file parser lost).
+
+        Parameters
+        ----------
+        model_name : str
+        records : list of dict
+
+        Returns
+        -------
+        list of dict
+            The records, annotated; the default returns them unchanged.
+        """
         return records
-
-
-# An adapter's models: reference model -> the engine model's builder, or {variant: builder}
-# for several engine models of one reference model (the first variant is build's default).
-ModelTable = dict[str, Any]
-
-
-def resolve_params(model_name: str, params: dict | None) -> dict[str, float]:
-    """The reference model's parameter values (defaults filled in, names and signs checked)."""
-    from reference.models import get
-    from reference.numeric.model import resolve_parameters
-
-    return resolve_parameters(get(model_name), params)
-
-
-def is_user_model(table: ModelTable, model_name: str) -> bool:
-    """A model loaded from a user's file (reference.models.user_names), not in the table."""
-    from reference.models import user_names
-
-    return model_name not in table and model_name in user_names()
-
-
-def table_variants(table: ModelTable, model_name: str) -> tuple[str | None, ...]:
-    """The variants of a model in an adapter's table; (None,) for a single engine model."""
-    entry = table.get(model_name)
-    return tuple(entry) if isinstance(entry, dict) else (None,)
-
-
-def single_variant(engine: str, model_name: str, variant: str | None, what: str = "") -> None:
-    """Refuse a variant for a model with one engine model (``what`` names it, e.g. a user's
-    file; default the engine)."""
-    if variant is not None:
-        raise EngineUnsupported(f"{model_name}: {what or engine} has a single variant here")
-
-
-def lookup_builder(
-    engine: str,
-    table: ModelTable,
-    model_name: str,
-    variant: str | None,
-    unsupported: dict[str, str] | None = None,
-) -> Any:
-    """The builder of one variant of a model in an adapter's table (the default variant when
-    ``variant`` is None); EngineUnsupported with the reason, or with the valid names."""
-    if unsupported and model_name in unsupported:
-        raise EngineUnsupported(unsupported[model_name])
-    if model_name not in table:
-        raise EngineUnsupported(
-            f"{engine} adapter has no model {model_name!r} (mapped: {', '.join(table)})"
-        )
-    entry = table[model_name]
-    if not isinstance(entry, dict):
-        single_variant(engine, model_name, variant)
-        return entry
-    key = variant or next(iter(entry))
-    if key not in entry:
-        raise EngineUnsupported(
-            f"{model_name}: unknown {engine} variant {key!r}; valid: {', '.join(entry)}"
-        )
-    return entry[key]
-
-
-def check_state(
-    where: str, nq: int, n: int, q: Any, u: Any = None, t: float = 0.0
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """A reference state's sizes and finiteness, checked as the reference checks them;
-    ``where`` names the model and engine in the error. Returns (q, u) as flat float arrays."""
-    from reference.errors import ModelInputError
-
-    q = np.asarray(q, dtype=float).reshape(-1)
-    if q.size != nq:
-        raise ModelInputError(f"{where}: expected {nq} coordinates, got {q.size}")
-    if u is not None:
-        u = np.asarray(u, dtype=float).reshape(-1)
-        if u.size != n:
-            raise ModelInputError(f"{where}: expected {n} speeds, got {u.size}")
-    if not (np.all(np.isfinite(q)) and (u is None or np.all(np.isfinite(u))) and math.isfinite(t)):
-        raise ModelInputError(f"{where}: state contains NaN or infinite values")
-    return q, u
-
-
-class TableAdapter(EngineAdapter):
-    """An adapter whose engine models are one ModelTable: ``model_table`` (reference model ->
-    builder(model_name, params), or {variant: builder}), ``refused`` (reference model -> why
-    the engine cannot express it) and ``user_files`` (it also builds the models loaded from
-    users' files; its build() then handles them before the table)."""
-
-    model_table: ClassVar[ModelTable] = {}
-    refused: ClassVar[dict[str, str]] = {}
-    user_files: ClassVar[bool] = False
-
-    def models(self) -> tuple[str, ...]:
-        from reference.models import user_names
-
-        return (*self.model_table, *(user_names() if self.user_files else ()))
-
-    def unsupported(self) -> dict[str, str]:
-        return dict(self.refused)
-
-    def variants(self, model_name: str) -> tuple[str | None, ...]:
-        return table_variants(self.model_table, model_name)
-
-    def build(
-        self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
-    ) -> EngineModel:
-        builder = lookup_builder(self.name, self.model_table, model_name, variant, self.refused)
-        model: EngineModel = builder(model_name, resolve_params(model_name, params))
-        return model

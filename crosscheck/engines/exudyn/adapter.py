@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from crosscheck.checks.tolerances import Tolerance
-from crosscheck.engines.base import Capabilities, TableAdapter
+from crosscheck.engines.base import Capabilities
+from crosscheck.engines.building import TableAdapter
 from crosscheck.engines.exudyn.engine_model import INTEGRATORS, ExudynModel
 from crosscheck.engines.exudyn.exercises import Exercise61, Exercise62, Exercise64
 from crosscheck.engines.exudyn.planar import (

@@ -40,13 +40,8 @@ from collections.abc import Sequence
 import exudyn as exu
 import numpy as np
 
-from crosscheck.engines.base import (
-    EngineForward,
-    EngineModel,
-    EngineTrajectory,
-    EngineUnsupported,
-    check_state,
-)
+from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from crosscheck.engines.building import check_state
 
 __all__ = ["DEFAULT_EPSILON", "INTEGRATORS", "RICHARDSON_EPSILON", "ExudynModel"]
 

@@ -85,9 +85,8 @@ from pathlib import Path
 import numpy as np
 
 from crosscheck.checks.tolerances import Tolerance
-from crosscheck.engines.base import (
-    Capabilities,
-    EngineUnsupported,
+from crosscheck.engines.base import Capabilities, EngineUnsupported
+from crosscheck.engines.building import (
     TableAdapter,
     is_user_model,
     lookup_builder,

@@ -13,13 +13,8 @@ import mujoco
 import numpy as np
 
 from crosscheck.checks.tolerances import Tolerance
-from crosscheck.engines.base import (
-    EngineForward,
-    EngineModel,
-    EngineTrajectory,
-    EngineUnsupported,
-    check_state,
-)
+from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from crosscheck.engines.building import check_state
 from crosscheck.engines.mujoco.soft_recovery import full_M, predict_soft, soft_recovery
 
 SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)

@@ -18,7 +18,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from crosscheck.checks.tolerances import EXACT_KKT, Tolerance
-from crosscheck.engines.base import Capabilities, TableAdapter
+from crosscheck.engines.base import Capabilities
+from crosscheck.engines.building import TableAdapter
 from crosscheck.engines.opensim.engine_model import FIXED_STEP, INTEGRATORS, OsimModel
 from crosscheck.engines.opensim.exercises import Exercise61, Exercise62, Exercise64
 from crosscheck.engines.opensim.planar import (

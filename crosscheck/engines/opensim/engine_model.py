@@ -31,13 +31,8 @@ from xml.etree import ElementTree
 import numpy as np
 import opensim as osim
 
-from crosscheck.engines.base import (
-    EngineForward,
-    EngineModel,
-    EngineTrajectory,
-    EngineUnsupported,
-    check_state,
-)
+from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory, EngineUnsupported
+from crosscheck.engines.building import check_state
 
 __all__ = ["FIXED_STEP", "INTEGRATORS", "OsimModel", "custom_joint", "point_body", "vec3"]
 

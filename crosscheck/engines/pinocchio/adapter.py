@@ -73,8 +73,8 @@ Pinocchio call, shared with forward through ``_engine_call``).
 
 from __future__ import annotations
 
-from crosscheck.engines.base import (
-    Capabilities,
+from crosscheck.engines.base import Capabilities
+from crosscheck.engines.building import (
     TableAdapter,
     is_user_model,
     lookup_builder,

@@ -10,7 +10,8 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory, check_state
+from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory
+from crosscheck.engines.building import check_state
 from crosscheck.engines.pinocchio.ode import JointLayout, joint_layout, normalized, right_hand_side
 
 # the error-controlled integrators the trajectories use (solve_ivp methods, see ivp_method)
