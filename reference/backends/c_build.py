@@ -35,7 +35,7 @@ from reference.backends.c_source import (
 )
 from reference.backends.kernels import TIMINGS, Kernels, import_file
 
-# -O2: gcc builds the largest built-in model in about a second (docs/compiled.md).
+# -O2: gcc builds the largest built-in model in about a second (benchmarks/reference_speed.md).
 # -fno-math-errno: sqrt compiles to the instruction (the result is the same; only errno,
 #   which nothing reads, is not set). -ffp-contract=off: no fused multiply-add, so every
 #   operation rounds as the Python path's does. No -ffast-math: it would drop NaN tests.

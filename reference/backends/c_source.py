@@ -4,10 +4,12 @@ Python module, printed as C functions that a C compiler builds into a CPython ex
 Why C: a CPython METH_FASTCALL function costs about 0.25 us to call, where a numba kernel,
 the compiled backend before it, cost about 0.6 us before any arithmetic, and gcc builds a
 model's straight-line code in about a second where numba's type inference took 10-20 s
-(docs/compiled.md, "The C backend"). The expressions are printed from the same ast the Python
-path runs, operation for operation and in the same order (every binary operation
+(benchmarks/reference_speed.md, "Why C"). The expressions are printed from the same ast the
+Python path runs, operation for operation and in the same order (every binary operation
 parenthesized, no -ffast-math, no FMA contraction), with libm's sin, cos, sqrt and pow as
-CPython calls them, so the results equal the Python path's (tests/test_compiled.py).
+CPython calls them, so the results equal the Python path's, with one exception: gcc computes
+pow(x, 2.0) as x*x, correctly rounded, where CPython's x**2 calls libm's pow, which rounds
+differently in about 7 of 10^4 squares (tests/test_backends.py).
 
 Each generated function F becomes `static int F_body(qa, ua, t, pa, db, out)`: inputs read
 from double arrays by index (pa = the parameters, then the Schur references), outputs written

@@ -4,8 +4,8 @@ machine, the kernels each generated module gets, and the C builds started ahead 
 C where a C compiler works (reference.backends.c_build); the generated Python code
 (reference.backends.python_kernels) where none does, where the C printer or compiler refuses a
 module, or where a model asks for it. Both run the same expressions, so the numbers are the
-same to the bit; the Python path is slower (docs/compiled.md), and each time it stands in
-for C, stderr says so in one line.
+same (to the bit but for CPython's x**2, tests/test_backends.py); the Python path is slower
+(benchmarks/reference_speed.md), and each time it stands in for C, stderr says so in one line.
 
 Why no third backend: numba stood between the two until it was measured against them (same
 four models, derivations cached): a cold build of 2.7-9.2 s per model against C's 0.5-0.7 s,
@@ -79,7 +79,7 @@ def notice(message: str) -> None:
 
 def threads() -> int:
     """Threads of the batch kernels (CROSSCHECK_THREADS, default 1: a serial loop measured
-    faster than two threads on the 2-core machine under load, docs/compiled.md)."""
+    faster than two threads on the 2-core machine under load, benchmarks/reference_speed.md)."""
     try:
         return max(1, int(os.environ.get("CROSSCHECK_THREADS", "1")))
     except ValueError:

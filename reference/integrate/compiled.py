@@ -18,7 +18,7 @@ max_steps / max_wall_s bounds are raised here with the Python loop's messages.
 The two steppers agree within the run's tolerance, not to the bit: numpy sums the stages, the
 error estimate and the normal equations in another order than the C loops, and the error
 estimate carries that round-off into the step sizes (measured: tests/test_integrate_compiled.py,
-docs/compiled.md "The compiled stepper").
+benchmarks/reference_speed.md "The compiled stepper").
 """
 
 from __future__ import annotations

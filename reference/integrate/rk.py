@@ -7,8 +7,8 @@ scipy's DOP853 up to the round-off of the stage sums. What it drops is the Pytho
 scipy's rk_step calls the right side through two wrappers (nfev counting, np.asarray) and forms
 each stage as np.dot(K[:s].T, a[:s]) * h (slice, transpose, slice, product, scaling); here each
 stage is one row-vector product (h a_s) . K[:s] on views made once, and the right side is
-called directly. Measured (docs/compiled.md "Work-precision"): scipy's stepping cost ~10 us per
-right-side call on the slider-crank, as much as the right side itself.
+called directly. Measured (benchmarks/reference_speed.md, "The compiled stepper"): scipy's
+stepping cost ~10 us per right-side call on the slider-crank, as much as the right side itself.
 """
 
 from __future__ import annotations
