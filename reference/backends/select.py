@@ -90,9 +90,10 @@ def kernels(python: PythonKernels, src: str, stem: str, want: str | None = None)
     """The kernels of generated module `src` (cache entry `stem`, its Python kernels
     `python`) on backend `want` (None: backend()). On C, a module the printer or the compiler
     refuses runs on Python: TIMINGS[stem]['c_error'] (bench.json) and one line on stderr say
-    why. A model past codegen.UNROLL_KKT_MAX stays on Python: its forward is the numeric
-    solve, evaluated at few states, where a build of its long straight-line code would cost
-    more than it saves."""
+    why. A model past codegen.UNROLL_KKT_MAX stays on Python: compiling its long straight-line
+    M and A costs more than it saves on a model evaluated a few thousand times per run
+    (benchmarks/scaling.md; measured with numba, not yet with C), and its forward is the
+    numeric solve either way."""
     _nq, n, _npar, m = python.dims
     if (want or backend()) == "python" or codegen.numeric_kkt(n, m):
         return python
