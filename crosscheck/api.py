@@ -14,11 +14,12 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
 API_ORIGIN = "Python API (crosscheck.check)"
 
 
-def _names(model) -> list[str]:
+def _names(model: object) -> list[str]:
     """The registered model names `model` stands for (files and Model objects registered)."""
     from crosscheck.user_models import load_model_file, register_all
     from reference import models
@@ -93,7 +94,7 @@ def check(
 MAX_STATES = 10_000
 
 
-def _engine_names(engines) -> list[str] | None:
+def _engine_names(engines: Iterable[str] | str | None) -> list[str] | None:
     """Engine names from an iterable, or a string read as comma-separated names."""
     if engines is None:
         return None
@@ -102,7 +103,7 @@ def _engine_names(engines) -> list[str] | None:
     return [str(e) for e in engines]
 
 
-def _check_numbers(states, t_end) -> None:
+def _check_numbers(states: object, t_end: Any) -> None:
     """Every problem with the counts and the horizon, raised once."""
     import math
 
@@ -170,7 +171,9 @@ def message(r: dict) -> str:
     )
 
 
-def assert_passes(model, engines: Iterable[str] | str | None = None, **kw) -> list[dict]:
+def assert_passes(
+    model: str | os.PathLike | object, engines: Iterable[str] | str | None = None, **kw: Any
+) -> list[dict]:
     """`check`, for a test: fail with the worst failed record's message.
 
     Parameters

@@ -1,4 +1,4 @@
-"""`crosscheck` command line. Subcommand names and JSON fields are a contract (see README).
+"""`crosscheck` command line. Subcommand names and JSON fields are a contract (docs/cli.md).
 
 Bad input prints one line `crosscheck: error: ...` and exits with status 2, never a traceback.
 Exit 1 means only "a check failed"; Ctrl-C prints one line and exits 130; an unexpected
@@ -69,10 +69,11 @@ def attach_negative_values(argv: list[str]) -> list[str]:
 
 
 # The suite's matrices are small (at most a few hundred rows): a second BLAS thread only adds
-# synchronization, and on a loaded 2-core machine it waits for a core. Measured: one SVD of the
-# 40-cell four-bar's 120 x 81 constraint Jacobian took 308 ms with numpy's default two threads
-# and 8 ms with one (docs/numerics.md). Set before numpy loads; a user's setting wins.
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")  # not OMP: numba reads it
+# synchronization, and on a loaded 2-core machine it waits for a core. Measured: an SVD of the
+# 40-cell four-bar's 120 x 81 constraint Jacobian takes 0.8 ms with one thread and 81 ms with
+# numpy's default two while other jobs run (benchmarks/run_time.md). Set before numpy loads; a
+# user's setting wins.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def one_blas_thread() -> None:
@@ -82,8 +83,8 @@ def one_blas_thread() -> None:
 
 # No command renders with MuJoCo, whose import otherwise loads its OpenGL context code and
 # with it the glfw package, which starts a Python subprocess to ask the GLFW library for its
-# version: 0.15-0.2 s of each process that imports MuJoCo (this one and the workers' server,
-# whose imports the first models wait for; docs/compiled.md). Set before MuJoCo loads; a
+# version: 0.05 s of each process that imports MuJoCo (this one and the workers' server,
+# whose imports the first models wait for; benchmarks/run_time.md). Set before MuJoCo loads; a
 # user's setting wins.
 def no_mujoco_rendering() -> None:
     os.environ.setdefault("MUJOCO_GL", "disable")

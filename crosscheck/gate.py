@@ -40,10 +40,10 @@ FACTOR = 10.0
 # KKT solves: reordering the same sums (another BLAS kernel, CPU SIMD width or library version)
 # changes it by 10-100x without any change of method, so values below the floor count as equal.
 ROUND_OFF_FLOOR = 1e-13
-# Timing ratios measured in one run still move with machine load: the same setting's medians vary by
-# 1.3-3x between runs on the 2-core shared machines (crosscheck/bench/timing.py, docs/numerics.md),
-# and a ratio combines two such timings. A 5x slowdown is beyond that noise and is what a real loss
-# looks like (falling off the compiled path costs 10-100x).
+# Timing ratios measured in one run still move with machine load: the same setting's medians vary
+# by 1.3-3x between runs on the 2-core shared machines (crosscheck/bench/timing.py,
+# docs/tolerances.md), and a ratio combines two such timings. A 5x slowdown is beyond that noise
+# and is what a real loss looks like (falling off the compiled path costs 10-100x).
 TIMING_BAND = 5.0
 
 KEY_FIELDS = ("model", "formulation", "engine", "check", "quantity")

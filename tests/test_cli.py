@@ -234,7 +234,7 @@ def test_the_program_leaves_without_teardown_and_loses_no_output(tmp_path):
 
 
 def test_a_profiled_program_still_writes_its_profile(tmp_path):
-    """Under `python -m cProfile -o F -m crosscheck` (the profiling command docs/compiled.md
+    """Under `python -m cProfile -o F -m crosscheck` (the profiling command benchmarks/run_time.md
     gives) the program exits normally, so the profiler writes F."""
     import os
     import pstats

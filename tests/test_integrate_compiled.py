@@ -6,7 +6,7 @@ Tolerances and why:
   difference of stages, ~rtol of their size) differs by round-off that reaches the step sizes
   as ~1e-7 relative changes (the exponent 1/8). Both runs are within the same tolerance of the
   true motion, so the bound is one rtol on the state's scale (1 + max |q|, |u|). Measured:
-  `PYTHONPATH=$PWD python scripts/c_stepper_speed.py` prints the difference in those units
+  `PYTHONPATH=$PWD python benchmarks/c_stepper_speed.py` prints the difference in those units
   (column "/ tol"), at most 0.06 of it at rtol 1e-10 over four models and three methods.
 - nfev equal: the same steps are accepted and rejected on every model here (measured); a
   differing count would mean a different step-size control, not round-off.

@@ -1,7 +1,7 @@
 """Bounds of MuJoCo's answers derived from their cause, each cause tested.
 
 - Energy error of the fixed-step integrators (slider_crank_split, 0.5 s): from the method's
-  order and step, with the constant measured (PYTHONPATH=$PWD python scripts/mujoco_soft.py
+  order and step, with the constant measured (PYTHONPATH=$PWD python benchmarks/mujoco_soft.py
   energy; docs/engines/mujoco.md).
 - Exact answers of the light-body models: MuJoCo rejects massless bodies and zero principal
   inertias, so Exercise 6.4's slender bar gets an axial inertia of LIGHT m l^2; the reference

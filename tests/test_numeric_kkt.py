@@ -5,7 +5,7 @@ generated M, A, f, b per state with reference.numeric.redundant. Checked against
 answer (crosscheck.engines.mujoco.mjcf_rigid) at TOL_MJCF of tests/test_user_models.py: 1e-9
 relative, the suite's bar for MJCF files (measured: 6e-15 at these states for N = 5, printed by
 `python -m crosscheck.engines.mujoco.mjcf_rigid FILE`; 1.9e-14 at the parallelogram states of
-docs/scaling.md).
+benchmarks/scaling.md).
 """
 
 from __future__ import annotations

@@ -128,7 +128,7 @@ def test_projection_runs_after_every_accepted_step():
     after each step skipped but the output points still projected (dense_state), every
     recorded state lies on the manifold and `crosscheck run pendulum_xy slider_crank` passes
     (reference state error 9.5e-12 and 3.2e-12, drift 5.8e-15 and 5.6e-15 over 5 s,
-    docs/validation_power.md); the integrator's own count of projections shows it."""
+    docs/checks.md); the integrator's own count of projections shows it."""
     from crosscheck.checks.trajectory.check import REF_RTOL
     from reference import NumericModel
     from reference.integrate.driver import simulate

@@ -109,7 +109,7 @@ def _model_forward_records(name, quick, engines) -> list[dict]:
     recs: list[dict] = []
     # single-state calls (the reference's and each engine's) are timed together at the end,
     # in interleaved rounds: their ratios are the targets, and back-to-back timings on this
-    # shared machine moved them 2x between paths of one run (docs/compiled.md)
+    # shared machine moved them 2x between paths of one run (benchmarks/reference_speed.md)
     pending: dict = {}
 
     def rec(path, batch, t):

@@ -1,5 +1,5 @@
 """The compiled stepper against the Python stepper, timed in one process (bench.json
-"stepper"; docs/compiled.md "The compiled stepper").
+"stepper"; benchmarks/reference_speed.md "The compiled stepper").
 
 One record per model x method x outputs: simulate() over the model's work-precision horizon at
 rtol = atol RTOL, on the Python stepper and on the C one (reference.integrate.compiled), in

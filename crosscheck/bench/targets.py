@@ -264,12 +264,12 @@ def _target_engine(exact: bool) -> str | None:
 
 
 # Where the reference's single-state forward call spends its time, per backend (the record's
-# explanation; measured in docs/compiled.md)
+# explanation; measured in benchmarks/reference_speed.md)
 FORWARD_COST = {
     "c": "the generated KKT solve compiled to C: one METH_FASTCALL-style call per state "
     "(argument checks in C, about 0.1-0.2 us) plus the straight-line arithmetic; the checked "
     "call adds the output arrays and the Forward record, built in the same C call "
-    "(docs/compiled.md)",
+    "(benchmarks/reference_speed.md)",
     "python": "the generated forward is straight-line Python on floats: its cost is the "
     "interpreter's ~20-40 ns per arithmetic operation times the operation count of the "
     "generated KKT solve; the checked call adds state validation and numpy conversion of the "

@@ -103,8 +103,8 @@ RUN_BOUND_S = {True: 10.0, False: 60.0}  # max_wall_s of one reference run (quic
 # the reference's timed runs integrate the motion only, as the engines' do (no engine integrates
 # the work of its loads): the work integral W, where the model needs it for its energy check,
 # comes from an untimed run (reference_records). Carrying W made the slider-crank's projection
-# run at rtol 1e-10 1.3-1.5x slower (bench.json skips.energy_bookkeeping,
-# ratio_wall_work_over_none; docs/compiled.md "Work-precision")
+# run at rtol 1e-10 1.32x slower at least (bench.json skips.energy_bookkeeping,
+# ratio_wall_work_over_none; benchmarks/reference_speed.md "`crosscheck bench`")
 TIMED_ENERGY = "none"
 
 

@@ -16,7 +16,8 @@ test keeps the TypedDicts below and the schema in agreement, field by field.
 
 # no `from __future__ import annotations` here: Python 3.11 reads NotRequired from a TypedDict's
 # evaluated annotations only (with string annotations every key would count as required)
-from typing import Literal, NotRequired, TypedDict, Unpack
+from collections.abc import Mapping
+from typing import Any, Literal, NotRequired, TypedDict, Unpack, cast
 
 import numpy as np
 
@@ -157,7 +158,7 @@ class Results(TypedDict):
 DETAIL_FIELDS = frozenset(Details.__optional_keys__)
 
 
-def _check_details(details: dict) -> None:
+def _check_details(details: Mapping[str, object]) -> None:
     unknown = sorted(set(details) - DETAIL_FIELDS)
     if unknown:
         raise TypeError(
@@ -210,7 +211,7 @@ def record(
         A detail field that is not declared in Details.
     """
     _check_details(details)
-    base = {
+    base: dict[str, Any] = {
         "model": model,
         "formulation": formulation,
         "engine": engine,
@@ -218,26 +219,18 @@ def record(
         "quantity": quantity,
     }
     if tolerance is None:
-        return {  # type: ignore[return-value]
-            **base,
-            "error": None,
-            "tolerance": None,
-            "passed": None,
-            "skipped": True,
-            "reason": reason,
-            **details,
-        }
+        base |= {"error": None, "tolerance": None, "passed": None, "skipped": True}
+        return cast(Record, base | {"reason": reason} | dict(details))
     passed = bool(error is not None and np.isfinite(error) and error <= tolerance.value)
-    return {  # type: ignore[return-value]
-        **base,
+    base |= {
         "error": None if error is None else float(error),
         "tolerance": tolerance.value,
         "passed": passed,
         "skipped": False,
         "reason": reason or tolerance.reason,
         "metric": metric,
-        **details,
     }
+    return cast(Record, base | dict(details))
 
 
 def annotated(rec: Record, **details: Unpack[Details]) -> Record:
@@ -249,18 +242,19 @@ def annotated(rec: Record, **details: Unpack[Details]) -> Record:
         A detail field that is not declared in Details.
     """
     _check_details(details)
-    return {**rec, **details}  # type: ignore[typeddict-item]
+    return cast(Record, dict(rec) | dict(details))
 
 
 def reported(rec: Record, reason: str) -> Record:
     """A judged record turned into a reported one: its measured error and metric kept, not
     judged (skipped, passed None), the tolerance it was held to kept as judged_tolerance, with
     the reason it is not judged."""
-    return {
-        **rec,
+    out: dict[str, Any] = dict(rec)
+    out |= {
         "judged_tolerance": rec["tolerance"],
         "tolerance": None,
         "passed": None,
         "skipped": True,
         "reason": reason,
-    }  # type: ignore[typeddict-item]
+    }
+    return cast(Record, out)

@@ -29,7 +29,7 @@ EXACT_KKT = Tolerance(
     1e-11,
     "an exact answer in the engine (a tree or an unconstrained model, Pinocchio's KKT "
     "solve, or its proximal iterations converged to 1e-12) against the reference's: both "
-    "round-off limited (~1e-14 of the largest term); 1e-11 is the issue's bound and "
+    "round-off limited (~1e-14 of the largest term); 1e-11 is the suite's bound and "
     "leaves room for the ~1e-12 amplification by small axial inertias (Example 4) and "
     "MuJoCo's 1e-12 light bodies",
 )
@@ -55,7 +55,7 @@ SOFT_PREDICTION = Tolerance(
     "constraint solution (crosscheck/engines/mujoco/soft_prediction.py): they differ by "
     "where MuJoCo's soft solve stops (<= 8.6e-10 scaled), so the judged ratio was <= "
     "8.6e-6 over 200 states of every MuJoCo model with soft rows (PYTHONPATH=$PWD python "
-    "scripts/mujoco_soft.py predict 200, docs/engines/mujoco.md); 1e-4 "
+    "benchmarks/mujoco_soft.py predict 200, docs/engines/mujoco.md); 1e-4 "
     "leaves 11x, and a 0.1 % mass error (a miss ~1e-4 of the answer) fails",
 )
 # Below this predicted (scaled) soft error the solver floor (<= 8.6e-10 measured) is not small
@@ -87,7 +87,7 @@ def soft_prediction(raw_value, reference, predicted_error) -> tuple[float, float
 RIGID_RECOVERY = Tolerance(
     1e-9,
     "rigid answer recovered from MuJoCo's own output (f + A^-1 R f): exact up to the "
-    "conditioning of A = J M^-1 J^T (issue bound)",
+    "conditioning of A = J M^-1 J^T (the suite's bound for recovered answers)",
 )
 
 

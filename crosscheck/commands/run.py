@@ -1,8 +1,9 @@
 """`crosscheck run`: the reference against every engine, stage by stage, then in time (the
 checks: crosscheck/run/checks.py).
 
-Writes DIR/results.json = {"meta": {...}, "records": [...]} (see crosscheck.checks.tolerances for
-the record fields). Exit 0 when every executed record passes, 1 when any fails, 2 on usage errors.
+Writes DIR/results.json (its schema: crosscheck/schema/results.schema.json, docs/results.md)
+and the report beside it. Exit 0 when every executed record passes, 1 when any fails, 2 on
+usage errors.
 `--perturb ENGINE:PARAM=REL` changes one parameter of one engine's model by a relative amount
 (fault injection: a run with mujoco:m2=1e-6 on the slider-crank must fail).
 
@@ -32,7 +33,7 @@ class _Quiet(argparse.ArgumentParser):
 def start_workers_early(argv: list[str]) -> None:
     """Start the workers' server of a `crosscheck run` that will hand its models to workers,
     before the command line imports the models and engines (about 1 s, which the server
-    imports too): the server's own imports (about 2 s) then run on the other core from the
+    imports too): the server's own imports (0.9-1.5 s) then run on the other core from the
     start. `argv` follows "run". Nothing starts here for a run that will not use workers (one
     model named, `--jobs 1`, one core), a --model-file run without names (how many models is
     not known yet), a request for help, or input the command will refuse: an argument the

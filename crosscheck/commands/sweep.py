@@ -1,69 +1,7 @@
 """`crosscheck sweep`: seeded random campaigns of the instantaneous cross-checks, at scale.
 
-    crosscheck sweep MODEL [...] --samples N --seed S [--index I] [--engines pinocchio,mujoco]
-                     [--workers K | --dask ADDRESS] [--chunk C] [--max-seconds T]
-                     [--perturb ENGINE:PARAM=REL] [--formulation F] [--worst K] [--out DIR]
-    crosscheck sweep [MODEL ...] --bench --samples N [--out DIR]   # throughput -> sweep_bench.json
-    crosscheck sweep --resume DIR [--workers K | --dask ADDRESS]   # finish an interrupted one
-
-Samples. Sample i of model M (i = I .. I+N-1) is one random parameter set, one time t and one
-consistent state, drawn by crosscheck.checks.sampling (the property tests' generator) from a numpy
-Generator seeded with sampling.sample_seed(S, M, i): its randomness depends on (S, M, i) only,
-never on the worker that ran it, the chunking, the executor or the other models.
-
-Checks. For every sample and every engine variant, the instantaneous cross-checks of
-`crosscheck run` (crosscheck.checks.instantaneous.compare_at_state, the one comparison path; the
-same metrics and named tolerances): state map, mass matrix (where the coordinates map one to one),
-energy, accelerations and multipliers; for MuJoCo models with equality rows, the rigid answer
-recovered from its soft output is held to RIGID_RECOVERY, its raw soft answer is reported as
-`*_soft_error` (no tolerance: MuJoCo's softness) and judged against the error its impedance predicts
-(`*_soft_vs_predicted`, SOFT_PREDICTION). The reference is evaluated for all samples of a chunk in
-one batched call of its compiled code, with per-sample parameter arrays.
-
-Output: DIR/sweep.json = {"meta" (command, versions, machine, seed, sampler, seeding, executor),
-"status" (complete, stopped, completed sample ranges per model, outside_tolerance, faults, verdict,
-passed: true only for a complete campaign with nothing failed), "series" (per model x engine x
-variant: evaluated, faults, or why it is not run), "results" (per model x engine x variant x
-quantity: tolerance and its reason, count, max, mean, quantiles, a log10 histogram,
-outside_tolerance, the worst cases), "faults" (groups with counts, the first FAULTS_KEPT records per
-group), "timing" (where the time went; the only
-part that is not deterministic, with "meta")}. A worst case carries its sample index, sample
-seed, parameters and state, and the command lines that reproduce it exactly:
-    crosscheck sweep M --seed S --index i --samples 1 --engines E --workers 1 --out DIR
-(the same error, bit for bit) and `crosscheck eval M --set ... --q=... --u=... --t ...` (the
-reference's accelerations and multipliers at that case, to round-off of the scalar path).
-Faults (a draw whose projection fails, a singular reference, an engine that raises while
-building or evaluating) are recorded per sample with the stage, the exception and its message;
-the campaign goes on. An interrupted campaign (Ctrl-C, or --max-seconds) writes what it
-completed, as sample-index ranges per model, and says why it stopped; every finished chunk is
-also kept in DIR/sweep.chunks (crosscheck.sweep.store), and `--resume DIR` computes only the
-samples no stored chunk covers, ending with the sweep.json of an uninterrupted run (meta and
-timing aside). A Dask worker lost mid-campaign costs only the rerun of its tasks (the scheduler
-reschedules them; the results do not depend on where a chunk ran).
-
-Execution: local worker processes by default (all cores; ProcessPoolExecutor, chunks of at most
-LOCAL_CHUNK_MAX samples), in-process with --workers 1, or a Dask distributed cluster with
---dask ADDRESS (chunks of at least DASK_MIN_CHUNK samples; `--dask local:K` starts a local
-cluster of K one-thread worker processes). The aggregate is independent of the executor and the
-chunking. Per worker, the compiled reference code and the engine adapters are built once (a
-module-level cache); the engine MODEL depends on the parameters, so it is built per sample, and
-the time that takes is recorded (timing.per_series.build_s; see the benchmark).
-On a Dask cluster the workers need this package (same versions) importable, and write their
-compiled reference code to their own cache directory on first use; results are bit-identical
-when the workers' numpy/libm give the same floating-point results as the local machine (same
-builds); --max-seconds compares wall clocks (time.time) on the workers; one-thread workers
-(`dask worker --nthreads 1 --nworkers K`) suit this Python-bound work. The parent keeps every
-error value (8 bytes per sample per quantity, ~20 quantities per model) to give exact quantiles:
-10^6 samples of one model is ~160 MB, so run models one at a time at that scale.
-
-Exit status: 0 when the campaign completed with every sample within every tolerance and nothing
-faulted (status.verdict "passed"), 1 when a sample is outside a tolerance or faulted ("failed"),
-4 when it stopped early (--max-seconds) with nothing failed in what it ran ("incomplete": not
-passed), 2 on bad input (one line), 130 when interrupted (after writing sweep.json, whose
-status.passed is then false).
-
-The campaign's machinery is crosscheck.sweep; this module is the command line.
-"""
+What a campaign samples, checks and writes, its executors, resume and exit status: docs/cli.md,
+"sweep". The campaign's machinery is crosscheck.sweep; this module is the command line."""
 
 from __future__ import annotations
 

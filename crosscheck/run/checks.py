@@ -53,7 +53,7 @@ def _formulation_records(name, nm, states):
     )
     for other in model.formulations[1:]:
         # the Python path: evaluated at a handful of states here, where a C build would take
-        # 1-2 s of compiler time per formulation (scripts/c_build_times.py); it equals the
+        # 1-2 s of compiler time per formulation (benchmarks/c_build_times.py); it equals the
         # compiled path to the bit or within 1e-14 (tests/test_compiled.py)
         on = NumericModel(model, other, nm.params, backend="python")
         acc, lam = C.WorstCase(), C.WorstCase()

@@ -165,7 +165,7 @@ def run_models(
 class _Meanwhile:
     """`work()` on a thread of its own from before the hand-out: the first submit waits for
     the workers' server to finish its imports (about 1 s after this process has finished its
-    own; docs/compiled.md), and `work` runs in that wait on the core the workers do not use
+    own; benchmarks/run_time.md), and `work` runs in that wait on the core the workers do not use
     yet, not beside them. A daemon thread: Ctrl-C does not wait for it."""
 
     def __init__(self, work):

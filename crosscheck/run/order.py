@@ -1,10 +1,10 @@
 """The order in which `crosscheck run --jobs N` hands its models to the workers: longest first.
 
 A run ends when its last model does. Handed out in the models' order, a long model that comes
-late (double_pendulum_3d, 7.7 s of a 27 s two-worker run with every engine) starts when the
+late (double_pendulum_3d, 5.9 s of a 34 s two-worker run with every engine) starts when the
 other worker has little left, and that worker then waits for it. Handing out the longest
 first (Graham's LPT rule) ends it within 7/6 of the best order's time on two workers, given
-the times (docs/compiled.md, "Longest model first" has the figures).
+the times (benchmarks/run_time.md, "Where a warm run's time goes", has the figures).
 
 A model's time is the one the last run with the same settings measured (engines, states,
 trajectories and their horizon), kept beside the derivation cache. A model without a time

@@ -72,8 +72,8 @@ def start_server() -> None:
     group) cannot break the server's imports (a traceback in the terminal), and the workers
     it forks ignore it from their first instruction (they inherit the server's setting).
     The parent ignores SIGINT only for the fork and exec, a few milliseconds. Called early
-    (crosscheck run), the server's imports (2-3 s with the engines, docs/compiled.md "The warm
-    run's own overheads") run on another core while this process does its own."""
+    (crosscheck run), the server's imports (0.9-1.5 s with the engines, benchmarks/run_time.md
+    "Before the first model") run on another core while this process does its own."""
     from multiprocessing import forkserver
 
     if threading.current_thread() is not threading.main_thread():

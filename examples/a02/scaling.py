@@ -22,7 +22,7 @@ Rows of other N already in --out are kept.
     PYTHONPATH=$PWD python examples/a02/scaling.py                 # N = 1 2 5 10 20 40
     PYTHONPATH=$PWD python examples/a02/scaling.py --n 1,2 --out /tmp/s.json
 
-Figures: docs/scaling.md. A state's accelerations all vanish at the release pose (the cranks
+Figures: benchmarks/scaling.md. A state's accelerations all vanish at the release pose (the cranks
 upright), so the per-state errors are taken at random states as well.
 """
 

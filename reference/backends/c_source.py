@@ -1,8 +1,8 @@
 """C source of the generated code: the same expressions as reference.backends.codegen's
 Python module, printed as C functions that a C compiler builds into a CPython extension.
 
-Why C: a CPython METH_FASTCALL function costs about 0.25 us to call, where a numba kernel,
-the compiled backend before it, cost about 0.6 us before any arithmetic, and gcc builds a
+Why C: a CPython METH_FASTCALL function costs about 0.12 us to call, where a numba kernel,
+the compiled backend before it, cost about 0.20 us before any arithmetic, and gcc builds a
 model's straight-line code in about a second where numba's type inference took 10-20 s
 (benchmarks/reference_speed.md, "Why C"). The expressions are printed from the same ast the
 Python path runs, operation for operation and in the same order (every binary operation

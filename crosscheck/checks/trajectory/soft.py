@@ -35,7 +35,7 @@ SOFT_EFFECT_SLACK = 6.0  # |soft effect at tc| <= 6 x correction for any order >
 SOFT_DRIFT = C.Tolerance(
     1e-5,
     "MuJoCo's soft constraints settle at a violation set by solref (time constant "
-    "0.02 s): measured 5e-7..2.2e-6 here, docs/engines/mujoco.md",
+    "0.02 s): measured 3.7e-7..2.2e-6 here, docs/engines/mujoco.md",
 )
 SOFT_VELOCITY_DRIFT = C.Tolerance(
     1e-3,

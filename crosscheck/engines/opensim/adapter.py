@@ -75,7 +75,7 @@ _UNSUPPORTED = {
 # kg m^2 against ~0.08 transverse). The contract's tolerance is per model, so the model gets
 # 1e-10: 5x the tree's measured worst, ~1e3x below the 1e-7 effect of a 1e-6 parameter fault.
 # Measured by tests/test_engine_opensim.py::test_double_pendulum_floor and
-# scripts/opensim_agreement.py.
+# benchmarks/opensim_agreement.py.
 OPENSIM_DOUBLE_PENDULUM = Tolerance(
     1e-10,
     "OpenSim's answer on the 3-D double pendulum: in the ball-joint tree variant the "
