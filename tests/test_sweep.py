@@ -265,6 +265,24 @@ def test_worst_case_reproduces_bit_for_bit(tmp_path, capsys):
     assert np.allclose(d["multipliers"], LAM[0], rtol=1e-13, atol=1e-13)
 
 
+def test_seed_5_sample_1131_reads_back_the_same_state(tmp_path, capsys):
+    """The 3-D double pendulum's theta22 = -0.034 there comes back on the other 3-1-3 branch
+    (theta21 + pi, 0.034, theta23 - pi) in every engine: state_map read 1.69, and it is the
+    same state (tests/test_state_map.py), so the sample passes."""
+    from crosscheck.checks.tolerances import STATE_MAP
+    from crosscheck.engines.registry import available_engines, get_engine
+
+    engines = [e for e in available_engines() if "double_pendulum_3d" in get_engine(e).models()]
+    argv = ["sweep", "double_pendulum_3d", "--seed", "5", "--index", "1131", "--samples", "1"]
+    argv += ["--engines", ",".join(engines), "--workers", "1", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    assert "1 of 1 samples, 0 outside tolerance, 0 faults" in capsys.readouterr().out
+    res = json.loads((tmp_path / "sweep.json").read_text())
+    maps = [r for r in res["results"] if r["quantity"] == "state_map"]
+    assert {r["engine"] for r in maps} == set(engines)
+    assert all(r["count"] == 1 and r["max"] <= STATE_MAP.value for r in maps)
+
+
 # ---- faults survive -------------------------------------------------------------------------
 class _FlakyModel:
     def __init__(self, em):
