@@ -161,6 +161,30 @@ def as_floats(v):
 
 
 # ---- small dense linear algebra ------------------------------------------------------------
+def direction_reversed(C: np.ndarray) -> np.ndarray:
+    """The rank monitor's test on C = A_k A_(k-1)^T (one m x m matrix or a stack): True where
+    an eigenvalue of C has a negative real part, i.e. a row direction of A reversed in the step.
+
+    Up to terms of second order in the turn of A's singular vectors over the step, the
+    eigenvalues of C are the products s_i(k) s_i(k-1) of A's signed singular values, so each
+    singular value that passed through zero gives one negative eigenvalue. det(C) < 0 sees
+    only an odd number of them: the IFToMM A02 chain of N cells loses N ranks at once when it
+    lies flat, and for even N the signs cancel. Every reversal det(C) sees, this sees (a
+    negative determinant needs a negative real eigenvalue); a subspace of rows turning by more
+    than 90 degrees in one step also reads as a reversal, as one row's dot product does.
+
+    Cost: Re(lambda) |x|^2 = x^H (C + C^T) x / 2 for an eigenpair, so where C + C^T is
+    positive definite (one Cholesky factorization, as cheap as the determinant) no eigenvalue
+    is in the left half-plane. C + C^T = 2 A A^T - O(h^2) fails that only where a singular
+    value of A is as small as its change over the step, near a singular pose: only there are
+    the eigenvalues computed."""
+    try:
+        np.linalg.cholesky(C + np.swapaxes(C, -1, -2))
+    except np.linalg.LinAlgError:
+        return np.linalg.eigvals(C).real.min(axis=-1) < 0.0
+    return np.zeros(C.shape[:-2], bool)
+
+
 def min_norm_correction(
     J: list[float], rows: int, cols: int, r: list[float], redundant: bool = False
 ) -> list[float]:

@@ -36,6 +36,7 @@ from reference.integrate.common import (
     PROJECTION_FAIL,
     PROJECTION_MAX_ITER,
     PROJECTION_TOL,
+    direction_reversed,
 )
 
 # the simulate(stepper=...) values; CROSSCHECK_STEPPER sets the default
@@ -177,8 +178,9 @@ def _record(run, outputs, nfev, nsteps, pmin) -> None:
 
 
 def _monitor(run, T, Q) -> None:
-    """integrate._Run._orientation over the recorded states: det(A_k A_k-1^T) < 0 between two
-    accepted steps, with every A from one batched call of the position Jacobian."""
+    """integrate._Run._orientation over the recorded states: a row direction of A reversed
+    between two accepted steps (common.direction_reversed), with every A from one batched call
+    of the position Jacobian."""
     prob, nm = run.prob, run.nm
     mc, nq, N = prob.mc, prob.nq, len(T)
     if not mc or not N:
@@ -195,15 +197,15 @@ def _monitor(run, T, Q) -> None:
         out,
         st,
     )
-    if (st != 0).any():  # a Jacobian that is not finite: the state-by-state monitor
-        for t, q in zip(T, Q, strict=True):
-            run._orientation(float(t), np.concatenate([q, np.zeros(nm.n)]))
-        return
     A = out[:, : mc * nq].reshape(N, mc, nq)
     prev = np.asarray(run.A_last, float).reshape(1, mc, nq)
     both = np.concatenate([prev, A])
-    d = np.linalg.det(np.einsum("kij,klj->kil", both[1:], both[:-1]))
-    run.rank_crossings.extend(float(t) for t in T[d < 0.0])
+    C = np.einsum("kij,klj->kil", both[1:], both[:-1])
+    if (st != 0).any() or not np.isfinite(C).all():  # not finite: the state-by-state monitor
+        for t, q in zip(T, Q, strict=True):
+            run._orientation(float(t), np.concatenate([q, np.zeros(nm.n)]))
+        return
+    run.rank_crossings.extend(float(t) for t in T[direction_reversed(C)])
     run.A_last = A[-1].ravel()
 
 

@@ -105,6 +105,7 @@ from reference.integrate.common import (  # noqa: F401 - re-exported
     IntegrationTimeout,
     Trajectory,
     consistent_initial_state,
+    direction_reversed,
 )
 from reference.integrate.index1 import Baumgarte, Index1
 from reference.integrate.nullspace import Nullspace
@@ -320,10 +321,11 @@ class _Run:
         )
 
     def _orientation(self, t, y):
-        """Rank-loss monitor: det(A_k A_{k-1}^T) < 0 between two accepted steps means a singular
-        value of the configuration Jacobian A passed through zero (a row direction reversed):
-        the step crossed a pose where A loses rank, whatever the KKT pivots sampled on the way.
-        One Jacobian evaluation per accepted step (the RHS costs several per step)."""
+        """Rank-loss monitor: an eigenvalue of A_k A_{k-1}^T with a negative real part between
+        two accepted steps means a singular value of the configuration Jacobian A passed through
+        zero (a row direction reversed; common.direction_reversed, which also counts two at
+        once): the step crossed a pose where A loses rank, whatever the KKT pivots sampled on
+        the way. One Jacobian evaluation per accepted step (the RHS costs several per step)."""
         prob = self.prob
         if not prob.mc:
             return
@@ -332,12 +334,16 @@ class _Run:
             A = self._independent_rows(A)
         last = self.A_last
         if last is not None:
-            if len(A) == prob.nq:  # one row: the determinant is the dot product
-                d = float(np.dot(A, last))
+            if len(A) == prob.nq:  # one row: C is the dot product
+                crossed = float(np.dot(A, last)) < 0.0
             else:
                 Ak = np.asarray(A, float).reshape(-1, prob.nq)
-                d = np.linalg.det(Ak @ np.asarray(last, float).reshape(-1, prob.nq).T)
-            if d < 0.0:
+                C = Ak @ np.asarray(last, float).reshape(-1, prob.nq).T
+                try:
+                    crossed = bool(direction_reversed(C))
+                except np.linalg.LinAlgError:  # a non-finite A: no verdict, as a NaN dot
+                    crossed = False
+            if crossed:
                 self.rank_crossings.append(float(t))
         self.A_last = A
 
@@ -377,9 +383,9 @@ class _Run:
             stats["rank_crossings_t"] = list(self.rank_crossings)
             warnings.append(
                 f"the constraint Jacobian lost rank between accepted steps at t = "
-                f"{', '.join(f'{t:.6g}' for t in self.rank_crossings)} (det(A_k A_k-1^T) < 0: a "
-                f"row direction reversed): the run crossed a singular pose, where the "
-                f"continuation is not unique"
+                f"{', '.join(f'{t:.6g}' for t in self.rank_crossings)} (an eigenvalue of "
+                f"A_k A_k-1^T with a negative real part: a row direction reversed): the run "
+                f"crossed a singular pose, where the continuation is not unique"
             )
         return Trajectory(
             t=np.array(T),
