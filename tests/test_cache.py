@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 
 from reference import models
 from reference.backends import codegen
@@ -26,33 +24,22 @@ print(repr(nm.forward(nm.model.initial_q, nm.model.initial_u).multipliers[0]))
 """
 
 
-def _run(mode, cache, *extra):
-    env = dict(os.environ, CROSSCHECK_CACHE_DIR=str(cache))
-    return subprocess.run(
-        [sys.executable, "-c", SCRIPT, mode, *extra],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-
-
-def test_second_process_reads_the_cache(tmp_path):
-    first = _run("derive", tmp_path)
+def test_second_process_reads_the_cache(child, fresh_cache):
+    first = child.python(SCRIPT, "derive", timeout=300)
     assert first.returncode == 0, first.stderr
-    assert list(tmp_path.glob("kane-*.py")), "first process wrote no cache entry"
-    second = _run("forbid", tmp_path)
+    assert list(fresh_cache.glob("kane-*.py")), "first process wrote no cache entry"
+    second = child.python(SCRIPT, "forbid", timeout=300)
     assert second.returncode == 0, second.stderr
     assert second.stdout == first.stdout
 
 
-def test_renamed_model_reuses_the_derivation(tmp_path):
+def test_renamed_model_reuses_the_derivation(child, fresh_cache):
     """The name is not physics. A renamed copy of a model (or the same MJCF
     file imported under another name) reads the entry its original wrote: the second process
     refuses to derive and still gives the same multiplier."""
-    first = _run("derive", tmp_path)
+    first = child.python(SCRIPT, "derive", timeout=300)
     assert first.returncode == 0, first.stderr
-    renamed = _run("forbid", tmp_path, "my_renamed_slider_crank")
+    renamed = child.python(SCRIPT, "forbid", "my_renamed_slider_crank", timeout=300)
     assert renamed.returncode == 0, renamed.stderr
     assert renamed.stdout == first.stdout
 
@@ -92,34 +79,20 @@ print(codegen.cache_key(models.get("slider_crank"), "kane"))
 """
 
 
-def _key_and_entries(pkg_root, cache):
+def _key_and_entries(child, pkg_root, cache):
     """The cache key seen by a process that imports `reference` from `pkg_root`, and the cache
     entries that process leaves after building the model once."""
-    env = dict(os.environ, PYTHONPATH=str(pkg_root), CROSSCHECK_CACHE_DIR=str(cache))
-    key = subprocess.run(
-        [sys.executable, "-c", KEY_SCRIPT],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=pkg_root,
-    )
+    env = {"PYTHONPATH": pkg_root}
+    key = child.python(KEY_SCRIPT, env=env, timeout=300, cwd=pkg_root)
     assert key.returncode == 0, key.stderr
     where, key = key.stdout.split()
     assert where.startswith(str(pkg_root)), f"the copy was not imported: {where}"
-    run = subprocess.run(
-        [sys.executable, "-c", SCRIPT, "derive"],
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        cwd=pkg_root,
-    )
+    run = child.python(SCRIPT, "derive", env=env, timeout=300, cwd=pkg_root)
     assert run.returncode == 0, run.stderr
     return key, sorted(p.name for p in cache.glob("kane-*.py"))
 
 
-def test_editing_a_formulation_misses_the_cache(tmp_path):
+def test_editing_a_formulation_misses_the_cache(tmp_path, child, fresh_cache):
     """A warm cache must not hide an edit of the derivation's source. A copy of
     the package with one formulation edited (a comment is enough: the key hashes the files, so
     any edit counts) gets another key, and building the model there derives a new entry."""
@@ -139,9 +112,8 @@ def test_editing_a_formulation_misses_the_cache(tmp_path):
         )
     )
     assert "# edited" in proj.read_text(), "the edit did not apply: the test proves nothing"
-    cache = tmp_path / "cache"
-    key0, entries0 = _key_and_entries(original, cache)
-    key1, entries1 = _key_and_entries(edited, cache)
+    key0, entries0 = _key_and_entries(child, original, fresh_cache)
+    key1, entries1 = _key_and_entries(child, edited, fresh_cache)
     assert key0 != key1
     assert f"{key0}.py" in entries0 and f"{key1}.py" in entries1
     # each derivation leaves its source (key-prefixed): the edited copy adds its own and

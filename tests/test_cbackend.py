@@ -10,8 +10,6 @@ import gc
 import math
 import os
 import shutil
-import subprocess
-import sys
 import weakref
 from pathlib import Path
 
@@ -43,12 +41,11 @@ def test_auto_prefers_c_and_c_without_a_compiler_names_the_fix(monkeypatch, tmp_
         NumericModel(models.get("pendulum_xy"))
 
 
-def test_a_built_module_is_loaded_not_rebuilt(c_backend, monkeypatch, tmp_path):
-    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+def test_a_built_module_is_loaded_not_rebuilt(c_backend, fresh_cache):
     first = NumericModel(models.get("slider_crank"))
     stem = first.cache_path.stem
     assert TIMINGS[stem]["built"] is True
-    (so,) = tmp_path.glob(f"{stem}_c_*.so")
+    (so,) = fresh_cache.glob(f"{stem}_c_*.so")
     before = so.stat().st_mtime_ns
     cbuild._LOADED.clear()  # as a new process would
     again = NumericModel(models.get("slider_crank"))
@@ -57,7 +54,7 @@ def test_a_built_module_is_loaded_not_rebuilt(c_backend, monkeypatch, tmp_path):
     assert np.array_equal(first.forward(q, u).accelerations, again.forward(q, u).accelerations)
 
 
-def test_a_checkout_elsewhere_finds_the_same_built_module(tmp_path):
+def test_a_checkout_elsewhere_finds_the_same_built_module(tmp_path, child):
     """A module's digest holds our headers by content, not the checkout's path: a copy of the
     package in another directory (a git worktree, a CI cache restored elsewhere) names the
     same module, so a shared cache loads it instead of building every module again."""
@@ -71,16 +68,13 @@ def test_a_checkout_elsewhere_finds_the_same_built_module(tmp_path):
         f"assert cbuild.__file__.startswith({str(tmp_path)!r}), cbuild.__file__\n"
         "print(cbuild._target('double f(double x) { return x; }', 's', Path('.'))[1])\n"
     )
-    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    out = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
-    )
+    out = child.python(code, env={"PYTHONPATH": tmp_path}, check=True)
     here = cbuild._target("double f(double x) { return x; }", "s", tmp_path)
     assert out.stdout.strip() == here[1]
     assert f"-I{os.path.dirname(cbuild.__file__)}" in here[2]  # the compiler still finds them
 
 
-def test_two_processes_building_the_same_module_at_once_both_get_it(tmp_path):
+def test_two_processes_building_the_same_module_at_once_both_get_it(child, fresh_cache):
     """Each process compiles its own source and object file and renames the object into
     place: neither reads a file the other is writing."""
     code = (
@@ -90,36 +84,32 @@ def test_two_processes_building_the_same_module_at_once_both_get_it(tmp_path):
         "assert nm.backend == 'c', nm.backend\n"
         "print(nm.forward(np.array(nm.model.initial_q), np.array(nm.model.initial_u)))\n"
     )
-    env = {**os.environ, "CROSSCHECK_CACHE_DIR": str(tmp_path), "CROSSCHECK_BACKEND": "c"}
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
-    procs = [
-        subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, text=True)
-        for _ in range(2)
-    ]
-    outs = [p.communicate(timeout=600)[0] for p in procs]
+    procs = [child.start("-c", code, env={"CROSSCHECK_BACKEND": "c"}) for _ in range(2)]
+    outs = []
+    for p in procs:
+        with p:
+            outs.append(p.communicate(timeout=600)[0])
     assert [p.returncode for p in procs] == [0, 0] and outs[0] == outs[1]
-    assert len(list(tmp_path.glob("*_c_*.so"))) == 1
-    assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob("*_c_*.*.c"))
+    assert len(list(fresh_cache.glob("*_c_*.so"))) == 1
+    assert not list(fresh_cache.glob("*.tmp")) and not list(fresh_cache.glob("*_c_*.*.c"))
 
 
-def test_prebuild_compiles_ahead_and_each_model_takes_its_module(c_backend, monkeypatch, tmp_path):
-    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
+def test_prebuild_compiles_ahead_and_each_model_takes_its_module(c_backend, fresh_cache):
     cbuild._LOADED.clear()
     model = models.get("slider_crank")
     select.prebuild_model(model)
     built = [NumericModel(model, f) for f in model.formulations]
     assert all(nm.backend == "c" for nm in built)
-    assert len(list(tmp_path.glob("*_c_*.so"))) == len({nm.source for nm in built})
-    assert not list(tmp_path.glob("*.tmp"))
-    assert not [t for t in cbuild._IN_FLIGHT if t.parent == tmp_path]  # each one taken
+    assert len(list(fresh_cache.glob("*_c_*.so"))) == len({nm.source for nm in built})
+    assert not list(fresh_cache.glob("*.tmp"))
+    assert not [t for t in cbuild._IN_FLIGHT if t.parent == fresh_cache]  # each one taken
     q, u = np.array(model.initial_q, float), np.array(model.initial_u, float)
     a, b = built[0].forward(q, u), built[-1].forward(q, u)
     assert np.allclose(a.accelerations, b.accelerations, rtol=1e-11, atol=1e-11)
 
 
 def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_the_python_path(
-    c_backend, monkeypatch, tmp_path, capsys
+    c_backend, monkeypatch, tmp_path, capsys, fresh_cache
 ):
     """Fault injection: a 'compiler' that answers --version and rejects every module. Each
     module runs on the Python path, and stderr says so in one line per module."""
@@ -130,7 +120,6 @@ def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_the_python_path
     )
     cc.chmod(0o755)
     monkeypatch.setenv("CROSSCHECK_CC", str(cc))
-    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path / "cache"))
     cbuild._LOADED.clear()
     model = models.get("pendulum_xy")
     select.prebuild_model(model)
@@ -143,7 +132,9 @@ def test_a_compiler_that_fails_in_a_prebuild_leaves_the_model_on_the_python_path
         assert line.startswith(f"crosscheck: {stem} runs on the Python path"), line
 
 
-def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypatch, tmp_path):
+def test_a_compiler_without_openmp_still_builds_every_module(
+    c_backend, monkeypatch, tmp_path, fresh_cache
+):
     """Fault injection: gcc refusing -fopenmp, as Apple's clang does. The probe finds it once,
     the modules build without it (the batch loops serial) and the answers are the same."""
     gcc = shutil.which("gcc") or shutil.which("cc")
@@ -157,7 +148,6 @@ def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypa
     )
     cc.chmod(0o755)
     monkeypatch.setenv("CROSSCHECK_CC", str(cc))
-    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path / "cache"))
     cbuild._openmp.cache_clear()
     cbuild._LOADED.clear()
     try:
@@ -176,10 +166,9 @@ def test_a_compiler_without_openmp_still_builds_every_module(c_backend, monkeypa
 
 
 def test_a_model_the_printer_cannot_translate_takes_the_python_path(
-    c_backend, monkeypatch, tmp_path
+    c_backend, monkeypatch, fresh_cache
 ):
     """Fault injection: a printer without sqrt refuses every model's forward (its Cholesky)."""
-    monkeypatch.setenv("CROSSCHECK_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(ckernels, "_FUNCTIONS", ckernels._FUNCTIONS - {"sqrt"})
     cbuild._LOADED.clear()
     nm = NumericModel(models.get("pendulum_xy"))

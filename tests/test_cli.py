@@ -206,62 +206,32 @@ def test_default_paths_resolve_in_the_tests_own_directory(tmp_path, capsys):
     assert code == 2 and "out/results.json does not exist" in err
 
 
-def test_the_program_leaves_without_teardown_and_loses_no_output(tmp_path):
-    """The `crosscheck` program skips the interpreter's teardown (cli._leave): what it printed
+def test_the_program_loses_no_output_and_exits_with_the_commands_status(tmp_path, child):
+    """The `crosscheck` program (gc frozen before the interpreter's teardown): what it printed
     into a pipe (block-buffered) arrives whole, and its exit status is the command's."""
-    import os
-    import subprocess
-    import sys
-
-    env = dict(os.environ, CROSSCHECK_CACHE_DIR=str(tmp_path))
-    ok = subprocess.run(
-        [sys.executable, "-m", "crosscheck", "models", "--json"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+    ok = child.crosscheck("models", "--json", timeout=120)
     assert ok.returncode == 0, ok.stderr
     assert "pendulum_angle" in {m["name"] for m in json.loads(ok.stdout)}
-    bad = subprocess.run(
-        [sys.executable, "-m", "crosscheck", "run", "no_such_model", "--out", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+    bad = child.crosscheck("run", "no_such_model", "--out", tmp_path, timeout=120)
     assert bad.returncode == 2 and "unknown model 'no_such_model'" in bad.stderr
 
 
-def test_a_profiled_program_still_writes_its_profile(tmp_path):
-    """Under `python -m cProfile -o F -m crosscheck` (the profiling command benchmarks/run_time.md
-    gives) the program exits normally, so the profiler writes F."""
-    import os
+def test_a_profiled_program_still_writes_its_profile(tmp_path, child):
+    """Under `python -m cProfile -o F -m crosscheck` (the profiling command of
+    benchmarks/run_time.md) the program exits normally, so the profiler writes F."""
     import pstats
-    import subprocess
-    import sys
 
     prof = tmp_path / "models.prof"
-    r = subprocess.run(
-        [sys.executable, "-m", "cProfile", "-o", str(prof), "-m", "crosscheck", "models"],
-        capture_output=True,
-        text=True,
-        env=dict(os.environ, CROSSCHECK_CACHE_DIR=str(tmp_path)),
-        timeout=120,
-    )
+    r = child.run("-m", "cProfile", "-o", prof, "-m", "crosscheck", "models", timeout=120)
     assert r.returncode == 0, r.stderr
     assert pstats.Stats(str(prof)).total_calls > 0
 
 
 @pytest.mark.parametrize(("setting", "rendering"), [(None, False), ("glfw", True)])
-def test_the_program_imports_mujoco_without_its_rendering(setting, rendering):
+def test_the_program_imports_mujoco_without_its_rendering(setting, rendering, child):
     """The `crosscheck` program sets MUJOCO_GL=disable unless the user set it: no command
     renders, and MuJoCo's OpenGL code brings the glfw package, which starts a Python process
     of its own at import. `crosscheck engines` imports every engine."""
-    import os
-    import subprocess
-    import sys
-
     probe = (
         "import sys, atexit\n"
         "atexit.register(lambda: print('mujoco' in sys.modules, 'glfw' in sys.modules))\n"
@@ -269,11 +239,42 @@ def test_the_program_imports_mujoco_without_its_rendering(setting, rendering):
         "from crosscheck.cli import main\n"
         "main()\n"
     )
-    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
-    if setting:
-        env["MUJOCO_GL"] = setting
-    r = subprocess.run(
-        [sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120
-    )
+    r = child.python(probe, env={"MUJOCO_GL": setting}, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split()[-2:] == ["True", str(rendering)]
+
+
+def test_engines_lists_every_registered_engine_with_what_it_can_do(capsys):
+    from crosscheck.engines.registry import available_engines
+
+    code, out, err = _run(capsys, "engines", "--json")
+    assert code == 0, err
+    listed = {e["name"]: e for e in json.loads(out)}
+    assert set(available_engines()) <= set(listed)
+    for name in available_engines():
+        assert listed[name]["imports"] is True and listed[name]["version"], listed[name]
+        assert listed[name]["models"], listed[name]
+        assert {"multipliers", "exact", "integrators"} <= set(listed[name]["capabilities"])
+
+
+def test_python_dash_m_crosscheck_is_the_program(capsys, monkeypatch):
+    """`python -m crosscheck` runs crosscheck.cli.main and exits with its status."""
+    import runpy
+    import sys
+
+    monkeypatch.setattr(sys, "argv", ["crosscheck", "eval", "no_such_model"])
+    with pytest.raises(SystemExit) as exc:
+        runpy.run_module("crosscheck", run_name="__main__")
+    assert exc.value.code == 2 and "unknown model 'no_such_model'" in capsys.readouterr().err
+
+
+def test_sweep_bench_measures_throughput_in_process(tmp_path, capsys):
+    """`crosscheck sweep --bench` with a few samples: the throughput file is written with a
+    figure per stage and the machine's own scaling."""
+    code, out, err = _run(
+        capsys, "sweep", "pendulum_angle", "--bench", "--samples", "20", "--out", str(tmp_path)
+    )
+    assert code == 0, err
+    bench = json.loads((tmp_path / "sweep_bench.json").read_text())
+    assert {"per_model_engine", "scaling", "machine_scaling"} <= set(bench)
+    assert bench["per_model_engine"] and "sweep_bench.json" in out

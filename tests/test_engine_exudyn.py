@@ -381,3 +381,16 @@ def test_angles_read_with_atan2_are_continuous_along_a_trajectory():
     assert np.allclose(np.diff(out[:, 0]), [2 * np.pi - 6.1, 0.2])
     shifted = _continuous_angles(wrapped.copy(), np.array([3.0 + 2 * np.pi, 0.1]), (0,))
     assert shifted[0, 0] == pytest.approx(3.0 + 2 * np.pi)
+
+
+def test_measure_prints_the_figures_exudyn_exact_rests_on(capsys):
+    """The measurement EXUDYN_EXACT's reason cites, on two states: the extrapolated answer is
+    within the tolerance and closer to the reference than Exudyn's plain answer."""
+    from crosscheck.engines.exudyn import measure
+    from crosscheck.engines.exudyn.adapter import EXUDYN_EXACT
+
+    measure.main(["--samples", "2", "pendulum_xy"])
+    row = capsys.readouterr().out.splitlines()[1].split()
+    acc, lam, plain_acc, plain_lam = map(float, row[1:5])
+    assert row[0] == "pendulum_xy"
+    assert max(acc, lam) <= EXUDYN_EXACT.value and max(acc, lam) < max(plain_acc, plain_lam)

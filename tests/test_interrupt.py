@@ -4,10 +4,7 @@ the previous run's files, complete and consistent, or this run's, never a mix.""
 from __future__ import annotations
 
 import json
-import os
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -67,24 +64,8 @@ def test_no_report_removes_the_stale_report(previous_run, capsys):
     assert _models_in(previous_run) == {"slider_crank"}
 
 
-def tmp_cwd() -> str:
-    return os.getcwd()  # the test's own tmp_path (conftest), never the checkout
-
-
-def _start(args: list[str]) -> subprocess.Popen:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.Popen(
-        [sys.executable, "-m", "crosscheck", *args],
-        cwd=tmp_cwd(),
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-
-
 @pytest.mark.parametrize("delay", [1.0, 3.0, 5.0, 8.0])
-def test_sigint_on_a_real_run(previous_run, delay):
+def test_sigint_on_a_real_run(previous_run, delay, child):
     """SIGINT to a real `crosscheck run` process, early (loading the models and engines: a
     Ctrl-C inside MuJoCo's import surfaced as "ImportError: initialization failed", exit 3, and
     one inside PyRun-executed code ended the process by the signal, status -2) and later
@@ -92,7 +73,7 @@ def test_sigint_on_a_real_run(previous_run, delay):
     before = _snapshot(previous_run)
     # in this process (--jobs 1; tests/test_run_jobs.py interrupts runs on worker processes),
     # every built-in model: 15-26 s warm on the 2-core machine, so every delay lands in the run
-    with _start(["run", "--jobs", "1", "--out", str(previous_run)]) as proc:
+    with child.start("-m", "crosscheck", "run", "--jobs", "1", "--out", previous_run) as proc:
         time.sleep(delay)
         assert proc.poll() is None, "the run ended before it could be interrupted"
         proc.send_signal(signal.SIGINT)
@@ -105,32 +86,21 @@ def test_sigint_on_a_real_run(previous_run, delay):
     assert not [p for p in previous_run.iterdir() if p.name.startswith(TMP_PREFIX)]
 
 
-def test_sigint_on_a_real_sweep(tmp_path):
-    """An interrupted campaign writes what it completed and never reads as passed (item 6)."""
+def test_sigint_on_a_real_sweep(tmp_path, child):
+    """An interrupted campaign writes what it completed and never reads as passed."""
     out = tmp_path / "sweep"
-    proc = _start(
-        [
-            "sweep",
-            "pendulum_xy",
-            "--samples",
-            "1000000",
-            "--workers",
-            "1",
-            "--engines",
-            "pinocchio",
-            "--out",
-            str(out),
-        ]
-    )
-    deadline = time.time() + 300
-    while time.time() < deadline:  # interrupt once a chunk is finished (and stored)
-        time.sleep(0.5)
-        # a stored chunk, not campaign.json's temporary name (it matches *-*.json too: CI run
-        # 21 signalled while the store was being created, before the campaign had started)
-        if proc.poll() is not None or chunk_files(out / "sweep.chunks"):
-            break
-    proc.send_signal(signal.SIGINT)
-    stdout, err = proc.communicate(timeout=120)
+    argv = ["sweep", "pendulum_xy", "--samples", "1000000", "--workers", "1"]
+    argv += ["--engines", "pinocchio", "--out", out]
+    with child.start("-m", "crosscheck", *argv) as proc:
+        deadline = time.time() + 300
+        while time.time() < deadline:  # interrupt once a chunk is finished (and stored)
+            time.sleep(0.5)
+            # a stored chunk, not campaign.json's temporary name (it matches *-*.json too: a
+            # signal once came while the store was being created, before the campaign started)
+            if proc.poll() is not None or chunk_files(out / "sweep.chunks"):
+                break
+        proc.send_signal(signal.SIGINT)
+        stdout, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     st = json.loads((out / "sweep.json").read_text())["status"]
@@ -158,7 +128,7 @@ def test_an_interrupt_the_engine_swallowed_still_interrupts(previous_run, monkey
 
 
 @pytest.mark.parametrize("delay", [3.0, 4.0, 5.0])
-def test_sigint_during_exudyn_solves(previous_run, delay):
+def test_sigint_during_exudyn_solves(previous_run, delay, child):
     """The measured case: Exudyn's solver caught Ctrl-C at 3-4 s into a run of slider_crank
     (exit 0 with every record, or exit 1 with a failed trajectory record). The slider-cranks
     run first and every Exudyn model follows, so each delay lands inside the run whatever the
@@ -168,9 +138,8 @@ def test_sigint_during_exudyn_solves(previous_run, delay):
     models = ["slider_crank", "slider_crank_free", "slider_crank_split", "top_euler"]
     models += ["top_cartesian", "double_pendulum_3d", "exercise_6_4", "frame_bar"]
     # --jobs 1: the solves run in the process that gets the signal (workers ignore it)
-    with _start(
-        ["run", *models, "--engines", "exudyn", "--jobs", "1", "--out", str(previous_run)]
-    ) as proc:
+    argv = ["run", *models, "--engines", "exudyn", "--jobs", "1", "--out", previous_run]
+    with child.start("-m", "crosscheck", *argv) as proc:
         time.sleep(delay)
         assert proc.poll() is None, "the run ended before it could be interrupted"
         proc.send_signal(signal.SIGINT)

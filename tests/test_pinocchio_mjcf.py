@@ -30,8 +30,6 @@ Tolerances (relative to max(1, max|reference value|)):
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from functools import cache
 
 import mujoco
@@ -324,12 +322,7 @@ def test_loop_parsed_model_agrees(name, variant, stem):
 # ======================================================================================
 # where the parser (or the file's form for it) is wrong: asserted as it is today
 # ======================================================================================
-def _in_subprocess(code: str) -> subprocess.CompletedProcess:
-    """Run parser calls that read uninitialized memory or crash away from pytest's process."""
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-
-
-def test_free_bodies_second_one_dropped_and_connects_silently_rebound():
+def test_free_bodies_second_one_dropped_and_connects_silently_rebound(child):
     """double_pendulum_3d_free: MuJoCo 4.0 accepts free joints only on top-level bodies and
     Pinocchio parses only the first top-level body, so link2 is dropped (one FreeFlyer,
     nq = 7), no error. The connects come back sorted by name (A before O, the file has O
@@ -338,7 +331,7 @@ def test_free_bodies_second_one_dropped_and_connects_silently_rebound():
     a placement read from uninitialized memory (values vary run to run, so only the joint ids
     are asserted; a subprocess protects pytest). In-code model kept (two FreeFlyers)."""
     path = MJCF_DIR / "double_pendulum_3d_free.xml"
-    res = _in_subprocess(
+    res = child.python(
         "import json, pinocchio as pin\n"
         f"m, cs = pin.buildModelAndLegacyConstraintsFromMJCF({str(path)!r})\n"
         "print(json.dumps({'nq': m.nq, 'nv': m.nv, 'names': list(m.names),\n"
@@ -358,7 +351,7 @@ def test_free_bodies_second_one_dropped_and_connects_silently_rebound():
     assert mm.nv == 12 and mm.neq == 2  # what MuJoCo reads from the same file
 
 
-def test_site_connect_to_a_world_site_crashes_the_parser():
+def test_site_connect_to_a_world_site_crashes_the_parser(child):
     """The top as a free body held by a SITE-based connect to a world site (the form the other
     loops use) makes buildModelAndLegacyConstraintsFromMJCF crash (SIGSEGV), which is why the
     adapter's top_cartesian.xml uses a body-based connect (parsed correctly: the loop test).
@@ -371,7 +364,7 @@ def test_site_connect_to_a_world_site_crashes_the_parser():
     site_based = text[:start] + '<connect name="O" site1="O_top" site2="origin"/>' + text[end:]
     m = mujoco.MjModel.from_xml_string(site_based)  # MuJoCo takes it
     assert m.neq == 1 and m.eq_objtype[0] == mujoco.mjtObj.mjOBJ_SITE
-    res = _in_subprocess(
+    res = child.python(
         "import pinocchio as pin, tempfile, pathlib\n"
         "p = pathlib.Path(tempfile.mkdtemp()) / 'top.xml'\n"
         f"p.write_text({site_based!r})\n"

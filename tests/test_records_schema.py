@@ -10,8 +10,6 @@ import importlib.util
 import json
 import math
 import re
-import subprocess
-import sys
 import tomllib
 import types
 import typing
@@ -27,7 +25,6 @@ from crosscheck.runtime import jsonio
 from crosscheck.schema import RESULTS_SCHEMA, results_schema
 
 ROOT = Path(__file__).resolve().parents[1]
-CLI = [sys.executable, "-m", "crosscheck.cli"]
 FOURBAR = ROOT / "tests" / "data" / "fourbar_connect.xml"
 # a soft engine's answers (pendulum_xy), work done on the system (the moving support), an
 # engine with two models of one reference model (Example 4)
@@ -35,12 +32,6 @@ MODELS = ("pendulum_xy", "pendulum_moving_support", "double_pendulum_3d")
 # record fields the runs below cannot produce: a run that does not finish (made in its own test
 # below) and an engine's warning that it reset an unstable step
 NOT_IN_A_CLEAN_RUN = {"failure", "engine_warnings"}
-
-
-def _crosscheck(*argv) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [*CLI, *map(str, argv)], capture_output=True, text=True, timeout=900, check=False
-    )
 
 
 def _nfourbar() -> types.ModuleType:
@@ -53,7 +44,7 @@ def _nfourbar() -> types.ModuleType:
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory) -> dict[str, Path]:
+def runs(tmp_path_factory, session_child) -> dict[str, Path]:
     """results.json of real runs with every available engine and trajectories: "clean" (the
     built-in MODELS; a user's MJCF four-bar with equality constraints, for Pinocchio's parser
     record and MuJoCo's reported trajectories; the A02 one-cell four-bar, whose reference reaches
@@ -63,7 +54,7 @@ def runs(tmp_path_factory) -> dict[str, Path]:
     a02 = root / "a02_1.xml"
     a02.write_text(_nfourbar().mjcf(1))
     common = ("--states", "2", "--t-end", "1", "--no-report")
-    clean = _crosscheck(
+    clean = session_child.crosscheck(
         "run",
         *MODELS,
         "fourbar_connect",
@@ -77,7 +68,7 @@ def runs(tmp_path_factory) -> dict[str, Path]:
         root / "clean",
     )
     assert clean.returncode == 0, clean.stdout + clean.stderr
-    faulty = _crosscheck(
+    faulty = session_child.crosscheck(
         "run", "slider_crank", "--perturb", "mujoco:m2=1e-6", *common, "--out", root / "faulty"
     )
     assert faulty.returncode == 1, faulty.stdout + faulty.stderr

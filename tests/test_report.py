@@ -11,10 +11,7 @@ from __future__ import annotations
 
 import base64
 import json
-import os
 import shutil
-import subprocess
-import sys
 import tempfile
 import xml.etree.ElementTree as ET
 from html.parser import HTMLParser
@@ -22,13 +19,14 @@ from pathlib import Path
 
 import pytest
 
-CLI = [sys.executable, "-m", "crosscheck.cli"]
-CHROMIUM = "/usr/bin/chromium"
+from tests.support import cli, run_browser
+
 VERSION_KEYS = ("python", "numpy", "scipy", "sympy", "pin", "mujoco")
 
 
 def crosscheck(*argv, check=True):
-    p = subprocess.run(CLI + [str(a) for a in argv], capture_output=True, text=True, timeout=600)
+    """A command in this process (the program's own start and exit: tests/test_cli.py)."""
+    p = cli(*argv)
     if check and p.returncode not in (0, 1):
         raise AssertionError(
             f"crosscheck {' '.join(map(str, argv))} -> {p.returncode}\n{p.stdout}\n{p.stderr}"
@@ -434,15 +432,9 @@ PROBE = """<script>
 </script>"""
 
 
-def _chromium(args, tmp: Path):
+def _chromium(browser: str, args, tmp: Path):
     with tempfile.TemporaryDirectory(dir=tmp) as profile:
-        p = subprocess.run(
-            [CHROMIUM, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *args],
-            capture_output=True,
-            text=True,
-            timeout=180,
-        )
-    return p
+        return run_browser([browser, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *args])
 
 
 def _console_lines(stderr: str) -> list[str]:
@@ -451,14 +443,8 @@ def _console_lines(stderr: str) -> list[str]:
     return [ln for ln in stderr.splitlines() if ":CONSOLE" in ln or "Uncaught" in ln]
 
 
-@pytest.mark.slow
-def test_report_renders_in_headless_chromium(tmp_path):
+def test_report_renders_in_headless_chromium(tmp_path, chromium):
     """The README's flow: run, bench, report; then open index.html from disk in Chromium."""
-    if not os.path.exists(CHROMIUM):
-        pytest.skip(
-            f"{CHROMIUM} not installed (Debian package `chromium`: apt-get install -y "
-            f"chromium); the browser check needs it"
-        )
     out = tmp_path / "out"
     assert (
         crosscheck(
@@ -478,7 +464,9 @@ def test_report_renders_in_headless_chromium(tmp_path):
     assert "bench.json" in html  # picked up from beside results.json
 
     shot = tmp_path / "page.png"
-    p = _chromium([f"--screenshot={shot}", "--window-size=1280,3000", index.as_uri()], tmp_path)
+    p = _chromium(
+        chromium, [f"--screenshot={shot}", "--window-size=1280,3000", index.as_uri()], tmp_path
+    )
     assert shot.exists(), p.stderr[-2000:]
     assert _console_lines(p.stderr) == []
 
@@ -496,7 +484,9 @@ def test_report_renders_in_headless_chromium(tmp_path):
 
     probed = tmp_path / "probed.html"
     probed.write_text(html.replace("<head>", "<head>" + PROBE, 1), encoding="utf-8")
-    p = _chromium(["--dump-dom", "--virtual-time-budget=10000", probed.as_uri()], tmp_path)
+    p = _chromium(
+        chromium, ["--dump-dom", "--virtual-time-budget=10000", probed.as_uri()], tmp_path
+    )
     dom = p.stdout
     assert 'id="probe"' in dom, p.stderr[-2000:]
     import html as html_mod

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 import uuid
 
 import pytest
@@ -33,11 +32,9 @@ print(any(b"multiprocessing.forkserver" in c for c in children()))
 """
 
 
-def _started(*argv: str) -> tuple[bool, str]:
+def _started(child, *argv: str) -> tuple[bool, str]:
     """Whether the server started, and what the process (and the server) printed to stderr."""
-    out = subprocess.run(
-        [sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, check=True
-    )
+    out = child.python(PROBE, *argv, check=True)
     return out.stdout.strip() == "True", out.stderr
 
 
@@ -49,8 +46,8 @@ def _started(*argv: str) -> tuple[bool, str]:
         ("--jobs=2", "--t-end", "0.5", "--engines", "mujoco", "--no-report"),
     ],
 )
-def test_a_run_on_workers_starts_the_server_early(argv):
-    assert _started(*argv)[0]
+def test_a_run_on_workers_starts_the_server_early(argv, child):
+    assert _started(child, *argv)[0]
 
 
 @pytest.mark.parametrize(
@@ -67,13 +64,13 @@ def test_a_run_on_workers_starts_the_server_early(argv):
         ("pendulum_xy", "pendulum_angle", "--jobs", "2", "--engines", "no_such_engine"),
     ],
 )
-def test_no_early_server_where_it_is_not_needed_or_the_input_is_bad(argv):
-    started, stderr = _started(*argv)
+def test_no_early_server_where_it_is_not_needed_or_the_input_is_bad(argv, child):
+    started, stderr = _started(child, *argv)
     assert not started
     assert not stderr  # nothing printed here: the full parser reports bad input
 
 
-def test_the_command_module_imports_no_numerics():
+def test_the_command_module_imports_no_numerics(child):
     """What the command line imports before the early start: sympy and numpy (1.2 s with the
     models) would delay the server by as much."""
     code = (
@@ -81,11 +78,11 @@ def test_the_command_module_imports_no_numerics():
         "print(sorted(m for m in ('numpy', 'sympy', 'scipy', 'reference.numeric.model') "
         "if m in sys.modules))"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = child.python(code, check=True)
     assert out.stdout.strip() == "[]"
 
 
-def test_resolving_the_engines_leaves_scipy_integrate_to_the_workers():
+def test_resolving_the_engines_leaves_scipy_integrate_to_the_workers(child):
     """The command line imports the adapters of the engines it checks the names of; the
     trajectories' scipy.integrate (a second of imports) loads in the workers' server."""
     from crosscheck.run.jobs import WORKER_MODULES
@@ -95,7 +92,7 @@ def test_resolving_the_engines_leaves_scipy_integrate_to_the_workers():
         "resolve_engines(None); "
         "print('scipy.integrate' in sys.modules)"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = child.python(code, check=True)
     assert out.stdout.strip() == "False"
     assert "crosscheck.checks.trajectory.check" in WORKER_MODULES
 
@@ -121,20 +118,15 @@ def _servers_with(marker: str) -> list[int]:
 
 
 @pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads processes from /proc (Linux)")
-def test_a_run_refused_for_a_bad_name_leaves_no_server(tmp_path):
+def test_a_run_refused_for_a_bad_name_leaves_no_server(tmp_path, child):
     """An unknown model among several ends the command with exit 2 before the server starts:
     no server is left importing the engines with the command's output pipe open."""
     marker = f"CROSSCHECK_TEST_MARK={uuid.uuid4().hex}"
-    env = {**os.environ, marker.split("=")[0]: marker.split("=")[1]}
-    argv = ["run", "no_such_model", "pendulum_xy", "--jobs", "2", "--out", str(tmp_path)]
+    env = dict([marker.split("=")])
+    argv = ["run", "no_such_model", "pendulum_xy", "--jobs", "2", "--out", tmp_path]
     log = tmp_path / "stderr.txt"
     with open(log, "w") as stderr:  # a file, not a pipe: the run returns at the command's exit
-        proc = subprocess.run(
-            [sys.executable, "-m", "crosscheck", *argv],
-            stdout=subprocess.DEVNULL,
-            stderr=stderr,
-            env=env,
-        )
+        proc = child.crosscheck(*argv, stdout=subprocess.DEVNULL, stderr=stderr, env=env)
     left = _servers_with(marker)
     assert proc.returncode == 2, log.read_text()
     assert "unknown model 'no_such_model'" in log.read_text()

@@ -7,8 +7,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
 import uuid
 from pathlib import Path
@@ -89,7 +87,7 @@ def test_the_meanwhile_work_runs_beside_the_hand_out_and_its_error_reaches_the_c
         run_models(jobs, 2, meanwhile=broken)
 
 
-def test_the_meta_of_a_run_on_workers_names_every_engine(tmp_path):
+def test_the_meta_of_a_run_on_workers_names_every_engine(tmp_path, child):
     """In a fresh program, a run on workers reads its meta on a thread beside the hand-out
     (run_jobs._Meanwhile): that thread imports the adapters of the engines the run did not
     name, so every available engine's version is there, as in a serial run."""
@@ -97,9 +95,7 @@ def test_the_meta_of_a_run_on_workers_names_every_engine(tmp_path):
 
     args = ["run", "pendulum_angle", "pendulum_xy", "--engines", "pinocchio", "--jobs", "2"]
     args += ["--instantaneous", "--no-report", "--out", str(tmp_path)]
-    r = subprocess.run(
-        [sys.executable, "-m", "crosscheck", *args], capture_output=True, text=True, timeout=300
-    )
+    r = child.crosscheck(*args, timeout=300)
     assert r.returncode == 0, r.stderr
     meta = _results(tmp_path)["meta"]
     assert meta["jobs"] == 2
@@ -158,7 +154,7 @@ def _tagged_processes(tag: str) -> list[int]:
 @pytest.mark.parametrize(
     "delay,whole_group", [(2.0, False), (3.5, False), (6.0, False), (2.0, True), (3.5, True)]
 )
-def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay, whole_group):
+def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay, whole_group, child):
     """SIGINT to the parent only (as `kill -INT pid`), or to the whole process group (as
     Ctrl-C at a terminal: the server and the workers get it too): one line, exit 130, and
     within a few seconds no worker or server of the run is left. Delays from the server's
@@ -166,15 +162,16 @@ def test_sigint_on_a_parallel_run_leaves_no_worker(tmp_path, delay, whole_group)
     computing."""
     tag = f"CROSSCHECK_TEST_TAG={uuid.uuid4().hex}"
     key, value = tag.split("=")
-    env = {**os.environ, "PYTHONPATH": str(ROOT), key: value}
     # every built-in model: 15-25 s warm on two workers, so every delay lands in the run
-    with subprocess.Popen(
-        [sys.executable, "-m", "crosscheck", "run", "--jobs", "2", "--out", "out"],
-        cwd=tmp_path,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
+    with child.start(
+        "-m",
+        "crosscheck",
+        "run",
+        "--jobs",
+        "2",
+        "--out",
+        "out",
+        env={key: value},
         start_new_session=True,  # its own process group, as a terminal gives a command
         # and Ctrl-C's default action, as a terminal's shell gives it (pytest may have been
         # started in the background, with SIGINT ignored, and children inherit that)

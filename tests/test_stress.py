@@ -5,12 +5,11 @@ whole `crosscheck bench --quick` are marked slow."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import pytest
 
 from crosscheck.bench import stress, targets, workprecision
+from tests.support import cli
 
 
 def _statuses(rec):
@@ -230,40 +229,35 @@ def test_full_scenes(scene):
         assert all(r.split(":")[0] in flagged_runs for r in rec["reasons"]), rec["reasons"]
 
 
-@pytest.mark.slow
-def test_bench_quick_writes_every_section(tmp_path):
-    # one model is enough to see every section written (the stress scenes and targets do not
-    # depend on the model list); the whole suite's quick bench is a benchmark, not a test
-    r = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "crosscheck.cli",
-            "bench",
-            "slider_crank",
-            "--quick",
-            "--out",
-            str(tmp_path),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
+@pytest.mark.parametrize(
+    "model,engines",
+    [
+        ("pendulum_angle", "pinocchio"),
+        pytest.param("slider_crank", None, marks=pytest.mark.slow),  # every engine
+    ],
+)
+def test_bench_quick_writes_every_section(tmp_path, model, engines):
+    """`crosscheck bench --quick` in this process: one model is enough to see every section
+    written (the stress scenes and targets do not depend on the model list); the whole suite's
+    quick bench is a benchmark, not a test."""
+    from crosscheck.engines.registry import available_engines, get_engine
+
+    argv = ["bench", model, "--quick", "--out", tmp_path]
+    r = cli(*argv, *(["--engines", engines] if engines else []))
     assert r.returncode == 0, r.stderr[-2000:]
     data = json.loads((tmp_path / "bench.json").read_text())
     for key in ("forward", "work_precision", "stress", "targets", "skips"):
         assert data[key], key
-    from crosscheck.engines.registry import available_engines, get_engine
-
+    named = engines.split(",") if engines else available_engines()
     # every engine with trajectories runs its own integrators beside the reference's methods
-    with_trajectories = {e for e in available_engines() if get_engine(e).capabilities.integrators}
+    with_trajectories = {e for e in named if get_engine(e).capabilities.integrators}
     for engine in with_trajectories | {"reference"}:
         rows = [
             rec
             for rec in data["work_precision"]
-            if rec["model"] == "slider_crank" and rec["engine"] == engine
+            if rec["model"] == model and rec["engine"] == engine
         ]
-        assert rows and all(rec.get("error") is not None for rec in rows), engine
+        assert rows and all(r.get("error") is not None for r in rows), engine
     for e in with_trajectories:
         integrators = {rec["integrator"] for rec in data["work_precision"] if rec["engine"] == e}
         caps = get_engine(e).capabilities

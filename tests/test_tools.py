@@ -9,7 +9,6 @@ that figure has to be on, so a regression shows here as well as in `crosscheck r
 from __future__ import annotations
 
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -22,21 +21,13 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPTS, BENCHMARKS = ROOT / "scripts", ROOT / "benchmarks"
 
 
-def _run(args, timeout=120, env=None, **kw) -> subprocess.CompletedProcess:
-    r = subprocess.run(
-        [str(a) for a in args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        env={**os.environ, **(env or {})},
-        **kw,
-    )
-    return r
+def _run(child, args, timeout=120, env=None, **kw) -> subprocess.CompletedProcess:
+    return child.program(*args, timeout=timeout, env=env, **kw)
 
 
-def _bench(script, *args, timeout=120, env=None) -> str:
+def _bench(child, script, *args, timeout=120, env=None) -> str:
     """Run benchmarks/<script> with `args`; its stdout (it must exit 0)."""
-    r = _run([sys.executable, BENCHMARKS / script, *args], timeout=timeout, env=env)
+    r = child.run(BENCHMARKS / script, *args, timeout=timeout, env=env)
     assert r.returncode == 0, f"{script} exited {r.returncode}:\n{r.stdout}\n{r.stderr}"
     return r.stdout
 
@@ -53,24 +44,24 @@ needs_cc = pytest.mark.skipif(not _has_c_compiler(), reason="no working C compil
 # ---- scripts/ ----------------------------------------------------------------------------------
 
 
-def test_install_test_deps_says_why_when_it_cannot_install(tmp_path):
+def test_install_test_deps_says_why_when_it_cannot_install(tmp_path, child):
     """Neither Chromium nor apt-get on PATH: it says the browser test will be skipped, exit 0."""
     empty = tmp_path / "bin"
     empty.mkdir()
     bash = shutil.which("bash")
-    r = _run([bash, SCRIPTS / "install-test-deps"], env={"PATH": str(empty)}, timeout=30)
+    r = _run(child, [bash, SCRIPTS / "install-test-deps"], env={"PATH": str(empty)}, timeout=30)
     assert r.returncode == 0, r.stderr
     assert "browser test of the report will be skipped" in r.stderr
 
 
-def test_install_test_deps_is_quiet_when_chromium_is_there(tmp_path):
+def test_install_test_deps_is_quiet_when_chromium_is_there(tmp_path, child):
     bindir = tmp_path / "bin"
     bindir.mkdir()
     chromium = bindir / "chromium"
     chromium.write_text("#!/bin/sh\nexit 0\n")
     chromium.chmod(0o755)
     bash = shutil.which("bash")
-    r = _run([bash, SCRIPTS / "install-test-deps"], env={"PATH": str(bindir)}, timeout=30)
+    r = _run(child, [bash, SCRIPTS / "install-test-deps"], env={"PATH": str(bindir)}, timeout=30)
     assert (r.returncode, r.stdout, r.stderr) == (0, "", "")
 
 
@@ -93,7 +84,7 @@ def _record(model, quantity, error, passed=True, tolerance=1e-11) -> dict:
     }
 
 
-def test_compare_results_counts_status_and_error_differences(tmp_path):
+def test_compare_results_counts_status_and_error_differences(tmp_path, child):
     a = _results(
         tmp_path / "a.json",
         [
@@ -110,7 +101,7 @@ def test_compare_results_counts_status_and_error_differences(tmp_path):
             _record("slider_crank", "accelerations", None, passed=None, tolerance=None),
         ],
     )
-    r = _run([sys.executable, SCRIPTS / "compare_results.py", a, b])
+    r = _run(child, [sys.executable, SCRIPTS / "compare_results.py", a, b])
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     assert lines[0] == "3 records: 1 differ in status, 2 in error"
@@ -119,15 +110,15 @@ def test_compare_results_counts_status_and_error_differences(tmp_path):
     assert "'multipliers'" in lines[1]
 
 
-def test_compare_results_refuses_files_of_different_records(tmp_path):
+def test_compare_results_refuses_files_of_different_records(tmp_path, child):
     a = _results(tmp_path / "a.json", [_record("pendulum_xy", "accelerations", 1e-15)])
     b = _results(tmp_path / "b.json", [])
-    r = _run([sys.executable, SCRIPTS / "compare_results.py", a, b])
+    r = _run(child, [sys.executable, SCRIPTS / "compare_results.py", a, b])
     assert r.returncode != 0 and "different record counts: 1 and 0" in r.stderr
     c = _results(tmp_path / "c.json", [_record("slider_crank", "accelerations", 1e-15)])
-    r = _run([sys.executable, SCRIPTS / "compare_results.py", a, c])
+    r = _run(child, [sys.executable, SCRIPTS / "compare_results.py", a, c])
     assert r.returncode != 0 and "records out of order" in r.stderr
-    r = _run([sys.executable, SCRIPTS / "compare_results.py", a])
+    r = _run(child, [sys.executable, SCRIPTS / "compare_results.py", a])
     assert r.returncode != 0 and "record by record" in r.stderr  # the usage
 
 
@@ -140,10 +131,10 @@ def _row(out: str, model: str) -> list[float]:
     return [float(x) for x in line.split()[2:]]
 
 
-def test_drift_guarantee_holds_with_projection_and_not_without():
+def test_drift_guarantee_holds_with_projection_and_not_without(child):
     """With projection |f| stays within PROJECTION_TOL (1 + |q|) (ratio <= 1) and A u + a0 at
     round-off; index1 at the same rtol drifts past both (docs/tolerances.md)."""
-    out = _bench("drift_guarantee.py", "pendulum_xy")
+    out = _bench(child, "drift_guarantee.py", "pendulum_xy")
     rows = {}
     for line in out.splitlines():
         words = line.split()
@@ -152,49 +143,51 @@ def test_drift_guarantee_holds_with_projection_and_not_without():
     assert rows["index1"][0] > 1.0, out
 
 
-def test_mujoco_soft_predict_is_within_soft_prediction():
+def test_mujoco_soft_predict_is_within_soft_prediction(child):
     from crosscheck.checks.tolerances import SOFT_PREDICTION
 
-    out = _bench("mujoco_soft.py", "predict", "3", "pendulum_xy")
+    out = _bench(child, "mujoco_soft.py", "predict", "3", "pendulum_xy")
     _miss, ratio, _pmin, _pmax, _lmiss, lam_ratio, _lmin, _lmax = _row(out, "pendulum_xy")
     assert ratio <= SOFT_PREDICTION.value and lam_ratio <= SOFT_PREDICTION.value, out
 
 
-def test_mujoco_soft_limit_extrapolation_error_within_its_slack():
+def test_mujoco_soft_limit_extrapolation_error_within_its_slack(child):
     from crosscheck.checks.trajectory.soft import SOFT_LIMIT_SLACK
 
-    out = _bench("mujoco_soft.py", "limit", "pendulum_xy")
+    out = _bench(child, "mujoco_soft.py", "limit", "pendulum_xy")
     _s02, _s01, _s005, r, _limit, lim_over_corr, _step = _row(out, "pendulum_xy")
     assert r >= 2 and -1 <= lim_over_corr <= SOFT_LIMIT_SLACK, out
 
 
-def test_mujoco_soft_energy_table():
-    out = _bench("mujoco_soft.py", "energy")
+def test_mujoco_soft_energy_table(child):
+    out = _bench(child, "mujoco_soft.py", "energy")
     rows = [line for line in out.splitlines() if line.strip()]
     assert len(rows) == 6 and all(line.count("h=") == 4 for line in rows), out
 
 
-def test_opensim_agreement_on_one_model():
+def test_opensim_agreement_on_one_model(child):
     pytest.importorskip("opensim")
-    out = _bench("opensim_agreement.py", "2", "0", "pendulum_xy")
+    out = _bench(child, "opensim_agreement.py", "2", "0", "pendulum_xy")
     row = next(line for line in out.splitlines() if line.startswith("| pendulum_xy"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     acc, lam, tol = float(cells[1]), float(cells[2]), float(cells[3])
     assert acc <= tol and lam <= tol, out
 
 
-def test_opensim_trajectories_on_one_model():
+def test_opensim_trajectories_on_one_model(child):
     pytest.importorskip("opensim")
-    out = _bench("opensim_agreement.py", "--trajectories", "exercise_6_1")
+    out = _bench(child, "opensim_agreement.py", "--trajectories", "exercise_6_1")
     rows = [line for line in out.splitlines() if line.startswith("| exercise_6_1")]
     assert len(rows) == 2, out  # RungeKuttaMerson at 1e-10 and CPodes at 1e-8
     merson = [c.strip() for c in rows[0].strip("|").split("|")]
     assert float(merson[3]) < 1e-7 and float(merson[4]) < 1e-7, out  # SIM_TOL of the tests
 
 
-def test_opensim_integrators_on_one_model():
+def test_opensim_integrators_on_one_model(child):
     pytest.importorskip("opensim")
-    out = _bench("opensim_integrators.py", "pendulum_xy", "--integrators", "RungeKuttaMerson")
+    out = _bench(
+        child, "opensim_integrators.py", "pendulum_xy", "--integrators", "RungeKuttaMerson"
+    )
     assert "pendulum_xy" in out and "state_error" in out and "one integrate call" in out, out
 
 
@@ -202,9 +195,9 @@ def test_opensim_integrators_on_one_model():
 
 
 @needs_cc
-def test_c_stepper_speed_quick():
+def test_c_stepper_speed_quick(child):
     """The C stepper's outputs within one rtol of the Python stepper's ("/ tol" <= 1)."""
-    out = _bench("c_stepper_speed.py", "--quick", "pendulum_xy")
+    out = _bench(child, "c_stepper_speed.py", "--quick", "pendulum_xy")
     rows = [line for line in out.splitlines() if line.startswith("pendulum_xy")]
     assert len(rows) == 6, out  # index1, projection, baumgarte x steps, grid
     for line in rows:
@@ -213,53 +206,37 @@ def test_c_stepper_speed_quick():
 
 
 @needs_cc
-def test_backend_equality_on_one_model():
-    out = _bench("backend_equality.py", "pendulum_xy", env={"CROSSCHECK_BACKEND": "c"})
+def test_backend_equality_on_one_model(child):
+    out = _bench(child, "backend_equality.py", "pendulum_xy", env={"CROSSCHECK_BACKEND": "c"})
     assert re.search(r"pendulum_xy +c against python: (\d+) / \1 outputs equal", out), out
 
 
 @needs_cc
-def test_c_build_times_on_one_model():
-    out = _bench("c_build_times.py", "pendulum_xy")
+def test_c_build_times_on_one_model(child):
+    out = _bench(child, "c_build_times.py", "pendulum_xy")
     assert re.search(r"^\d+ modules: build [\d.]+ s in all", out, re.M), out
 
 
 @needs_cc
-def test_c_batch_lanes_equal_to_the_single_call():
-    out = _bench("c_batch_lanes.py", "pendulum_xy")
+def test_c_batch_lanes_equal_to_the_single_call(child):
+    out = _bench(child, "c_batch_lanes.py", "pendulum_xy")
     assert "equal to the single call to the bit: True" in out, out
 
 
 @needs_cc
-def test_c_flag_probe_on_one_model():
-    out = _bench("c_flag_probe.py", "pendulum_xy")
+def test_c_flag_probe_on_one_model(child):
+    out = _bench(child, "c_flag_probe.py", "pendulum_xy")
     assert out.count("us per call") == 15, out  # five flag sets, three rounds
 
 
-@needs_cc
-def test_c_crossing_probe():
-    pytest.importorskip("numba")  # the probe's other side; the reference no longer uses it
-    out = _bench("c_crossing_probe.py")
-    assert "C METH_FASTCALL" in out and "numba @njit" in out, out
-
-
-@needs_cc
-def test_call_overhead_on_one_model():
-    out = _bench("call_overhead.py", "pendulum_xy", env={"CROSSCHECK_BACKEND": "c"})
-    first = out.splitlines()[0]
-    assert first.startswith("pendulum_xy") and "checked" in first and "over pinocchio" in out, out
-
-
-# ---- benchmarks/: a run's wall time ------------------------------------------------------------
-
-
-def test_parent_imports():
-    out = _bench("parent_imports.py", "--engines", "pinocchio")
+def test_parent_imports(child):
+    out = _bench(child, "parent_imports.py", "--engines", "pinocchio")
     assert out.startswith("parser ") and "scipy.integrate loaded: False" in out, out
 
 
-def test_run_phases_on_two_models(tmp_path):
+def test_run_phases_on_two_models(tmp_path, child):
     r = _run(
+        child,
         [
             sys.executable,
             BENCHMARKS / "run_phases.py",
@@ -274,15 +251,16 @@ def test_run_phases_on_two_models(tmp_path):
             "--out",
             tmp_path / "out",
             "--no-report",
-        ]
+        ],
     )
     assert r.returncode == 0, r.stderr
     for phase in ("hand-out starts", "meta work starts", "last model back", "results written"):
         assert phase in r.stderr, r.stderr
 
 
-def test_engine_simulate_times_on_one_model(tmp_path):
+def test_engine_simulate_times_on_one_model(tmp_path, child):
     out = _bench(
+        child,
         "engine_simulate_times.py",
         "pendulum_angle",
         "--engines",
@@ -296,27 +274,29 @@ def test_engine_simulate_times_on_one_model(tmp_path):
     assert "PinEngineModel" in out and "reference (" in out, out
 
 
-def test_startup_times_on_one_model():
-    out = _bench("startup_times.py", "--jobs", "1", "--models", "pendulum_angle")
+def test_startup_times_on_one_model(child):
+    out = _bench(child, "startup_times.py", "--jobs", "1", "--models", "pendulum_angle")
     rows = [line.split() for line in out.splitlines()[1:]]
     assert [r[0] for r in rows] == ["cold", "warm"], out
     assert all(r[3] == "True" for r in rows), out  # the same records cold and warm
 
 
 @pytest.mark.slow  # four small runs, two of them in a fresh derivation cache
-def test_warm_ab_in_a_clone(tmp_path):
+def test_warm_ab_in_a_clone(tmp_path, child):
     """warm_ab.py makes a git worktree of the earlier commit: run it (this checkout's version
     of it) in a clone, so the test leaves the checkout's own repository alone."""
     clone = tmp_path / "clone"
-    r = _run(["git", "clone", "-q", ROOT, clone], timeout=120)
+    r = _run(child, ["git", "clone", "-q", ROOT, clone], timeout=120)
     if r.returncode != 0:
         pytest.skip(f"cannot clone the checkout: {r.stderr.strip()}")
     (clone / "benchmarks").mkdir(exist_ok=True)
     shutil.copy(BENCHMARKS / "warm_ab.py", clone / "benchmarks" / "warm_ab.py")
     args = ["HEAD", "--reps", "1", "--", "pendulum_angle", "--engines", "pinocchio"]
     r = _run(
+        child,
         [sys.executable, clone / "benchmarks" / "warm_ab.py", *args, "--instantaneous"],
         timeout=600,
+        env={"PYTHONPATH": None},  # each worktree's own code, as the script sets it
     )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "rep 1: A" in r.stdout and "B median" in r.stdout, r.stdout
