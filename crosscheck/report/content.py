@@ -291,7 +291,8 @@ def energy_series(s: dict) -> np.ndarray:
     if w is not None:
         w = np.array([to_float(v) for v in w])[: e.size]
         e = e[: w.size]
-    return energy_error_series(e, w)
+    with np.errstate(all="ignore"):  # a run that blew up: inf - inf is drawn as a gap
+        return energy_error_series(e, w)
 
 
 def conserves_energy(series: list[dict]) -> bool:

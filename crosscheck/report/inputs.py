@@ -9,6 +9,7 @@ results.json that breaks the contract instead of comparing it.
 from __future__ import annotations
 
 import json
+import math
 from functools import cache
 from pathlib import Path
 
@@ -41,6 +42,13 @@ def _record_problem(r) -> tuple[str, str] | None:
         if not isinstance(r.get(key), str) or not r[key]:
             return f".{key}", f"has no {key!r} name"
     return None
+
+
+def _within(error, tolerance) -> bool:
+    numbers = all(
+        isinstance(x, (int, float)) and not isinstance(x, bool) for x in (error, tolerance)
+    )
+    return numbers and math.isfinite(error) and error <= tolerance
 
 
 HINT = "is it a results.json written by `crosscheck run`? docs/results.md describes the fields"
@@ -87,6 +95,15 @@ def check_results(data: dict, path) -> dict:
             + (f" ({more} more violation{'s' * (more > 1)} after it)" if more else "")
             + f" ({HINT})"
         )
+    for i, r in enumerate(recs):
+        # the suite passes a record only on a finite error within its tolerance (records.record):
+        # a file that says otherwise was not written by it, and no verdict may come from it
+        if r.get("passed") is True and not _within(r.get("error"), r.get("tolerance")):
+            raise ReportInputError(
+                f"results file {str(path)!r}: record {i} says passed although its error "
+                f"{r.get('error')!r} is not a finite number within its tolerance "
+                f"{r.get('tolerance')!r} ($.records[{i}].passed; {HINT})"
+            )
     return data
 
 

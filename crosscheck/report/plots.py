@@ -20,6 +20,23 @@ import math
 from crosscheck.report.content import energy_series, method_label
 
 ZERO_AT = 1e-17  # below every double round-off figure of a quantity scaled to 1 (eps = 2.2e-16)
+# The top of every log axis. A figure above it is a run that blew up (the table beside the
+# figure has the number): it is drawn on the edge and said so. Matplotlib's log ticks overflow
+# for values near the largest double (1e300 and up), so no axis may reach them.
+OFF_SCALE = 1e12
+OFF_SCALE_NOTE = f"drawn at {OFF_SCALE:.0e}: above the scale"
+
+
+def log_clip(values):
+    """Values for a log axis: |v| within [ZERO_AT, OFF_SCALE], NaN where not finite (a gap).
+    Returns (the array, whether any value was above OFF_SCALE)."""
+    import numpy as np
+
+    v = np.abs(np.array([_num(x) for x in values], dtype=float))
+    finite = np.isfinite(v)
+    above = bool(np.any(v[finite] > OFF_SCALE))
+    return np.where(finite, np.clip(v, ZERO_AT, OFF_SCALE), np.nan), above
+
 
 # one colour per engine, the same in every figure of the report
 # (the engines' colours: ENGINE_PALETTE cycled in the registry's order, then the other engines
@@ -115,7 +132,7 @@ def agreement_svg(records: list[dict], title: str = "") -> str | None:
         v
         for r in records
         for v in (_num(r.get("error")), _num(r.get("tolerance")))
-        if math.isfinite(v) and v > 0
+        if math.isfinite(v) and 0 < v <= OFF_SCALE
     ]
     lo = min([ZERO_AT, *finite]) / 3
     hi = max([1.0, *finite]) * 30
@@ -169,7 +186,7 @@ def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dic
     """One executed check: its tolerance bar, its error marker (0, inf and NaN drawn apart)
     and a red ring when it fails; `notes` records which legend entries are needed."""
     err, tol = _num(r.get("error")), _num(r.get("tolerance"))
-    if math.isfinite(tol) and tol > 0:
+    if math.isfinite(tol) and 0 < tol <= OFF_SCALE:
         ax.plot(
             [tol],
             [yy],
@@ -181,7 +198,7 @@ def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dic
             zorder=3,
         )
     failed = r.get("passed") is False
-    if not math.isfinite(err):
+    if not math.isfinite(err) or err > OFF_SCALE:
         notes["inf"] = True
         ax.plot(
             [hi / 2],
@@ -196,7 +213,7 @@ def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dic
         ax.text(
             hi / 8,
             yy,
-            "NaN" if err != err else "inf",
+            "NaN" if err != err else ("inf" if math.isinf(err) else f"{err:.1e}"),
             ha="right",
             va="center",
             fontsize=7,
@@ -229,7 +246,7 @@ def _agreement_point(ax, r: dict, yy: float, color, label, hi: float, notes: dic
         )
     if failed:
         notes["fail"] = True
-        x = hi / 2 if not math.isfinite(err) else max(err, ZERO_AT)
+        x = hi / 2 if not math.isfinite(err) or err > OFF_SCALE else max(err, ZERO_AT)
         ax.plot(
             [x],
             [yy],
@@ -359,7 +376,7 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
         axes_style(ax)
         ax.set_yscale("log")
         ax.set_ylabel(label, fontsize=8)
-        zeros = []
+        zeros, above = [], False
         for s in lines:
             t = np.array([_num(v) for v in s["t"]])
             vals = s.get(key)
@@ -375,9 +392,21 @@ def trajectory_svg(series: list[dict], title: str = "") -> str | None:
             if n and np.all(v == 0):  # exact zero throughout (e.g. the reference vs itself)
                 zeros.append(series_label(s))
                 continue
-            v = np.where(np.isfinite(v), np.maximum(np.abs(v), ZERO_AT), np.nan)
+            v, off = log_clip(v)
+            above = above or off
             color, style = styles[_series_key(s)]
             ax.plot(t, v, color=color, linestyle=style, linewidth=1.3, label=series_label(s))
+        if above:
+            ax.text(
+                0.99,
+                0.98,
+                OFF_SCALE_NOTE,
+                fontsize=7,
+                color="#555555",
+                transform=ax.transAxes,
+                ha="right",
+                va="top",
+            )
         if zeros:
             ax.text(
                 0.01,
@@ -459,7 +488,8 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
         for k, lab in WORK_PRECISION_PANELS
         if any(math.isfinite(_num(r.get(k))) for r in rows)
     ]
-    if not lines or not panels or not any(math.isfinite(_num(r.get("wall_s"))) for r in rows):
+    timed = any(math.isfinite(_num(r.get("wall_s"))) and _num(r.get("wall_s")) > 0 for r in rows)
+    if not lines or not panels or not timed:
         return None
     from matplotlib.ticker import LogLocator, NullFormatter
 
@@ -477,8 +507,8 @@ def work_precision_svg(rows: list[dict], title: str = "") -> str | None:
             for p in pts:
                 x, w = _num(p.get(key)), _num(p.get("wall_s"))
                 if math.isfinite(x) and math.isfinite(w) and w > 0:
-                    xs.append(max(abs(x), ZERO_AT))
-                    ys.append(w)
+                    xs.append(min(max(abs(x), ZERO_AT), OFF_SCALE))
+                    ys.append(min(max(w, ZERO_AT), OFF_SCALE))
             if not xs:
                 continue
             color, style = styles[(method, engine)]
@@ -548,6 +578,9 @@ def sweep_histogram_svg(rows: list[dict], title: str = "") -> str | None:
             vlist = variants.setdefault(eng, [])
             if var not in vlist:
                 vlist.append(var)
+            top = lo + len(counts) * step
+            if not (math.isfinite(lo) and math.isfinite(step) and -300 < lo and top < 300):
+                continue  # bins off any log axis: the table has the counts
             edges = [10 ** (lo + k * step) for k in range(len(counts) + 1)]
             span += [edges[k] for k, c in enumerate(counts) if c]
             span += [edges[k + 1] for k, c in enumerate(counts) if c]
