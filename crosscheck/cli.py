@@ -23,6 +23,7 @@ EXIT_USAGE = 2
 EXIT_INTERNAL = 3  # an unexpected exception: a bug, never to be read as "a check failed" (1)
 EXIT_INCOMPLETE = 4  # a campaign stopped by its time budget: nothing failed, not all was run
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention for Ctrl-C
+EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 
 # Every command, in the order `crosscheck --help` lists them: crosscheck.commands.<name> has
@@ -97,7 +98,7 @@ def main(argv=None) -> int:
         one_blas_thread()
         no_mujoco_rendering()
     code = _main(argv)
-    if entry and code == EXIT_INTERRUPTED:
+    if entry and code in (EXIT_INTERRUPTED, EXIT_TERMINATED):
         # CPython ends a program by SIGINT (status -2, not 130) when an interrupt passed through
         # code it ran with PyRun_* (some extensions' imports), even one handled here: leave with
         # the status the command promises. The command has stopped its workers and written
@@ -160,12 +161,13 @@ def _main(argv) -> int:
 
 
 def _interrupted(args) -> int:
+    what = "terminated (SIGTERM)" if interrupts.terminated() else "interrupted"
     print(
-        f"crosscheck: interrupted; no new output written (a command's files are renamed "
+        f"crosscheck: {what}; no new output written (a command's files are renamed "
         f"into place only once all are complete){_out_note(args)}",
         file=sys.stderr,
     )
-    return EXIT_INTERRUPTED
+    return EXIT_TERMINATED if interrupts.terminated() else EXIT_INTERRUPTED
 
 
 def _out_note(args) -> str:

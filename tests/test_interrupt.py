@@ -4,6 +4,7 @@ the previous run's files, complete and consistent, or this run's, never a mix.""
 from __future__ import annotations
 
 import json
+import os
 import signal
 import time
 from pathlib import Path
@@ -166,3 +167,42 @@ def test_a_deferred_interrupt_arrives_after_the_block(monkeypatch):
     assert finished == [True]
     assert interrupts.seen()
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_sigterm_stops_a_run_with_143_and_one_line(previous_run, child):
+    """SIGTERM (a cancelled CI job, `kill`) takes Ctrl-C's path: the workers stop, the previous
+    files stay, no temporary file is left, one line says so, exit 143."""
+    before = _snapshot(previous_run)
+    with child.start("-m", "crosscheck", "run", "--jobs", "2", "--out", previous_run) as proc:
+        time.sleep(3.0)
+        assert proc.poll() is None, "the run ended before it could be terminated"
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("crosscheck: terminated (SIGTERM)"), err
+    assert _snapshot(previous_run) == before
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def test_a_killed_commands_temporary_files_are_removed_by_the_next_one(previous_run, capsys):
+    """SIGKILL leaves a command no chance to clean up: its temporary files (named with its
+    pid) are removed by the next command that writes there; a live command's are kept."""
+    dead = next(pid for pid in range(4_000_000, 0, -1) if not _running(pid))
+    orphan = previous_run / f"{TMP_PREFIX}{dead}-results.json"
+    orphan.write_text("{half a file")
+    live = previous_run / f"{TMP_PREFIX}{os.getppid()}-results.json"  # pytest's parent runs
+    live.write_text("{another command's file")
+    assert main(["run", "pendulum_angle", "--instantaneous", "--out", str(previous_run)]) == 0
+    capsys.readouterr()
+    assert not orphan.exists() and live.exists()
+    live.unlink()

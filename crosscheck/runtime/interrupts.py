@@ -8,7 +8,8 @@ exited 0 with every record written, at 4 s exited 1 with a failed trajectory rec
 The command-line entry installs `on_sigint`, which remembers the signal; `check` raises
 KeyboardInterrupt whenever one was seen, so a run never turns an interrupt into a record
 (callers that convert engine errors into failed records ask first) and never writes its
-outputs after one (Outputs.commit asks).
+outputs after one (Outputs.commit asks). SIGTERM (a CI job cancelled, `kill`) takes the same
+path: the command stops its workers, leaves its outputs as they were and exits 143.
 """
 
 from __future__ import annotations
@@ -28,10 +29,16 @@ def on_sigint(signum, frame) -> None:
 
 def install() -> None:
     signal.signal(signal.SIGINT, on_sigint)
+    signal.signal(signal.SIGTERM, on_sigint)
 
 
 def seen() -> bool:
     return bool(_seen)
+
+
+def terminated() -> bool:
+    """Whether the signal that stopped the command was SIGTERM (exit 143), not Ctrl-C (130)."""
+    return bool(_seen) and _seen[-1] == signal.SIGTERM
 
 
 def check() -> None:

@@ -4,7 +4,9 @@ Every file of one command goes first to a temporary name beside its final one (s
 so the rename is atomic on POSIX file systems); `commit` then renames them all into place with
 SIGINT held back, so Ctrl-C cannot land between two renames. An interrupted or failed command
 removes its temporary files and leaves the directory as it was: the previous run's files,
-complete and consistent with each other, or nothing.
+complete and consistent with each other, or nothing. A command killed outright (SIGKILL) cannot
+remove its temporary files; the next command writing into the directory removes them (their
+name carries the pid of a process that no longer runs).
 """
 
 from __future__ import annotations
@@ -28,11 +30,17 @@ class Outputs:
 
     def stage(self, name: str, text: str) -> Path:
         """Write `text` under a temporary name; returns that path (readable before commit)."""
-        self.dir.mkdir(parents=True, exist_ok=True)
+        return self.stage_bytes(name, text.encode("utf-8"))
+
+    def stage_bytes(self, name: str, data: bytes) -> Path:
+        """Write `data` under a temporary name; returns that path (readable before commit)."""
+        if not self._staged:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            remove_orphans(self.dir)
         tmp = self.dir / f"{TMP_PREFIX}{os.getpid()}-{name}"
         self._staged[name] = tmp
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        with open(tmp, "wb") as fh:
+            fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())  # the data is on disk before the name points at it
         return tmp
@@ -71,14 +79,36 @@ class Outputs:
         self.discard()  # after a commit there is nothing left to discard
 
 
+def remove_orphans(directory: Path) -> list[Path]:
+    """Remove the temporary files of commands that no longer run (killed while writing: their
+    name holds their pid); returns what was removed. Another live command's files stay."""
+    removed = []
+    for tmp in directory.glob(f"{TMP_PREFIX}*"):
+        pid = tmp.name[len(TMP_PREFIX) :].split("-", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not _running(int(pid)):
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+    return removed
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: running
+        return True
+    return True
+
+
 class _sigint_held:
-    """Block SIGINT (main thread only) while the renames run; a Ctrl-C pressed meanwhile is
-    delivered right after, when every file is already in place."""
+    """Block SIGINT and SIGTERM (main thread only) while the renames run; a signal sent
+    meanwhile is delivered right after, when every file is already in place."""
 
     def __enter__(self):
         self._on = threading.current_thread() is threading.main_thread()
         if self._on:
-            self._old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            self._old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
 
     def __exit__(self, *exc):
         if self._on:
