@@ -135,6 +135,8 @@ def _main(argv) -> int:
 
                 load_model_files(args)
             code = int(args.func(args) or 0)
+            if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):  # it wrote what it kept, and said so
+                return code
             interrupts.check()  # an interrupt an engine swallowed is not a finished command
             return code
         except ModelInputError as exc:

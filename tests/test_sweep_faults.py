@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import time
 
 import pytest
 
@@ -108,6 +109,10 @@ def test_an_interrupted_cli_sweep_says_how_to_resume(tmp_path, capsys):
         (["--samples", "9"], "continues the campaign stored there (samples 8)"),
         (["pendulum_xy"], "(models ['pendulum_xy', 'slider_crank_split'])"),
         (["--bench"], "give one of them"),
+        # a flag equal to its default is still a flag: compared, not ignored
+        (["--seed", "0"], "continues the campaign stored there (seed 11)"),
+        (["--samples", "100"], "continues the campaign stored there (samples 8)"),
+        (["--index", "0", "--seed", "11", "--samples", "7"], "(samples 8)"),
     ],
 )
 def test_resume_refuses_a_different_campaign(tmp_path, capsys, argv, fragment):
@@ -147,3 +152,107 @@ def test_a_killed_dask_worker_changes_nothing(undisturbed):
     assert res["meta"]["executor"]["kind"] == "dask"
     assert not res["faults"]["chunks"]
     _same(undisturbed, res)
+
+
+def _ctrl_c_at_sample(monkeypatch, at: int):
+    """Ctrl-C as --workers 1 meets it: the signal arrives while sample `at` (counted over the
+    campaign) is evaluated, and the engine swallows it (as Exudyn's solver can), returning a
+    wrong figure for that sample; interrupts.check() finds the signal afterwards."""
+    from crosscheck.runtime import interrupts
+    from crosscheck.sweep import worker
+
+    real = worker.compare_at_state
+    calls = []
+
+    def compare(*a, **k):
+        calls.append(1)
+        sc = real(*a, **k)
+        if len(calls) == at:
+            interrupts._seen.append(signal.SIGINT)
+            sc.values = {qn: 1.0 for qn in sc.values}  # what a swallowed interrupt may leave
+        return sc
+
+    monkeypatch.setattr(worker, "compare_at_state", compare)
+    monkeypatch.setattr(interrupts, "_seen", [])
+
+
+@pytest.mark.parametrize("at", [1, 4, 9, 17])
+def test_an_interrupt_at_any_sample_then_resume_equals_the_undisturbed_campaign(
+    tmp_path, monkeypatch, undisturbed, at
+):
+    """However deep in a chunk the interrupt lands, the chunk it interrupted is dropped whole:
+    sweep.json claims exactly the stored chunks and judges nothing the interrupt touched, and
+    the resumed campaign is the undisturbed one."""
+    from crosscheck.runtime import interrupts
+
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
+    _ctrl_c_at_sample(monkeypatch, at)
+    part = campaign(cfg, workers=1, chunk=CHUNK, store=ChunkStore(tmp_path, cfg))
+    st = part["status"]
+    assert st["stopped"] == "interrupted" and not st["passed"]
+    stored = ChunkStore(tmp_path, cfg).load()
+    claimed = {m: sum(b - a for a, b in r) for m, r in st["completed_ranges"].items()}
+    assert claimed == {m: sum(c["completed"] for c in stored if c["model"] == m) for m in MODELS}
+    assert st["outside_tolerance"] == 0 and st["faults"] == 0  # the wrong figure was dropped
+    monkeypatch.setattr(interrupts, "_seen", [])
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
+    res = campaign(cfg, workers=1, chunk=CHUNK, store=ChunkStore(tmp_path, cfg), resume=True)
+    _same(undisturbed, res)
+
+
+def test_a_resumed_campaigns_meta_names_the_command_that_started_it(tmp_path, monkeypatch):
+    monkeypatch.setattr("sys.argv", ["crosscheck", "sweep", "--seed", "11", "--samples", "8"])
+    _interrupted(tmp_path, after=1)
+    cfg = Campaign(MODELS, samples=SAMPLES, seed=SEED, out=str(tmp_path))
+    res = campaign(cfg, workers=1, chunk=CHUNK, store=ChunkStore(tmp_path, cfg), resume=True)
+    assert res["meta"]["resumed"]["campaign_command"] == "crosscheck sweep --seed 11 --samples 8"
+    assert res["meta"]["seed"] == SEED
+
+
+def test_a_campaign_too_large_to_hold_is_refused_before_any_work(tmp_path, capsys):
+    code = main(["sweep", "pendulum_xy", "--samples", "100000000", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "split it into campaigns with --index" in err and err.count("\n") == 1
+    assert not list(tmp_path.iterdir())
+
+
+REAL = ["sweep", "pendulum_xy", "--engines", "pinocchio", "--samples", "4000", "--seed", "3"]
+REAL += ["--workers", "1", "--chunk", "50"]
+
+
+@pytest.fixture(scope="module")
+def whole_sweep(session_child, tmp_path_factory) -> dict:
+    """The undisturbed `crosscheck sweep` of REAL, run once for the module."""
+    out = tmp_path_factory.mktemp("whole")
+    whole = session_child.crosscheck(*REAL, "--out", out)
+    assert whole.returncode == 0, whole.stdout + whole.stderr
+    return json.loads((out / "sweep.json").read_text())
+
+
+@pytest.mark.parametrize("delay", [2.0, 4.0])
+def test_a_real_ctrl_c_then_resume_equals_the_undisturbed_sweep(
+    tmp_path, child, delay, whole_sweep
+):
+    """SIGINT to a `crosscheck sweep --workers 1` process at two moments, then --resume: the
+    resumed sweep.json is the undisturbed campaign's (meta and timing aside), the interrupted
+    one claimed no more than its stored chunks, and Ctrl-C acted within 2 s."""
+    with child.start("-m", "crosscheck", *REAL, "--out", tmp_path) as proc:
+        time.sleep(delay)
+        assert proc.poll() is None, "the sweep ended before it could be interrupted"
+        t0 = time.perf_counter()
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=120)
+        acted = time.perf_counter() - t0
+    assert proc.returncode == 130
+    assert acted < 2.0, f"Ctrl-C took {acted:.1f} s to act"
+    cut = json.loads((tmp_path / "sweep.json").read_text())["status"]
+    stored = sum(c["completed"] for c in _stored(tmp_path))
+    assert cut["completed"]["pendulum_xy"] == stored
+    resumed = child.crosscheck("sweep", "--resume", tmp_path, "--workers", "1")
+    assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+    _same(whole_sweep, json.loads((tmp_path / "sweep.json").read_text()))
+
+
+def _stored(out) -> list[dict]:
+    cfg = Campaign(["pendulum_xy"], samples=4000, seed=3, engines=("pinocchio",), out=str(out))
+    return ChunkStore(out, cfg).load()

@@ -86,15 +86,16 @@ def cmd_sweep(args) -> int:
         out = output_dir(args.out)  # an unusable --out fails now, not after the campaign
         if args.bench:
             return _cmd_bench(args, names, engines, out)
+        given = _campaign_values(args)
         cfg = Campaign(
             list(names),
-            args.samples,
-            args.seed,
-            args.index,
+            given["samples"],
+            given["seed"],
+            given["index"],
             engines,
             parse_perturb(args.perturb),
             args.formulation,
-            args.worst,
+            given["worst"],
             str(out),
         )
     bar = None
@@ -132,18 +133,20 @@ def cmd_sweep(args) -> int:
     return exit_code(res["status"])
 
 
-# campaign options of the command line, with their defaults: under --resume each must be left
-# at its default or agree with the stored campaign
-_CAMPAIGN_OPTIONS = {
-    "models": [],
-    "samples": 100,
-    "seed": 0,
-    "index": 0,
-    "engines": None,
-    "perturb": [],
-    "formulation": None,
-    "worst": WORST_CASES,
-}
+# campaign options of the command line and their defaults. The parser leaves them None (or
+# empty) when they are not given, so that under --resume a given option, even one equal to its
+# default, is compared with the stored campaign and refused where it differs
+_CAMPAIGN_DEFAULTS = {"samples": 100, "seed": 0, "index": 0, "worst": WORST_CASES}
+_CAMPAIGN_OPTIONS = ("models", "samples", "seed", "index", "engines", "perturb", "formulation")
+_CAMPAIGN_OPTIONS += ("worst",)
+
+
+def _campaign_values(args) -> dict:
+    """The counts of a new campaign: the given ones, else their defaults."""
+    return {
+        k: getattr(args, k) if getattr(args, k) is not None else v
+        for k, v in _CAMPAIGN_DEFAULTS.items()
+    }
 
 
 def _resumed_campaign(args):
@@ -160,9 +163,11 @@ def _resumed_campaign(args):
         raise ModelInputError(f"--resume {args.resume!r} writes there; drop --out {args.out!r}")
     st = stored_settings(out)
     given = {"perturb": parse_perturb(args.perturb)}
-    for key, default in _CAMPAIGN_OPTIONS.items():
+    for key in _CAMPAIGN_OPTIONS:
         value = getattr(args, key)
-        if value != default and given.get(key, value) != st[key]:
+        if value is None or value == []:  # not given
+            continue
+        if given.get(key, value) != st[key]:
             raise ModelInputError(
                 f"--resume {args.resume!r} continues the campaign stored there ({key} "
                 f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out"
@@ -184,10 +189,15 @@ def _resumed_campaign(args):
 def _cmd_bench(args, names, engines, out) -> int:
     from crosscheck.runtime.output import write_atomic
 
-    cfg = Campaign(list(names), args.samples, args.seed, args.index, engines)
+    given = _campaign_values(args)
+    cfg = Campaign(list(names), given["samples"], given["seed"], given["index"], engines)
     cfg.validate()
     b = bench(
-        names, args.samples, args.seed, engines, log=lambda m: print(m, file=sys.stderr, flush=True)
+        names,
+        given["samples"],
+        given["seed"],
+        engines,
+        log=lambda m: print(m, file=sys.stderr, flush=True),
     )
     write_atomic(out / "sweep_bench.json", jsonio.dumps(b))
     print_bench(b)
@@ -198,10 +208,11 @@ def _cmd_bench(args, names, engines, out) -> int:
 def exit_code(status: dict) -> int:
     """130 when interrupted, 1 when a sample failed a check or faulted, 4 when the campaign
     stopped early (time budget) with nothing failed in what it ran, 0 when it passed."""
-    from crosscheck.cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED
+    from crosscheck.cli import EXIT_INCOMPLETE, EXIT_INTERRUPTED, EXIT_TERMINATED
+    from crosscheck.runtime import interrupts
 
     if status["stopped"] == "interrupted":
-        return EXIT_INTERRUPTED
+        return EXIT_TERMINATED if interrupts.terminated() else EXIT_INTERRUPTED
     return {"passed": 0, "failed": 1}.get(status["verdict"], EXIT_INCOMPLETE)
 
 
@@ -222,13 +233,13 @@ def register(sub):
     )
     add_models(s)
     s.add_argument(
-        "--samples", type=positive_int, default=100, help="samples per model (default 100)"
+        "--samples", type=positive_int, default=None, help="samples per model (default 100)"
     )
-    s.add_argument("--seed", type=nonnegative_int, default=0, help="campaign seed (default 0)")
+    s.add_argument("--seed", type=nonnegative_int, default=None, help="campaign seed (default 0)")
     s.add_argument(
         "--index",
         type=nonnegative_int,
-        default=0,
+        default=None,
         help="first sample index (default 0): --index I --samples 1 reruns sample I",
     )
     add_engines(s)
@@ -267,7 +278,10 @@ def register(sub):
         help="time budget: stop and report what is done",
     )
     s.add_argument(
-        "--worst", type=nonnegative_int, default=WORST_CASES, help="worst cases kept per quantity"
+        "--worst",
+        type=nonnegative_int,
+        default=None,
+        help=f"worst cases kept per quantity (default {WORST_CASES})",
     )
     s.add_argument(
         "--bench",

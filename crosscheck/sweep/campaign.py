@@ -130,9 +130,9 @@ class _Merger:
                 }
             )
             return
-        agg.merge(res)
         if self.store is not None:
-            self.store.save(res)
+            self.store.save(res)  # stored first: what is merged is what a resume finds
+        agg.merge(res)
         if self.progress:
             self.progress(res["completed"])
         if self.on_chunk:
@@ -186,11 +186,11 @@ def campaign(
                 merge(spec, res)
         except KeyboardInterrupt:
             stopped = "interrupted"
-            for spec, res in runner.stop():  # chunks that finished while stopping
+            for spec, res in runner.stop():  # chunks workers finished while stopping
                 if (spec.model, spec.start) not in seen:
-                    aggs[spec.model].merge(res)
                     if store is not None:
                         store.save(res)
+                    aggs[spec.model].merge(res)
     finally:
         if runner is not None:
             runner.close()
@@ -199,6 +199,10 @@ def campaign(
             cluster.close()
     if stopped is None and interrupts.seen():  # a Ctrl-C an engine swallowed in this process
         stopped = "interrupted"
+    if store is not None:
+        # the summary is made from the chunks on disk, the same a resume starts from: an
+        # interrupt at any instant cannot make sweep.json claim, or judge, anything else
+        aggs = _from_store(cfg, store, aggs)
     done = {n: int(a.completed.sum()) for n, a in aggs.items()}
     if stopped is None and any(d < cfg.samples for d in done.values()):
         if deadline is not None and time.time() > deadline:
@@ -213,13 +217,28 @@ def campaign(
     return out
 
 
+def _from_store(cfg: Campaign, store, planned) -> dict:
+    """Fresh aggregates of the planned series, holding exactly the stored chunks (the chunk
+    faults of this run, never stored, are kept)."""
+    aggs = {
+        n: ModelAggregate(n, a.formulation, cfg.index, cfg.samples, a.series, a.unsupported)
+        for n, a in planned.items()
+    }
+    for res in store.load():
+        if res["model"] in aggs:
+            aggs[res["model"]].merge(res)
+    for n, a in planned.items():
+        aggs[n].chunk_faults = a.chunk_faults
+    return aggs
+
+
 def _load_stored(cfg: Campaign, aggs, store, resume: bool, progress) -> dict:
     """Merge the chunks a stored, interrupted run of this campaign finished (resume), or start
     a fresh store; returns what was loaded (for meta)."""
     if store is None:
         return {}
     if not resume:
-        store.start()
+        store.start(" ".join(["crosscheck", *sys.argv[1:]]))
         return {}
     chunks = [r for r in store.load() if r["model"] in aggs]
     for res in chunks:
@@ -230,4 +249,6 @@ def _load_stored(cfg: Campaign, aggs, store, resume: bool, progress) -> dict:
         "chunks": len(chunks),
         "samples": sum(r["completed"] for r in chunks),
         "from": str(store.dir),
+        # the campaign's own command: its settings, where the resuming one may name none
+        "campaign_command": store.stored_command(),
     }

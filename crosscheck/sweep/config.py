@@ -25,6 +25,10 @@ LOCAL_CHUNK_MAX = 200
 # below ~1-3% -- unless that would leave workers idle (then N / threads, rounded up).
 DASK_MIN_CHUNK = 100
 DASK_MAX_CHUNK = 2000
+# The parent keeps every error value of a campaign (8 bytes per sample per quantity, ~20
+# quantities per model) to give exact quantiles: 10^7 samples of one model hold ~1.6 GB. More is
+# refused before any work (run several campaigns with --index instead).
+MAX_SAMPLES = 10**7
 # log10 histogram of each quantity's errors (report figures): 0.25-decade bins from 1e-18 to 1e2;
 # exact zeros, values below/above the range and non-finite values are counted apart
 HIST_LO, HIST_HI, HIST_STEP = -18.0, 2.0, 0.25
@@ -79,6 +83,12 @@ class Campaign:
         check_perturb(self.models, self.perturb)  # nan, or a mass made negative: exit 2
         if self.samples < 1:
             raise ModelInputError(f"--samples must be >= 1, got {self.samples}")
+        if self.samples * len(self.models) > MAX_SAMPLES:
+            raise ModelInputError(
+                f"--samples {self.samples} x {len(self.models)} model(s) is more than the "
+                f"{MAX_SAMPLES:.0e} samples a campaign keeps in memory (~160 bytes each, for "
+                f"exact quantiles); split it into campaigns with --index"
+            )
         if self.seed < 0 or self.index < 0:
             raise ModelInputError("--seed and --index must be >= 0")
         if self.worst < 0:

@@ -49,10 +49,12 @@ class ChunkStore:
         self.dir = Path(out_dir) / STORE
         self.settings = settings(cfg)
 
-    def start(self) -> None:
-        """A new campaign: the chunks of any earlier one in this directory are not its own."""
+    def start(self, command: str = "") -> None:
+        """A new campaign: the chunks of any earlier one in this directory are not its own.
+        `command` (the command line that started it) is kept for a resume's meta."""
         shutil.rmtree(self.dir, ignore_errors=True)
-        write_atomic(self.dir / "campaign.json", json.dumps(self.settings, indent=1))
+        text = json.dumps({**self.settings, "command": command}, indent=1)
+        write_atomic(self.dir / "campaign.json", text)
 
     def save(self, res: dict) -> None:
         if res["completed"] > 0:
@@ -67,6 +69,13 @@ class ChunkStore:
         """The stored chunk results, in a fixed order (model, start)."""
         out = [decode(json.loads(p.read_text())) for p in chunk_files(self.dir)]
         return sorted(out, key=lambda r: (r["model"], r["start"]))
+
+    def stored_command(self) -> str:
+        """The command line that started the stored campaign ("" if not recorded)."""
+        try:
+            return str(json.loads((self.dir / "campaign.json").read_text()).get("command", ""))
+        except (OSError, json.JSONDecodeError):
+            return ""
 
     def remove(self) -> None:
         shutil.rmtree(self.dir, ignore_errors=True)

@@ -14,6 +14,7 @@ from crosscheck.checks.instantaneous import ReferenceAnswer, build, compare_at_s
 from crosscheck.checks.perturb import perturbed
 from crosscheck.checks.sampling import draw_sample, sample_seed
 from crosscheck.engines.registry import get_engine
+from crosscheck.runtime import interrupts
 from crosscheck.sweep.config import REFERENCE
 from reference import NumericModel, models
 from reference.errors import SingularSystemError
@@ -102,6 +103,7 @@ def _draw_chunk(spec: ChunkSpec, base, past, timing: dict) -> list:
     t0 = time.perf_counter()
     drawn = []  # (index, sample seed, nm, t, q, u) or (index, sample seed, exception)
     for i in range(spec.start, spec.stop):
+        interrupts.check()
         if past():
             break
         try:
@@ -145,6 +147,10 @@ def _evaluate_chunk(
     per_series = {tuple(sv): [0.0, 0.0, 0, 0] for sv in spec.series}
     completed = 0
     for k, d in enumerate(drawn):
+        # Ctrl-C in this process (a campaign on --workers 1): the chunk is dropped as a whole,
+        # within one sample, whatever an engine did with the interrupt (one that swallows it
+        # can return a wrong answer for the sample it interrupted)
+        interrupts.check()
         if past():
             break
         completed = k + 1
@@ -232,6 +238,7 @@ def run_chunk(spec: ChunkSpec) -> dict:
     past = (lambda: False) if spec.deadline is None else (lambda: time.time() > spec.deadline)
     drawn = _draw_chunk(spec, base, past, timing)
     ref = _reference_chunk(base, drawn, timing)
+    interrupts.check()
     values, skips, soft, per_series, completed = _evaluate_chunk(
         spec, base, drawn, ref, perturb, n, past, fault
     )
