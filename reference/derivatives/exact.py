@@ -1,0 +1,323 @@
+"""The exact derivatives of the forward answer (u', lambda) with respect to the coordinates q,
+the speeds u and the applied generalized forces tau, at one state of a NumericModel.
+
+The equations are reference.derivatives.codegen's (the implicit function theorem on
+M u' - f - tau = A^T lambda, A u' = b). A model whose forward solve is unrolled gets one
+generated kernel that solves and differentiates in one call (C where the forward model runs on
+C); a model whose KKT solve is numeric (dependent rows, or past codegen.UNROLL_KKT_MAX) gets
+the partial derivatives from generated code and the solve here, on the independent rows:
+
+    [ M    -A_r^T ] [du'/dx]     [ P_x - L_x   ]
+    [ A_r   0     ] [dmu/dx ] = -[ U_r^T C_x   ],    dlambda/dx = U_r dmu/dx,
+
+with A = U S V^T, A_r = U_r^T A and lambda = U_r mu (reference.numeric.redundant), U_r held at
+the state's value; then d(A^T lambda)/dx = P_x + M du'/dx - dtau/dx (A^T lambda = M u' - f -
+tau, whatever lambda's convention). Holding U_r leaves du'/dx exact along every direction on
+which the rows stay dependent (where U_r moves, its change only adds a force in the range of
+A_r^T, which moves mu, not u'): every direction tangent to the manifold. Where the dependent
+combination is the same at every nearby state (a planar loop's identically zero out-of-plane
+row), the Jacobians are exact in every direction and dlambda/dx = U_r dmu/dx is the minimum-norm
+lambda's; where it moves with the state (a weld on a one-degree-of-freedom chain: five of its
+six rows dependent, in a combination that turns with the chain), the rows are independent off
+the manifold, where the equations have no solution: the Jacobians are then those of the
+equations with the state's independent rows held, exact along the manifold only, and
+dlambda/dx is not given.
+
+Derivatives with respect to q are partial derivatives of the model's own equations, which are
+defined off the constraint manifold as well; two formulations (or an engine) agree on them
+only along directions tangent to the manifold (reference.derivatives.directions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reference.backends import select
+from reference.backends.kernels import OK, PIVOT_RATIO_MIN, Kernels
+from reference.backends.python_kernels import PythonKernels
+from reference.derivatives import codegen as dcodegen
+from reference.errors import SingularSystemError
+from reference.formulations import derive
+from reference.numeric.model import NumericModel
+from reference.numeric.redundant import RANK_RTOL
+
+# The dependent rows' combination moves with the state where |U_perp^T C_x| is above this times
+# the scale of C_x (a row that becomes independent nearby): the minimum-norm lambda's derivative
+# would need that combination's own. Round-off of C_x leaves ~1e-16 relative.
+DEPENDENCY_RTOL = 1e-10
+
+BLOCKS = ("dq", "du", "dtau")
+
+
+@dataclass
+class Derivatives:
+    """The forward answer at a state and its derivatives.
+
+    Parameters
+    ----------
+    accelerations, multipliers : numpy.ndarray
+        u' (n) and lambda (m), as NumericModel.forward gives them.
+    dud_dq, dud_du, dud_dtau : numpy.ndarray
+        du'/dq (n x nq), du'/du (n x n), du'/dtau (n x n).
+    dlam_dq, dlam_du, dlam_dtau : numpy.ndarray or None
+        dlambda/dq (m x nq), dlambda/du (m x n), dlambda/dtau (m x n); with dependent rows
+        the derivatives of the minimum-norm lambda, None where the rows' dependency moves with
+        the state (then only A^T lambda has a derivative).
+    pivot_ratio : float
+        The KKT solve's smallest pivot ratio.
+    rank : int or None
+        The rank of A where the model allows dependent rows.
+    dforce_dq, dforce_du, dforce_dtau : numpy.ndarray or None
+        d(A^T lambda)/dq, /du, /dtau (n x nq, n x n, n x n): the generalized constraint force,
+        unique where lambda is not; given on the numeric path (None on the unrolled one).
+    """
+
+    accelerations: np.ndarray
+    multipliers: np.ndarray
+    dud_dq: np.ndarray
+    dud_du: np.ndarray
+    dud_dtau: np.ndarray
+    dlam_dq: np.ndarray | None
+    dlam_du: np.ndarray | None
+    dlam_dtau: np.ndarray | None
+    pivot_ratio: float
+    rank: int | None = None
+    dforce_dq: np.ndarray | None = None
+    dforce_du: np.ndarray | None = None
+    dforce_dtau: np.ndarray | None = None
+
+    def block(self, of: str, by: str) -> np.ndarray | None:
+        """One block: `of` 'accelerations', 'multipliers' or 'constraint_forces' (A^T
+        lambda), `by` 'dq', 'du' or 'dtau'; None where it is not given."""
+        prefix = {"accelerations": "dud", "multipliers": "dlam", "constraint_forces": "dforce"}
+        return getattr(self, f"{prefix[of]}_{by}")  # type: ignore[no-any-return]
+
+
+def _cut(X: np.ndarray, nq: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The q-, u- and tau-columns of stacked derivatives."""
+    return X[:, :nq], X[:, nq : nq + n], X[:, nq + n :]
+
+
+class DerivativeModel:
+    """The exact derivatives of one NumericModel's forward answer.
+
+    Parameters
+    ----------
+    nm : NumericModel
+        The model, formulation and parameters (its state checks and errors are used).
+    kind : {None, 'kkt', 'residual'}, optional
+        The generated module: None chooses 'kkt' where the forward solve is unrolled, else
+        'residual' (the numeric solve here); 'residual' on an unrolled model gives the same
+        derivatives by the other path (tests compare the two).
+    backend : {None, 'python'}, optional
+        'python' keeps the generated Python code; None takes the setting, as NumericModel.
+
+    Notes
+    -----
+    The module is generated on the first use of a model and formulation and cached on disk
+    (reference.derivatives.codegen); the forward model's code and cache are not touched.
+    """
+
+    def __init__(self, nm: NumericModel, kind: str | None = None, backend: str | None = None):
+        self.nm = nm
+        self.kind = kind or ("residual" if nm._numeric else "kkt")
+        if self.kind == "kkt" and nm._numeric:
+            raise ValueError(f"{nm.model.name}: its KKT solve is numeric: use kind='residual'")
+        model, f = nm.model, nm.formulation
+        scalar, batched, src, path = dcodegen.load(
+            lambda: derive(model, f), model, f, self.kind, bool(nm._augmented)
+        )
+        self.source, self.cache_path = src, path
+        self.n, self.nq, self.m = nm.n, nm.nq, nm.m
+        npa = len(nm.p) + (self.m if self.kind == "kkt" else self.n + self.m)
+        dims = (self.nq, self.n, npa, 0)
+        py = PythonKernels(scalar, batched, src, dims)
+        self.kernels: Kernels = select.kernels(py, src, path.stem, backend)
+        self._fn = self.kernels.function(
+            "derivatives" if self.kind == "kkt" else "residual_jacobians"
+        )
+        self._vj = self.kernels.function("velocity_jacobian")
+        self._nout = self.kernels.total[
+            "derivatives" if self.kind == "kkt" else "residual_jacobians"
+        ]
+
+    @property
+    def backend(self) -> str:
+        """'c' or 'python': where the generated derivative code runs."""
+        return self.kernels.name
+
+    # ---- the unrolled path ------------------------------------------------------------------
+    def fast(self, q: np.ndarray, u: np.ndarray, t: float = 0.0, out: np.ndarray | None = None):
+        """The generated kernel's output at one state, unchecked but for the kernel's own
+        checks ('kkt' modules only): u', lambda, du'/dq, dlambda/dq, du'/du, dlambda/du,
+        du'/dtau, dlambda/dtau (row-major), the pivot ratio; the benchmarks' call.
+
+        Parameters
+        ----------
+        q, u : numpy.ndarray
+            float64 vectors.
+        t : float, optional
+            Time.
+        out : numpy.ndarray, optional
+            A float64 vector to write into.
+
+        Returns
+        -------
+        tuple
+            (status, out).
+        """
+        if out is None:
+            out = np.empty(self._nout)
+        return self._fn(q, u, t, self.nm.kernel_parameters, out), out
+
+    def at(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> Derivatives:
+        """The forward answer and its derivatives at one state, checked.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state (need not be consistent: the equations are defined off the manifold).
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        Derivatives
+
+        Raises
+        ------
+        ModelInputError
+            A bad state (as NumericModel.forward).
+        SingularSystemError
+            The KKT matrix is singular at the state (as NumericModel.forward).
+        """
+        if type(q) is not np.ndarray or type(u) is not np.ndarray:
+            q, u, t = self.nm._arrays(q, u, t)
+        if self.kind == "kkt":
+            return self._unrolled(q, u, t)
+        return self._numeric(*self.nm._arrays(q, u, t))
+
+    def _unrolled(self, q: np.ndarray, u: np.ndarray, t: float) -> Derivatives:
+        out = np.empty(self._nout)
+        try:
+            st = self._fn(q, u, t, self.nm.kernel_parameters, out)
+        except TypeError:  # not float64 vectors: converted, then called
+            q, u, t = self.nm._arrays(q, u, t)
+            st = self._fn(q, u, t, self.nm.kernel_parameters, out)
+        piv = out.item(-1)
+        if st != OK or not piv > PIVOT_RATIO_MIN:
+            self.nm.forward(q, u, t)  # raises the forward's own error where it has one
+            raise SingularSystemError(self.nm.singular_message(q, piv))
+        blocks = [out[a:b].reshape(shape) for a, b, shape in self._views]
+        return Derivatives(*blocks, pivot_ratio=piv)  # type: ignore[misc, arg-type]
+
+    @property
+    def _views(self) -> list[tuple[int, int, tuple]]:
+        """(start, end, shape) of each output block of the 'kkt' kernel, in Derivatives'
+        order (u', lambda, du'/dq, du'/du, du'/dtau, dlambda/dq, dlambda/du, dlambda/dtau)."""
+        if "_views_" not in self.__dict__:
+            n, nq, m = self.n, self.nq, self.m
+            order = ((n,), (m,), (n, nq), (m, nq), (n, n), (m, n), (n, n), (m, n))
+            starts = np.cumsum([0] + [int(np.prod(s)) for s in order])
+            blocks = [
+                (int(a), int(b), s) for a, b, s in zip(starts, starts[1:], order, strict=False)
+            ]
+            self._views_ = [blocks[k] for k in (0, 1, 2, 4, 6, 3, 5, 7)]
+        return self._views_  # type: ignore[no-any-return]
+
+    # ---- the numeric path -------------------------------------------------------------------
+    def residual_jacobians(
+        self, q: np.ndarray, u: np.ndarray, t: float, ud: np.ndarray, lam: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        """R's partial derivatives at (u', lambda) ('residual' modules): P_x, L_x, C_x for
+        x = q and u (see reference.derivatives.codegen)."""
+        pa = np.concatenate([np.asarray(self.nm.p, float), ud, lam])
+        out = np.empty(self._nout)
+        st = self._fn(q, u, t, pa, out)
+        if st != OK:
+            self.nm.forward(q, u, t)
+            raise SingularSystemError(self.nm.singular_message(q, float("nan")))
+        n, nq, m = self.n, self.nq, self.m
+        sizes = (n * nq, n * nq, m * nq, n * n, n * n, m * n)
+        parts = np.split(out, np.cumsum(sizes)[:-1])
+        keys = ("P_q", "L_q", "C_q", "P_u", "L_u", "C_u")
+        cols = {"q": nq, "u": n}
+        return {k: p.reshape(-1, cols[k[-1]]) for k, p in zip(keys, parts, strict=True)}
+
+    def _numeric(self, q: np.ndarray, u: np.ndarray, t: float) -> Derivatives:
+        nm, n, nq = self.nm, self.n, self.nq
+        fw = nm.forward(q, u, t)
+        ud, lam = fw.accelerations, fw.multipliers
+        M, _f, A, _b = nm.matrices(q, u, t)
+        J = self.residual_jacobians(q, u, t, ud, lam)
+        P = np.hstack([J["P_q"], J["P_u"]])
+        E = P - np.hstack([J["L_q"], J["L_u"]])
+        Cx = np.hstack([J["C_q"], J["C_u"]])
+        Ur, Ar, fixed = self._independent_rows(A, Cx)
+        r = Ar.shape[0]
+        K = np.block([[M, -Ar.T], [Ar, np.zeros((r, r))]])
+        rhs = -np.vstack([E, Ur.T @ Cx])
+        tau = np.vstack([np.eye(n), np.zeros((r, n))])
+        X = np.linalg.solve(K, np.hstack([rhs, tau]))
+        dud, dlam = X[:n], (Ur @ X[n:] if fixed else None)
+        dforce = np.hstack([P, np.zeros((n, n))]) + M @ dud
+        dforce[:, nq + n :] -= np.eye(n)
+        dlq, dlu, dlt = (None, None, None) if dlam is None else _cut(dlam, nq, n)
+        dfq, dfu, dft = _cut(dforce, nq, n)
+        return Derivatives(
+            ud,
+            lam,
+            *_cut(dud, nq, n),
+            dlq,
+            dlu,
+            dlt,
+            fw.pivot_ratio,
+            fw.rank,
+            dfq,
+            dfu,
+            dft,
+        )
+
+    def _independent_rows(self, A: np.ndarray, Cx: np.ndarray) -> tuple:
+        """U_r and A_r = U_r^T A of A's independent rows (all of them without dependent rows),
+        and whether the dependent combination stays put (U_perp^T C_x = 0: then lambda's
+        derivative is the minimum-norm lambda's)."""
+        m = A.shape[0]
+        if m == 0:
+            return np.zeros((0, 0)), np.zeros((0, self.n)), True
+        U, s, _vt = np.linalg.svd(A)
+        r = int((s > RANK_RTOL * s[0]).sum()) if s[0] > 0 else 0
+        Ur = U[:, :r]
+        fixed = True
+        if r < m:
+            moved = float(np.max(np.abs(U[:, r:].T @ Cx)))
+            fixed = moved <= DEPENDENCY_RTOL * max(float(np.max(np.abs(Cx))), 1.0)
+        return Ur, Ur.T @ A, fixed
+
+    def velocity_jacobian(self, q: ArrayLike, u: ArrayLike, t: float = 0.0) -> np.ndarray:
+        """d(A u + a0)/dq at a state (m x nq): how the velocity rows move with q.
+
+        Parameters
+        ----------
+        q, u : array_like
+            The state.
+        t : float, optional
+            Time, default 0.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
+        q, u, t = self.nm._arrays(q, u, t)
+        pa = self.nm.kernel_parameters
+        if self.kind == "residual":
+            pa = np.concatenate([np.asarray(self.nm.p, float), np.zeros(self.n + self.m)])
+        out = np.empty(self.kernels.total["velocity_jacobian"])
+        st = self._vj(q, u, t, pa, out)
+        if st != OK:
+            self.nm.forward(q, u, t)
+            raise SingularSystemError(self.nm.singular_message(q, float("nan")))
+        return out.reshape(self.m, self.nq)
