@@ -9,6 +9,7 @@ nothing failed exits 4 (incomplete, not passed).
 from __future__ import annotations
 
 import argparse
+import errno
 import gc
 import os
 import re
@@ -110,11 +111,45 @@ def main(argv=None) -> int:
                 pass
         os._exit(code)
     if entry:
+        code = _flush_stdout(code)
         # The collections of the interpreter's teardown walk every object the models and
         # engines created: 0.4 s after a run. Frozen objects are skipped (the files are written
         # and closed; the OS takes the memory back): 0.1 s.
         gc.freeze()
     return code
+
+
+def _flush_stdout(code: int) -> int:
+    """What the command printed reaches its destination now, or one line says why not (a full
+    disk: `crosscheck models > /dev/full`), exit 2; the interpreter's own flush at exit then has
+    nothing left to fail on."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:  # `crosscheck models | head`: the reader has what it wanted
+        _discard_stdout()
+    except OSError as exc:
+        _discard_stdout()
+        print(f"crosscheck: error: {_cannot_write(exc)}", file=sys.stderr)
+        return EXIT_USAGE
+    return code
+
+
+def _discard_stdout() -> None:
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+
+
+# errors of the storage written to, not of the command: one line, exit 2
+WRITE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO, errno.EROFS)
+
+
+def _cannot_write(exc: OSError) -> str:
+    where = f" {exc.filename}" if exc.filename else " the output"
+    return (
+        f"cannot write{where}: {exc.strerror or exc}; free space or choose another place "
+        "(the command's files are renamed into place only once all are written)"
+    )
 
 
 def _main(argv) -> int:
@@ -146,20 +181,29 @@ def _main(argv) -> int:
         return _interrupted(args)
     except BrokenPipeError:  # pragma: no cover - `crosscheck models | head`
         return 0
+    except OSError as exc:
+        if exc.errno not in WRITE_ERRORS:
+            return _internal_error(args)
+        print(f"crosscheck: error: {_cannot_write(exc)}", file=sys.stderr)
+        return EXIT_USAGE
     except Exception:
-        # a Ctrl-C inside a C extension's import surfaces as that import's error
-        # ("ImportError: initialization failed" from MuJoCo): still an interrupt
-        if interrupts.seen():
-            return _interrupted(args)
-        import traceback
+        return _internal_error(args)
 
-        traceback.print_exc()
-        print(
-            "crosscheck: internal error (a bug, not a failed check; the traceback above "
-            "says where)",
-            file=sys.stderr,
-        )
-        return EXIT_INTERNAL
+
+def _internal_error(args) -> int:
+    """An unexpected exception (a bug): its traceback and one line saying so, exit 3."""
+    # a Ctrl-C inside a C extension's import surfaces as that import's error
+    # ("ImportError: initialization failed" from MuJoCo): still an interrupt
+    if interrupts.seen():
+        return _interrupted(args)
+    import traceback
+
+    traceback.print_exc()
+    print(
+        "crosscheck: internal error (a bug, not a failed check; the traceback above says where)",
+        file=sys.stderr,
+    )
+    return EXIT_INTERNAL
 
 
 def _interrupted(args) -> int:

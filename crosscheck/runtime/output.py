@@ -39,10 +39,13 @@ class Outputs:
             remove_orphans(self.dir)
         tmp = self.dir / f"{TMP_PREFIX}{os.getpid()}-{name}"
         self._staged[name] = tmp
-        with open(tmp, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())  # the data is on disk before the name points at it
+        try:
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())  # the data is on disk before the name points at it
+        except OSError as exc:  # a full disk: the message names the file, not its temporary
+            raise OSError(exc.errno, exc.strerror, str(self.dir / name)) from None
         return tmp
 
     def path(self, name: str) -> Path:
