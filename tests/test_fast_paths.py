@@ -21,6 +21,7 @@ from reference.backends import c_build as cbuild
 from reference.backends.kernels import OK
 from reference.errors import ModelInputError
 from reference.numeric.model import Forward
+from tests.support import state
 
 MODELS = ("slider_crank", "top_cartesian")
 NEEDS = {
@@ -42,10 +43,6 @@ def nm(request, monkeypatch):
 
 def _nf(nm):
     return nm.n + nm.m + 1
-
-
-def _state(nm):
-    return np.array(nm.model.initial_q, float), np.array(nm.model.initial_u, float)
 
 
 def _variants(x: np.ndarray) -> dict:
@@ -74,7 +71,7 @@ def _equal_variants(x: np.ndarray) -> dict:
 
 
 def test_every_input_form_gives_the_float64_answer(nm):
-    q, u = _state(nm)
+    q, u = state(nm)
     q, u = (x.astype(np.float32).astype(float) for x in (q, u))  # values float32 holds
     ref, nf = nm.forward(q, u), _nf(nm)
     for what, qv in _equal_variants(q).items():
@@ -91,7 +88,7 @@ def test_every_input_form_gives_the_float64_answer(nm):
 
 
 def test_integer_state_is_converted_not_misread(nm):
-    q, u = _state(nm)
+    q, u = state(nm)
     qi, ui = np.round(q).astype(np.int64), np.round(u).astype(np.int64)
     want = nm.forward(qi.astype(float), ui.astype(float))
     assert np.array_equal(nm.forward(qi, ui).accelerations, want.accelerations)
@@ -103,7 +100,7 @@ def test_integer_state_is_converted_not_misread(nm):
 
 @pytest.mark.parametrize("bad", ("short q", "long u", "nan", "inf t", "text", "empty"))
 def test_bad_state_is_a_clear_error_on_every_path(nm, bad):
-    q, u = _state(nm)
+    q, u = state(nm)
     t = 0.0
     if bad == "short q":
         q, match = q[:-1], "expected .* coordinates"
@@ -147,7 +144,7 @@ def _bad_outs(nf: int) -> dict:
 
 
 def test_bad_out_is_a_clear_error_and_nothing_is_written(nm):
-    q, u = _state(nm)
+    q, u = state(nm)
     for what, out in _bad_outs(_nf(nm)).items():
         before = np.array(out, copy=True) if isinstance(out, np.ndarray) else None
         with pytest.raises(ModelInputError, match="out must be a writable C-contiguous") as e:
@@ -161,7 +158,7 @@ def test_the_kernel_refuses_what_it_cannot_read(nm):
     """The kernel layer beneath forward_fast: float64 vectors and a number in, a status out;
     on C anything else is a TypeError (nothing is read or written), the generated Python
     converts what holds numbers and refuses the rest with a TypeError too."""
-    q, u = _state(nm)
+    q, u = state(nm)
     kf, pa, db = nm.kernels.function("forward"), nm.kernel_parameters, nm.kernels.zero_db
     out = np.empty(_nf(nm))
     assert kf(q, u, 0.0, pa, db, out) == OK
@@ -185,7 +182,7 @@ def test_the_kernel_refuses_what_it_cannot_read(nm):
 
 
 def test_out_call_returns_the_callers_array_and_the_raw_triple_is_fresh(nm):
-    q, u = _state(nm)
+    q, u = state(nm)
     out = np.empty(_nf(nm))
     assert nm.forward_fast(q, u, 0.0, out=out) is out
     ud, lam, piv = nm.forward_fast(q, u, 0.0)
@@ -196,7 +193,7 @@ def test_out_call_returns_the_callers_array_and_the_raw_triple_is_fresh(nm):
 
 
 def test_lists_on_the_fast_call_match_vectors(nm):
-    q, u = _state(nm)
+    q, u = state(nm)
     out = nm.forward_fast(q.tolist(), u.tolist(), 0.0, out=np.empty(_nf(nm)))
     ud, lam, piv = nm.forward_fast(q.tolist(), u.tolist(), 0.0)
     assert np.array_equal(out, np.r_[ud, lam, piv])
@@ -206,7 +203,7 @@ def test_lists_on_the_fast_call_match_vectors(nm):
 
 
 def test_forward_record_keeps_the_dataclass_behaviour(nm):
-    q, u = _state(nm)
+    q, u = state(nm)
     a, b = nm.forward(q, u), nm.forward(q, u)
     assert a.rank is None and isinstance(a.pivot_ratio, float)
     assert a == a  # the dataclass's equality: field by field, the same arrays compare equal

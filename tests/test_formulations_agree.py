@@ -13,11 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from crosscheck.checks.sampling import random_consistent_state
 from reference import NumericModel, models
 from reference.formulations import derive
 from reference.minimal import slider_crank_one_coordinate
 from reference.models.pendulum import rod_tension
+from tests.support import scaled_error, states
 
 # Two evaluations of the same equations through differently ordered arithmetic differ by
 # round-off: a few hundred ulps of the largest term (|terms| up to ~1e3 in these models).
@@ -26,20 +26,12 @@ ROUNDOFF_REL = 1e-11
 MULTI = [n for n in models.names() if len(models.get(n).formulations) > 1]
 
 
-def _rel(a, b):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    scale = max(1.0, float(np.max(np.abs(b))) if b.size else 1.0)
-    return float(np.max(np.abs(a - b))) / scale if a.size else 0.0
-
-
 @pytest.mark.parametrize("name", MULTI)
 def test_formulations_agree_numerically(name):
     model = models.get(name)
-    rng = np.random.default_rng(7)
     ref = NumericModel(model, model.formulations[0])
     others = [NumericModel(model, f) for f in model.formulations[1:]]
-    for _ in range(10):
-        q, u = random_consistent_state(ref, rng)
+    for q, u in states(ref, 10, seed=7):
         r0 = ref.forward(q, u)
         # rows whose multiplier depends on the formulation (the model says which and why:
         # the Euler-parameter normalization of the top, Exercise 6.6); the motion does not
@@ -49,8 +41,12 @@ def test_formulations_agree_numerically(name):
         ]
         for nm in others:
             r = nm.forward(q, u)
-            assert _rel(r.accelerations, r0.accelerations) < ROUNDOFF_REL, (nm.formulation, q, u)
-            assert _rel(r.multipliers[keep], r0.multipliers[keep]) < ROUNDOFF_REL, (
+            assert scaled_error(r.accelerations, r0.accelerations) < ROUNDOFF_REL, (
+                nm.formulation,
+                q,
+                u,
+            )
+            assert scaled_error(r.multipliers[keep], r0.multipliers[keep]) < ROUNDOFF_REL, (
                 nm.formulation,
                 q,
                 u,
@@ -71,7 +67,7 @@ def test_pendulum_1a_equals_1b_and_tension():
             L * (thdd * math.cos(th) - w**2 * math.sin(th)),
             -L * (thdd * math.sin(th) + w**2 * math.cos(th)),
         ]
-        assert _rel(rb.accelerations, expected) < ROUNDOFF_REL
+        assert scaled_error(rb.accelerations, expected) < ROUNDOFF_REL
         # Addendum: T = -lambda L equals the radial balance m L w^2 + m g cos(theta)
         T = rod_tension(rb.multipliers[0], L)
         assert abs(T - (m * L * w**2 + m * g * math.cos(th))) < ROUNDOFF_REL * max(1, abs(T))
@@ -93,8 +89,8 @@ def test_slider_crank_three_ways():
         xd = -l1 * math.sin(th1) * w1 - l2 * math.sin(th2) * w2
         r3 = split.forward([th1, x, th2 + math.pi], [w1, xd, w2])
         r1 = one.forward([th1], [w1])
-        assert _rel(r3.accelerations[[0, 2]], r2.accelerations) < ROUNDOFF_REL
-        assert _rel(r1.accelerations, r2.accelerations[:1]) < ROUNDOFF_REL
+        assert scaled_error(r3.accelerations[[0, 2]], r2.accelerations) < ROUNDOFF_REL
+        assert scaled_error(r1.accelerations, r2.accelerations[:1]) < ROUNDOFF_REL
         # slider acceleration from Example 2's angles: x'' = d2/dt2 (l1 C1 + l2 C2)
         a1, a2 = r2.accelerations
         xdd = -l1 * (a1 * math.sin(th1) + w1**2 * math.cos(th1)) - l2 * (
@@ -109,9 +105,7 @@ def test_fast_path_equals_slow_sympy_path(name):
     model = models.get(name)
     nm = NumericModel(model, "lagrange")
     eom = derive(model, "lagrange")
-    rng = np.random.default_rng(5)
-    for _ in range(3):
-        q, u = random_consistent_state(nm, rng)
+    for q, u in states(nm, 3, seed=5):
         subs = {s: v for s, v in zip(model.coordinates, q, strict=True)}
         subs.update({s: v for s, v in zip(model.speeds, u, strict=True)})
         subs.update({p.symbol: nm.params[p.name] for p in model.parameters})
@@ -124,21 +118,20 @@ def test_fast_path_equals_slow_sympy_path(name):
         K = np.block([[M, -A.T], [A, np.zeros((m, m))]])
         sol = np.linalg.solve(K, np.concatenate([f, b]))
         r = nm.forward(q, u)
-        assert _rel(r.accelerations, sol[:n]) < ROUNDOFF_REL
-        assert _rel(r.multipliers, sol[n:]) < ROUNDOFF_REL
+        assert scaled_error(r.accelerations, sol[:n]) < ROUNDOFF_REL
+        assert scaled_error(r.multipliers, sol[n:]) < ROUNDOFF_REL
 
 
 @pytest.mark.parametrize("name", MULTI)
 def test_batched_equals_single(name):
     model = models.get(name)
     nm = NumericModel(model)
-    rng = np.random.default_rng(11)
-    states = [random_consistent_state(nm, rng) for _ in range(8)]
-    Q = np.array([s[0] for s in states])
-    U = np.array([s[1] for s in states])
+    drawn = states(nm, 8, seed=11)
+    Q = np.array([s[0] for s in drawn])
+    U = np.array([s[1] for s in drawn])
     UD, LAM, _ = nm.forward_batch(Q, U)
-    for i, (q, u) in enumerate(states):
+    for i, (q, u) in enumerate(drawn):
         r = nm.forward(q, u)
         # same code on numpy arrays: numpy's sin/cos may differ from math's by an ulp
-        assert _rel(UD[i], r.accelerations) < ROUNDOFF_REL
-        assert _rel(LAM[i], r.multipliers) < ROUNDOFF_REL
+        assert scaled_error(UD[i], r.accelerations) < ROUNDOFF_REL
+        assert scaled_error(LAM[i], r.multipliers) < ROUNDOFF_REL

@@ -4,7 +4,8 @@
     whose right sides decode term by term and whose left sides are 2 E^T (I omega' + omega x
     I omega)), symbolically;
 (b) Exercise 6.6: lambda = 0 with d'Alembert (and Kane); lambda = 2V - 4K with Lagrange;
-(c) kinematics: R^T R' = skew(omega) and v_G = d r_G/dt at random consistent states;
+(c) kinematics: R^T R' = skew(omega) and v_G = d r_G/dt at random consistent states (the
+    models' samplers, their states checked consistent: tests.support.states);
 (d) energy: dE/dt = grad E . (q', u') vanishes (or equals the motors' power, Example 3);
 (e) Example 4 against sympy.physics.mechanics' KanesMethod with six independent speeds, and its
     multipliers against a Newton-Euler solve written here in numpy; the multipliers of
@@ -25,6 +26,7 @@ from scipy.spatial.transform import Rotation
 from reference import NumericModel, models
 from reference.formulations import derive
 from reference.formulations.lagrange import kinetic_energy, potential_energy
+from tests.support import scaled_error, states
 
 # Round-off of a handful of products of O(1..1e2) numbers (rotation matrices, omega up to ~80
 # rad/s for the top), relative to the size of the terms: ~1e-15 per operation, with margin.
@@ -42,11 +44,6 @@ def _sym(name):
 
 def _syms(fmt, idx):
     return [_sym(fmt.format(i)) for i in idx]
-
-
-def _rel(a, b):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return float(np.max(np.abs(a - b))) / max(1.0, float(np.max(np.abs(b))))
 
 
 def _vanishes_on_circles(expr, angles) -> bool:
@@ -88,17 +85,6 @@ def _numeric(name, formulation=None, params=None):
     if key not in _NUMERIC:
         _NUMERIC[key] = NumericModel(models.get(name), formulation, params)
     return _NUMERIC[key]
-
-
-def _states(nm, n, seed):
-    """Random consistent states from the model's sampler, refused if off the manifold."""
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        q, u = nm.model.state_sampler(rng, nm.params)
-        nm.check_consistent(q, u)
-        out.append((np.array(q, float), np.array(u, float)))
-    return out
 
 
 ALL_3D = ["frame_bar", "double_pendulum_3d", "top_euler", "top_cartesian"]
@@ -327,7 +313,7 @@ def test_exercise_6_6_multiplier_is_zero(formulation):
     eom = derive(models.get("top_euler"), formulation)
     assert _lambda_free_sum(eom) == 0
     nm = _numeric("top_euler", formulation)
-    for q, u in _states(nm, 20, seed=66):
+    for q, u in states(nm, 20, seed=66):
         fw = nm.forward(q, u)
         M, f, _, _ = nm.matrices(q, u)
         # lambda is a difference of generalized forces of size |M u'| + |f|
@@ -344,12 +330,12 @@ def test_exercise_6_6_lagrange_multiplier_is_2V_minus_4K():
     K, V = kinetic_energy(model), potential_energy(model)
     assert sp.expand(_lambda_free_sum(eom) - (2 * V - 4 * K)) == 0
     nm, nd = _numeric("top_euler", "lagrange"), _numeric("top_euler", "dalembert")
-    for q, u in _states(nm, 20, seed=67):
+    for q, u in states(nm, 20, seed=67):
         fw = nm.forward(q, u)
         K, V = nm.energy(q, u)
         assert abs(fw.multipliers[0] - (2 * V - 4 * K)) < SOLVE_REL * (abs(V) + 4 * abs(K))
         assert abs(fw.multipliers[0]) > 1e-3 * (abs(V) + K)  # really nonzero
-        assert _rel(fw.accelerations, nd.forward(q, u).accelerations) < SOLVE_REL
+        assert scaled_error(fw.accelerations, nd.forward(q, u).accelerations) < SOLVE_REL
 
 
 # ---------------------------------------------------------------------------------------------
@@ -378,7 +364,7 @@ def test_rotation_rate_and_mass_center_velocity(name):
     p = [nm.params[x.name] for x in model.parameters]
     for body in model.bodies:
         fn = _body_functions(model, body)
-        for q, u in _states(nm, 15, seed=3):
+        for q, u in states(nm, 15, seed=3):
             R, Rd, w, v, _r, rd = (np.array(x, float) for x in fn(q, u, p, 0.0))
             w = w.ravel()
             scale = 1 + np.abs(w).max()
@@ -396,7 +382,7 @@ def test_example_4_rotation_convention_matters():
     nm = _numeric("double_pendulum_3d")
     body = model.bodies[0]
     fn = _body_functions(model, body, R=body.R.T)
-    q, u = _states(nm, 1, seed=4)[0]
+    q, u = states(nm, 1, seed=4)[0]
     p = [nm.params[x.name] for x in model.parameters]
     R, Rd, w, *_ = (np.array(x, float) for x in fn(q, u, p, 0.0))
     w = w.ravel()
@@ -430,7 +416,7 @@ def test_energy_rate(name, formulation):
     Example 3 with motor torques, M_phi phi' + M_theta theta' (power of the motors)."""
     params = {"M_phi": 0.7, "M_theta": -0.4} if name == "frame_bar" else {}
     nm = _numeric(name, formulation, params)
-    for q, u in _states(nm, 15, seed=5):
+    for q, u in states(nm, 15, seed=5):
         pb = nm.power_balance(q, u)
         M, f, _, _ = nm.matrices(q, u)
         ud = nm.forward(q, u).accelerations
@@ -510,13 +496,13 @@ def test_example_4_against_kanes_method():
     nm = _numeric("double_pendulum_3d")
     model = nm.model
     Rfun = sp.lambdify((model.coordinates,), [b.R for b in model.bodies])
-    for q, u in _states(nm, 8, seed=44):
+    for q, u in states(nm, 8, seed=44):
         # our Body.R (body -> N) is the transpose of sympy's (and the textbook's) N -> body DCM
         for Rb, D in zip(Rfun(q), dcm(q), strict=True):
             assert np.abs(np.array(Rb, float).T - np.array(D, float)).max() < KIN_REL
         M, F = (np.array(x, float) for x in fn(q, u[:6], _dp_params(nm)))
         wdot = np.linalg.solve(M, F.ravel())
-        assert _rel(nm.forward(q, u).accelerations[:6], wdot) < SOLVE_REL, (q, u)
+        assert scaled_error(nm.forward(q, u).accelerations[:6], wdot) < SOLVE_REL, (q, u)
 
 
 def _newton_euler(q, u, P):
@@ -569,11 +555,11 @@ def test_example_4_multipliers_are_joint_forces():
     """lambda[3:6] = F_A (link 1 on link 2), lambda[0:3] = F_O - F_A; the accelerations agree
     too (omega' in link components, v' = a_G in N components)."""
     nm = _numeric("double_pendulum_3d")
-    for q, u in _states(nm, 8, seed=45):
+    for q, u in states(nm, 8, seed=45):
         fw = nm.forward(q, u)
         al1, al2, aG1, aG2, FO, FA = _newton_euler(q, u, _dp_params(nm))
-        assert _rel(fw.accelerations, np.concatenate([al1, al2, aG1, aG2])) < SOLVE_REL
-        assert _rel(fw.multipliers, np.concatenate([FO - FA, FA])) < SOLVE_REL
+        assert scaled_error(fw.accelerations, np.concatenate([al1, al2, aG1, aG2])) < SOLVE_REL
+        assert scaled_error(fw.multipliers, np.concatenate([FO - FA, FA])) < SOLVE_REL
 
 
 def test_example_3_multiplier_meaning():
@@ -583,7 +569,7 @@ def test_example_3_multiplier_meaning():
     nm = _numeric("frame_bar", None, params)
     P = nm.params
     Iv = np.array([P["I1"], P["I2"], P["I3"]])
-    for q, u in _states(nm, 15, seed=33):
+    for q, u in states(nm, 15, seed=33):
         fw = nm.forward(q, u)
         S, C = math.sin(q[1]), math.cos(q[1])
         w, a = u, fw.accelerations
@@ -614,11 +600,11 @@ def test_example_3_multiplier_depends_on_partial_velocities():
     params = {"M_phi": 0.7, "M_theta": -0.4}
     nm, nv = _numeric("frame_bar", None, params), NumericModel(variant, None, params)
     P = nm.params
-    for q, u in _states(nm, 10, seed=34):
+    for q, u in states(nm, 10, seed=34):
         a, b = nm.forward(q, u), nv.forward(q, u)
         phi_dot = nm.kinematics(q, u)[0]
         shift = -P["m"] * P["d"] ** 2 * phi_dot**2
-        assert _rel(b.accelerations, a.accelerations) < SOLVE_REL
+        assert scaled_error(b.accelerations, a.accelerations) < SOLVE_REL
         assert abs(b.multipliers[0] - a.multipliers[0] - shift) < SOLVE_REL * (1 + abs(shift))
         if abs(shift) > 1e-3:
             assert abs(b.multipliers[0] - a.multipliers[0]) > 1e-6
@@ -632,7 +618,7 @@ def test_exercise_6_7_multipliers_are_the_socket_force():
     ne = _numeric("top_euler")
     P = nm.params
     Iv = np.array([P["I"], P["I"], P["I3"]])
-    for q, u in _states(nm, 15, seed=77):
+    for q, u in states(nm, 15, seed=77):
         fw = nm.forward(q, u)
         e1, e2, e3, e4 = q[3:]
         E = np.array([[e4, e3, -e2, -e1], [-e3, e4, e1, -e2], [e2, -e1, e4, -e3]])
@@ -644,7 +630,9 @@ def test_exercise_6_7_multipliers_are_the_socket_force():
         assert np.abs(lhs - rhs).max() < SOLVE_REL * (
             1 + np.abs(Iv * alpha).max() + np.abs(np.cross(w, Iv * w)).max()
         )
-        assert _rel(fw.accelerations[3:], ne.forward(q[3:], u[3:]).accelerations) < SOLVE_REL
+        assert (
+            scaled_error(fw.accelerations[3:], ne.forward(q[3:], u[3:]).accelerations) < SOLVE_REL
+        )
         # eps times the Euler-parameter rows: 0 = -2 x . F_O + lambda4 (E eps = 0, and each
         # x_j - L (R e3)_j is homogeneous of degree 2 in eps)
         lam4 = 2 * q[:3] @ fw.multipliers[:3]

@@ -16,16 +16,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from crosscheck.checks.sampling import consistent_states
-from crosscheck.checks.tolerances import scaled_error
 from crosscheck.engines.mujoco.adapter import LIGHT, MujocoAdapter
 from reference.models import get
 from reference.numeric.model import NumericModel
-
-
-def maxabs(x) -> float:
-    return float(np.max(np.abs(np.asarray(x, float))))
-
+from tests.support import max_abs, scaled_error, states
 
 # Energy error of MuJoCo's fixed-step integrators on slider_crank_split over 0.5 s, measured at
 # h = 2, 1, 0.5, 0.25 ms (docs/engines/mujoco.md, "Energy error by integrator and step"):
@@ -47,7 +41,7 @@ def _energy_error(integrator, timestep, tc=0.02):
         integrator=integrator,
         timestep=timestep,
     )
-    return maxabs(tr.energy - tr.energy[0])
+    return max_abs(tr.energy - tr.energy[0])
 
 
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
@@ -86,7 +80,7 @@ def test_light_axial_inertia_is_the_cause_of_exercise_6_4s_exact_error():
     double = NumericModel(_with_light_axial_inertia(plain.model, 2.0))
     em = MujocoAdapter().build("exercise_6_4")
     err = {"plain": 0.0, "same": 0.0, "double": 0.0}
-    for q, u in consistent_states(plain, 100):
+    for q, u in states(plain, 100):
         acc = em.forward(q, u).accelerations
         for key, nm in (("plain", plain), ("same", same), ("double", double)):
             err[key] = max(err[key], scaled_error(acc, nm.forward(q, u).accelerations))

@@ -12,6 +12,7 @@ from crosscheck.engines.mujoco.adapter import MujocoAdapter
 from crosscheck.engines.mujoco.soft_prediction import documented_R, impedance
 from reference import models
 from reference.numeric.model import NumericModel
+from tests.support import max_abs, scaled_error, states
 
 SOFT_MODELS = [
     "slider_crank",
@@ -27,29 +28,18 @@ SOFT_MODELS = [
 RELATIVE_MISS = 1e-5
 
 
-def _states(nm, count, seed=0):
-    rng = np.random.default_rng(seed)
-    for _ in range(count):
-        if nm.model.state_sampler is not None:
-            q, u = nm.model.state_sampler(rng, nm.params)
-        else:
-            q = np.asarray(nm.model.initial_q) + rng.uniform(-1, 1, nm.nq)
-            u = np.asarray(nm.model.initial_u) + rng.uniform(-2, 2, nm.n)
-        yield nm.project(q, u)
-
-
 def _relative_miss(name, perturb=None, count=3):
     nm = NumericModel(models.get(name))
     params = {k: v * (1 + (perturb or {}).get(k, 0.0)) for k, v in nm.params.items()}
     em = MujocoAdapter().build(name, params)
     worst = 0.0
-    for q, u in _states(nm, count):
+    for q, u in states(nm, count, seed=0):
         ref = nm.forward(q, u)
         raw = em.forward(q, u)
         acc_p, _ = em.predict_soft(q, u, ref.accelerations)
-        scale = max(1.0, float(np.max(np.abs(ref.accelerations))))
-        soft = float(np.max(np.abs(raw.accelerations - ref.accelerations))) / scale
-        miss = float(np.max(np.abs(raw.accelerations - acc_p))) / scale
+        # the miss and the soft effect on the same scale, the reference's: their ratio
+        soft = scaled_error(raw.accelerations, ref.accelerations)
+        miss = max_abs(raw.accelerations - acc_p) / max(1.0, max_abs(ref.accelerations))
         worst = max(worst, miss / max(soft, 1e-12))
     return worst
 
@@ -58,7 +48,7 @@ def _relative_miss(name, perturb=None, count=3):
 def test_documented_R_is_mujocos(name):
     nm = NumericModel(models.get(name))
     em = MujocoAdapter().build(name)
-    q, u = next(_states(nm, 1))
+    q, u = states(nm, 1, seed=0)[0]
     em.forward(q, u)
     nefc = em.d.nefc
     assert np.allclose(documented_R(em.m, em.d), em.d.efc_R[:nefc], rtol=1e-12, atol=0)

@@ -16,7 +16,7 @@ slides q = qpos, v = qvel; ball joints (x, y, z, w) = MuJoCo's (w, x, y, z), v =
 frame); free joints q = [p, xyzw], v = [R^T p', omega local] (MuJoCo: [p', omega local]),
 their spatial acceleration a gives MuJoCo's classical qacc[0:3] = R (a_lin + omega x v_lin).
 
-Tolerances (relative to max(1, max|reference value|)):
+Tolerances (tests.support.scaled_error: relative to max(1, max|reference value|)):
 - TOL_SAME_FILE = 1e-11: parsed Pinocchio vs MuJoCo's unconstrained mj_forward on the same
   file: the same numbers in, two algorithms (ABA vs CRB + LDL), round-off only; the 3-D double
   pendulum's small axial inertia amplifies it to ~4e-13 (docs/engines/pinocchio.md).
@@ -41,6 +41,7 @@ from crosscheck.engines.mujoco.adapter import MJCF_DIR, MujocoAdapter, mjcf
 from crosscheck.engines.pinocchio.adapter import PROX_REDUNDANT, PinocchioAdapter
 from reference.models import get
 from reference.numeric.model import NumericModel
+from tests.support import max_abs, scaled_error, states
 
 TOL_SAME_FILE = 1e-11
 TOL_RIGID = 1e-9
@@ -67,15 +68,6 @@ LOOPS = [
 
 
 # ---- helpers ---------------------------------------------------------------------------------
-def maxabs(x) -> float:
-    x = np.asarray(x, float)
-    return float(np.max(np.abs(x))) if x.size else 0.0
-
-
-def rel(x, ref) -> float:
-    return maxabs(np.asarray(x, float) - np.asarray(ref, float)) / max(1.0, maxabs(ref))
-
-
 @cache
 def reference(name: str) -> NumericModel:
     return NumericModel(get(name))
@@ -84,22 +76,6 @@ def reference(name: str) -> NumericModel:
 @cache
 def engines(name: str, variant):
     return MJ.build(name, None, variant), PIN.build(name, None, variant)
-
-
-def states(name: str, n: int, seed: int = 0):
-    """Consistent states: the model's sampler, or its initial state perturbed and projected."""
-    nm = reference(name)
-    mdl = nm.model
-    rng = np.random.default_rng(seed)
-    out = []
-    while len(out) < n:
-        if mdl.state_sampler is not None:
-            q, u = mdl.state_sampler(rng, nm.params)
-        else:
-            q = np.asarray(mdl.initial_q) + 0.3 * rng.standard_normal(nm.nq)
-            u = np.asarray(mdl.initial_u) + rng.standard_normal(nm.n)
-        out.append(nm.project(q, u))
-    return out
 
 
 def _quat_R(xyzw) -> np.ndarray:
@@ -156,7 +132,7 @@ def to_parsed_tau(pm, mm, qfrc):
     for jid in range(1, pm.njoints):
         jm, kind = pm.joints[jid], pm.joints[jid].shortname()
         b, iv = mm.jnt_dofadr[_mj_joint(mm, pm.names[jid])], jm.idx_v
-        assert kind != "JointModelFreeFlyer" or maxabs(qfrc[b : b + 6]) == 0.0
+        assert kind != "JointModelFreeFlyer" or max_abs(qfrc[b : b + 6]) == 0.0
         tau[iv : iv + jm.nv] = qfrc[b : b + jm.nv]
     return tau
 
@@ -225,22 +201,22 @@ def test_tree_parsed_model_agrees(name, variant, stem):
     pm, pd, _, _ = parsed(stem, False)
     _structure_matches(pm, emj.m)
     nm = reference(name)
-    for q, u in states(name, 6, seed=1):
+    for q, u in states(reference(name), 6, seed=1):
         fm = emj.forward(q, u)
         qe, ve = fm.raw["engine_q"], fm.raw["engine_v"]
         qp, vp = to_parsed(pm, emj.m, qe, ve)
         tau = to_parsed_tau(pm, emj.m, emj.d.qfrc_applied + emj.d.qfrc_passive)
         a = pin.aba(pm, pd, qp, vp, tau).copy()
         a_mj = to_mujoco_acc(pm, emj.m, qp, vp, a)
-        assert rel(a_mj, fm.raw["engine_accelerations"]) <= TOL_SAME_FILE, (stem, q, u)
+        assert scaled_error(a_mj, fm.raw["engine_accelerations"]) <= TOL_SAME_FILE, (stem, q, u)
         M = pin.crba(pm, pd, qp)  # same velocity coordinates (ball joints: local omegas)
         M = np.triu(M) + np.triu(M, 1).T
         Mmj = np.zeros((emj.m.nv, emj.m.nv))
         mujoco.mj_fullM(emj.m, emj.d, Mmj)
-        assert rel(M, Mmj) <= TOL_SAME_FILE, (stem, M, Mmj)
+        assert scaled_error(M, Mmj) <= TOL_SAME_FILE, (stem, M, Mmj)
         acc_ref = emj._acc_to_reference(qe, ve, a_mj)
-        assert rel(acc_ref, epn.forward(q, u).accelerations) <= TOL_INCODE, (stem, q, u)
-        assert rel(acc_ref, nm.forward(q, u).accelerations) <= TOL_INCODE, (stem, q, u)
+        assert scaled_error(acc_ref, epn.forward(q, u).accelerations) <= TOL_INCODE, (stem, q, u)
+        assert scaled_error(acc_ref, nm.forward(q, u).accelerations) <= TOL_INCODE, (stem, q, u)
 
 
 @pytest.mark.parametrize(
@@ -259,20 +235,20 @@ def test_parser_drops_joint_springs_and_aba_ignores_damping(name, stem, joint):
     c = reference(name).params["c"]
     assert pm.damping[pm.joints[j].idx_v] == c and c > 0
     assert not hasattr(pm, "stiffness")
-    for q, u in states(name, 3, seed=2):
+    for q, u in states(reference(name), 3, seed=2):
         fm = emj.forward(q, u)
         qp, vp = to_parsed(pm, emj.m, fm.raw["engine_q"], fm.raw["engine_v"])
         passive = to_parsed_tau(pm, emj.m, emj.d.qfrc_passive)
-        assert maxabs(passive) > 1e-3
+        assert max_abs(passive) > 1e-3
         a_loads = pin.aba(pm, pd, qp, vp, to_parsed_tau(pm, emj.m, emj.d.qfrc_applied)).copy()
         a_all = pin.aba(
             pm, pd, qp, vp, to_parsed_tau(pm, emj.m, emj.d.qfrc_applied + emj.d.qfrc_passive)
         ).copy()
         M = pin.crba(pm, pd, qp)
         M = np.triu(M) + np.triu(M, 1).T
-        assert maxabs(M @ (a_all - a_loads) - passive) <= 1e-12 * (1 + maxabs(passive))
+        assert max_abs(M @ (a_all - a_loads) - passive) <= 1e-12 * (1 + max_abs(passive))
         assert (
-            rel(to_mujoco_acc(pm, emj.m, qp, vp, a_all), fm.raw["engine_accelerations"])
+            scaled_error(to_mujoco_acc(pm, emj.m, qp, vp, a_all), fm.raw["engine_accelerations"])
             <= TOL_SAME_FILE
         )
 
@@ -296,7 +272,7 @@ def test_loop_parsed_model_agrees(name, variant, stem):
     assert cms[0].reference_frame == pin.ReferenceFrame.LOCAL
     nm = reference(name)
     prox = pin.ProximalSettings(*PROX_REDUNDANT)
-    for q, u in states(name, 6, seed=3):
+    for q, u in states(reference(name), 6, seed=3):
         fm = emj.forward(q, u)
         qe, ve = fm.raw["engine_q"], fm.raw["engine_v"]
         qp, vp = to_parsed(pm, emj.m, qe, ve)
@@ -308,15 +284,15 @@ def test_loop_parsed_model_agrees(name, variant, stem):
         R1 = (pd.oMi[c.joint1_id] * c.joint1_placement).rotation
         f_world = R1 @ cds[0].contact_force.linear
         a_mj = to_mujoco_acc(pm, emj.m, qp, vp, a)
-        assert rel(a_mj, fm.raw["rigid_engine_accelerations"]) <= TOL_RIGID, (stem, q, u)
-        assert rel(f_world, fm.raw["rigid_engine_forces"][0:3]) <= TOL_RIGID, (stem, q, u)
+        assert scaled_error(a_mj, fm.raw["rigid_engine_accelerations"]) <= TOL_RIGID, (stem, q, u)
+        assert scaled_error(f_world, fm.raw["rigid_engine_forces"][0:3]) <= TOL_RIGID, (stem, q, u)
         acc_ref = emj._acc_to_reference(qe, ve, a_mj)
         lam_ref = emj._multipliers(qe, ve, a_mj, f_world)
         fp, fr = epn.forward(q, u), nm.forward(q, u)
-        assert rel(acc_ref, fp.accelerations) <= TOL_INCODE, (stem, q, u)
-        assert rel(acc_ref, fr.accelerations) <= TOL_INCODE, (stem, q, u)
-        assert rel(lam_ref, fr.multipliers) <= TOL_INCODE, (stem, q, u)
-        assert rel(lam_ref, fp.multipliers) <= TOL_INCODE, (stem, q, u)
+        assert scaled_error(acc_ref, fp.accelerations) <= TOL_INCODE, (stem, q, u)
+        assert scaled_error(acc_ref, fr.accelerations) <= TOL_INCODE, (stem, q, u)
+        assert scaled_error(lam_ref, fr.multipliers) <= TOL_INCODE, (stem, q, u)
+        assert scaled_error(lam_ref, fp.multipliers) <= TOL_INCODE, (stem, q, u)
 
 
 # ======================================================================================
@@ -393,14 +369,14 @@ def test_light_rod_pendulum_parses_but_is_ill_conditioned_for_constraintDynamics
     nm = reference("pendulum_xy")
     prox = pin.ProximalSettings(*PROX_REDUNDANT)
     worst = 0.0
-    for q, u in states("pendulum_xy", 4, seed=4):
+    for q, u in states(reference("pendulum_xy"), 4, seed=4):
         qe, ve = emj.to_engine_state(q, u)
         qp, vp = to_parsed(pm, emj.m, qe, ve)
         pin.forwardKinematics(pm, pd, qp)
         c = cms[0]
         p1 = (pd.oMi[c.joint1_id] * c.joint1_placement).translation
         p2 = (pd.oMi[c.joint2_id] * c.joint2_placement).translation
-        assert maxabs(p1 - p2) <= 1e-12  # the anchors are read right
+        assert max_abs(p1 - p2) <= 1e-12  # the anchors are read right
         a = pin.constraintDynamics(pm, pd, qp, vp, np.zeros(pm.nv), cms, cds, prox)
-        worst = max(worst, rel(a[0:2], nm.forward(q, u).accelerations))
+        worst = max(worst, scaled_error(a[0:2], nm.forward(q, u).accelerations))
     assert worst > 1e-6, worst
