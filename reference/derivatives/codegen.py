@@ -23,9 +23,9 @@ Two kinds of module, each its own cache entry:
 
 - ``kkt`` (models whose forward solve is unrolled): ``derivatives(q, u, t, pa)`` with pa the
   forward kernel's parameters (the model's parameters, then the Schur references) returns
-  u', lambda, du'/dq, dlambda/dq, du'/du, dlambda/du, du'/dtau, dlambda/dtau (row-major) and
-  the pivot ratio, the forward part identical to the forward module's, expression for
-  expression;
+  u', lambda, the Jacobian of (u', lambda) with respect to (q, u, tau) row-major (rows u' then
+  lambda, columns q, u, tau) and the pivot ratio, the forward part identical to the forward
+  module's, expression for expression;
 - ``residual`` (every model; the only kind where the KKT solve is numeric: dependent rows or
   a model past codegen.UNROLL_KKT_MAX): ``residual_jacobians(q, u, t, pa)`` with pa the
   parameters, then u', then lambda, returns P_x = d(M u' - f)/dx and L_x = d(A^T lambda)/dx
@@ -327,10 +327,9 @@ def _kkt_source(eom: EquationsOfMotion, augmented: bool, X) -> list[str]:
         sol.append(kkt.solve(r1, r2))
     for k in range(n):  # d/dtau_k: the right side (e_k, 0)
         sol.append(kkt.solve(["1.0" if i == k else "0" for i in range(n)], ["0"] * mc))
-    groups: list[list[str]] = [kkt.ud, kkt.lam]
-    for lo, hi in ((0, nq), (nq, nq + n), (nq + n, nq + 2 * n)):
-        groups.append([sol[c][0][i] for i in range(n) for c in range(lo, hi)])
-        groups.append([sol[c][1][j] for j in range(mc) for c in range(lo, hi)])
-    groups.append([kkt.pivot])
+    # the Jacobian stacked row-major: rows u' then lambda, columns q, u, tau (the solves' order)
+    rows = [[x[i] for x, _y in sol] for i in range(n)]
+    rows += [[y[j] for _x, y in sol] for j in range(mc)]
+    groups: list[list[str]] = [kkt.ud, kkt.lam, [c for r in rows for c in r], [kkt.pivot]]
     ret = f"    return {', '.join('[' + ', '.join(g) + ']' for g in groups)},"
     return [*_header("derivatives", eom, npar + mc), *w.lines, ret, ""]

@@ -102,17 +102,4 @@ def central_differences(
 
 def _as_derivatives(fw, D: np.ndarray, n: int, nq: int) -> Derivatives:
     """Derivatives from the stacked columns (rows u' then lambda; columns q, u, tau)."""
-    ud, lam = D[:n], D[n:]
-    a, b = nq, nq + n
-    return Derivatives(
-        fw.accelerations,
-        fw.multipliers,
-        ud[:, :a],
-        ud[:, a:b],
-        ud[:, b:],
-        lam[:, :a],
-        lam[:, a:b],
-        lam[:, b:],
-        fw.pivot_ratio,
-        fw.rank,
-    )
+    return Derivatives(fw.accelerations, fw.multipliers, D, nq, fw.pivot_ratio, fw.rank)

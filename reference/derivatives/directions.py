@@ -40,11 +40,28 @@ class Directions:
         n x kq: the speed change that goes with each q-direction.
     du : numpy.ndarray
         n x ku: the u-directions (orthonormal).
+    whole : bool
+        True: every coordinate and speed alone (whole_jacobians), not the manifold's tangent.
+    admissible : numpy.ndarray or None
+        An orthonormal basis of the admissible speeds, null(A) (None: the u-directions).
     """
 
     dq: np.ndarray
     du_of_dq: np.ndarray
     du: np.ndarray
+    whole: bool = False
+    admissible: np.ndarray | None = None
+
+    @property
+    def speeds(self) -> np.ndarray:
+        """The admissible speeds' basis, null(A): what a generalized force acts on."""
+        return self.du if self.admissible is None else self.admissible
+
+    def whole_jacobians(self) -> Directions:
+        """Every coordinate and every speed alone (the Jacobians' columns): for two sets of
+        equations known to agree off the manifold as well (the same coordinates and rows)."""
+        nq, n = self.dq.shape[0], self.du.shape[0]
+        return Directions(np.eye(nq), np.zeros((n, nq)), np.eye(n), True, self.speeds)
 
     def state_directions(self, block: str) -> tuple[np.ndarray, np.ndarray]:
         """(dq, du) columns of the q-directions ('dq') or the u-directions ('du')."""

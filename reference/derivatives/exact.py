@@ -52,53 +52,94 @@ DEPENDENCY_RTOL = 1e-10
 BLOCKS = ("dq", "du", "dtau")
 
 
-@dataclass
+@dataclass(slots=True)  # slots: a cheaper construction on the checked call
 class Derivatives:
-    """The forward answer at a state and its derivatives.
+    """The forward answer at a state and its derivatives, stacked in one Jacobian whose blocks
+    are views (dud_dq ... dforce_dtau, `block`).
 
     Parameters
     ----------
     accelerations, multipliers : numpy.ndarray
         u' (n) and lambda (m), as NumericModel.forward gives them.
-    dud_dq, dud_du, dud_dtau : numpy.ndarray
-        du'/dq (n x nq), du'/du (n x n), du'/dtau (n x n).
-    dlam_dq, dlam_du, dlam_dtau : numpy.ndarray or None
-        dlambda/dq (m x nq), dlambda/du (m x n), dlambda/dtau (m x n); with dependent rows
-        the derivatives of the minimum-norm lambda, None where the rows' dependency moves with
-        the state (then only A^T lambda has a derivative).
+    jacobian : numpy.ndarray
+        (n + m) x (nq + 2n): rows u' then lambda, columns q, then u, then tau. Its lambda rows
+        are NaN where lambda has no derivative (dependent rows whose dependency moves with the
+        state: only A^T lambda has one); with dependent rows they are the minimum-norm
+        lambda's.
+    nq : int
+        The number of coordinates (where the u-columns start).
     pivot_ratio : float
         The KKT solve's smallest pivot ratio.
     rank : int or None
         The rank of A where the model allows dependent rows.
-    dforce_dq, dforce_du, dforce_dtau : numpy.ndarray or None
-        d(A^T lambda)/dq, /du, /dtau (n x nq, n x n, n x n): the generalized constraint force,
-        unique where lambda is not; given on the numeric path (None on the unrolled one).
+    forces : numpy.ndarray or None
+        n x (nq + 2n): d(A^T lambda), the generalized constraint force's derivatives, unique
+        where lambda is not; given on the numeric path (None on the unrolled one).
+
+    Notes
+    -----
+    The blocks dud_dq (n x nq), dud_du (n x n), dud_dtau (n x n), dlam_dq (m x nq), dlam_du,
+    dlam_dtau and dforce_dq, dforce_du, dforce_dtau are views; dlam_* and dforce_* are None
+    where they are not given.
     """
 
     accelerations: np.ndarray
     multipliers: np.ndarray
-    dud_dq: np.ndarray
-    dud_du: np.ndarray
-    dud_dtau: np.ndarray
-    dlam_dq: np.ndarray | None
-    dlam_du: np.ndarray | None
-    dlam_dtau: np.ndarray | None
+    jacobian: np.ndarray
+    nq: int
     pivot_ratio: float
     rank: int | None = None
-    dforce_dq: np.ndarray | None = None
-    dforce_du: np.ndarray | None = None
-    dforce_dtau: np.ndarray | None = None
+    forces: np.ndarray | None = None
 
     def block(self, of: str, by: str) -> np.ndarray | None:
         """One block: `of` 'accelerations', 'multipliers' or 'constraint_forces' (A^T
         lambda), `by` 'dq', 'du' or 'dtau'; None where it is not given."""
-        prefix = {"accelerations": "dud", "multipliers": "dlam", "constraint_forces": "dforce"}
-        return getattr(self, f"{prefix[of]}_{by}")  # type: ignore[no-any-return]
+        n, nq = self.accelerations.size, self.nq
+        cols = {"dq": slice(0, nq), "du": slice(nq, nq + n), "dtau": slice(nq + n, None)}[by]
+        if of == "accelerations":
+            return self.jacobian[:n, cols]
+        if of == "constraint_forces":
+            return None if self.forces is None else self.forces[:, cols]
+        lam = self.jacobian[n:, cols]
+        return None if lam.size and np.isnan(lam).any() else lam
 
+    @property
+    def dud_dq(self) -> np.ndarray:
+        return self.jacobian[: self.accelerations.size, : self.nq]
 
-def _cut(X: np.ndarray, nq: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The q-, u- and tau-columns of stacked derivatives."""
-    return X[:, :nq], X[:, nq : nq + n], X[:, nq + n :]
+    @property
+    def dud_du(self) -> np.ndarray:
+        n, nq = self.accelerations.size, self.nq
+        return self.jacobian[:n, nq : nq + n]
+
+    @property
+    def dud_dtau(self) -> np.ndarray:
+        n, nq = self.accelerations.size, self.nq
+        return self.jacobian[:n, nq + n :]
+
+    @property
+    def dlam_dq(self) -> np.ndarray | None:
+        return self.block("multipliers", "dq")
+
+    @property
+    def dlam_du(self) -> np.ndarray | None:
+        return self.block("multipliers", "du")
+
+    @property
+    def dlam_dtau(self) -> np.ndarray | None:
+        return self.block("multipliers", "dtau")
+
+    @property
+    def dforce_dq(self) -> np.ndarray | None:
+        return self.block("constraint_forces", "dq")
+
+    @property
+    def dforce_du(self) -> np.ndarray | None:
+        return self.block("constraint_forces", "du")
+
+    @property
+    def dforce_dtau(self) -> np.ndarray | None:
+        return self.block("constraint_forces", "dtau")
 
 
 class DerivativeModel:
@@ -143,6 +184,8 @@ class DerivativeModel:
         self._nout = self.kernels.total[
             "derivatives" if self.kind == "kkt" else "residual_jacobians"
         ]
+        self._nlam = self.n + self.m
+        self._shape = (self.n + self.m, self.nq + 2 * self.n)
 
     @property
     def backend(self) -> str:
@@ -152,8 +195,8 @@ class DerivativeModel:
     # ---- the unrolled path ------------------------------------------------------------------
     def fast(self, q: np.ndarray, u: np.ndarray, t: float = 0.0, out: np.ndarray | None = None):
         """The generated kernel's output at one state, unchecked but for the kernel's own
-        checks ('kkt' modules only): u', lambda, du'/dq, dlambda/dq, du'/du, dlambda/du,
-        du'/dtau, dlambda/dtau (row-major), the pivot ratio; the benchmarks' call.
+        checks ('kkt' modules only): u', lambda, the stacked Jacobian (Derivatives.jacobian,
+        row-major), the pivot ratio; the benchmarks' call.
 
         Parameters
         ----------
@@ -211,22 +254,8 @@ class DerivativeModel:
         if st != OK or not piv > PIVOT_RATIO_MIN:
             self.nm.forward(q, u, t)  # raises the forward's own error where it has one
             raise SingularSystemError(self.nm.singular_message(q, piv))
-        blocks = [out[a:b].reshape(shape) for a, b, shape in self._views]
-        return Derivatives(*blocks, pivot_ratio=piv)  # type: ignore[misc, arg-type]
-
-    @property
-    def _views(self) -> list[tuple[int, int, tuple]]:
-        """(start, end, shape) of each output block of the 'kkt' kernel, in Derivatives'
-        order (u', lambda, du'/dq, du'/du, du'/dtau, dlambda/dq, dlambda/du, dlambda/dtau)."""
-        if "_views_" not in self.__dict__:
-            n, nq, m = self.n, self.nq, self.m
-            order = ((n,), (m,), (n, nq), (m, nq), (n, n), (m, n), (n, n), (m, n))
-            starts = np.cumsum([0] + [int(np.prod(s)) for s in order])
-            blocks = [
-                (int(a), int(b), s) for a, b, s in zip(starts, starts[1:], order, strict=False)
-            ]
-            self._views_ = [blocks[k] for k in (0, 1, 2, 4, 6, 3, 5, 7)]
-        return self._views_  # type: ignore[no-any-return]
+        n, nl = self.n, self._nlam
+        return Derivatives(out[:n], out[n:nl], out[nl:-1].reshape(self._shape), self.nq, piv)
 
     # ---- the numeric path -------------------------------------------------------------------
     def residual_jacobians(
@@ -262,24 +291,12 @@ class DerivativeModel:
         rhs = -np.vstack([E, Ur.T @ Cx])
         tau = np.vstack([np.eye(n), np.zeros((r, n))])
         X = np.linalg.solve(K, np.hstack([rhs, tau]))
-        dud, dlam = X[:n], (Ur @ X[n:] if fixed else None)
+        dud = X[:n]
+        dlam = Ur @ X[n:] if fixed else np.full((self.m, X.shape[1]), np.nan)
         dforce = np.hstack([P, np.zeros((n, n))]) + M @ dud
         dforce[:, nq + n :] -= np.eye(n)
-        dlq, dlu, dlt = (None, None, None) if dlam is None else _cut(dlam, nq, n)
-        dfq, dfu, dft = _cut(dforce, nq, n)
-        return Derivatives(
-            ud,
-            lam,
-            *_cut(dud, nq, n),
-            dlq,
-            dlu,
-            dlt,
-            fw.pivot_ratio,
-            fw.rank,
-            dfq,
-            dfu,
-            dft,
-        )
+        stacked = np.vstack([dud, dlam])
+        return Derivatives(ud, lam, stacked, nq, fw.pivot_ratio, fw.rank, dforce)
 
     def _independent_rows(self, A: np.ndarray, Cx: np.ndarray) -> tuple:
         """U_r and A_r = U_r^T A of A's independent rows (all of them without dependent rows),
