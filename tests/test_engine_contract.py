@@ -166,19 +166,20 @@ def _check_forward(adapter, em, nm, q, u):
 
 
 BAD_STATES = (  # a wrong size or a value that is not finite, and the words refusing it
-    (lambda q, u: ([*q, 0.0], u), "coordinates"),
-    (lambda q, u: (q, [*u, 0.0]), "speeds"),
-    (lambda q, u: ([math.nan, *q[1:]], u), "NaN"),
-    (lambda q, u: (q, [*u[:-1], math.inf]), "NaN or infinite"),
+    (lambda q, u: ([*q, 0.0], u), lambda q, u: f"expected {len(q)} coordinates, got {len(q) + 1}"),
+    (lambda q, u: (q, [*u, 0.0]), lambda q, u: f"expected {len(u)} speeds, got {len(u) + 1}"),
+    (lambda q, u: ([math.nan, *q[1:]], u), lambda q, u: "NaN or infinite"),
+    (lambda q, u: (q, [*u[:-1], math.inf]), lambda q, u: "NaN or infinite"),
 )
 
 
 def _check_bad_states(em, nm, q, u):
     """A wrong-sized or non-finite state is refused in the reference's words, never mapped
     into the engine (MuJoCo's models raised numpy's broadcast error before they checked)."""
-    for bad, what in BAD_STATES:
-        with pytest.raises(ModelInputError, match=what):
-            em.forward(*bad(list(q), list(u)))
+    q, u = list(q), list(u)
+    for bad, words in BAD_STATES:
+        with pytest.raises(ModelInputError, match=words(q, u)):
+            em.forward(*bad(q, u))
 
 
 def _check_simulate(adapter, em, nm, q0, u0):
@@ -291,8 +292,8 @@ def test_energy_refuses_a_bad_state_as_forward_does(engine, name):
     nm = _numeric(name)
     q, u = (list(x) for x in states(nm, 1)[0])
     for em in _built(adapter, name, nm):
-        for bad, what in BAD_STATES:
-            with pytest.raises(ModelInputError, match=what):
+        for bad, words in BAD_STATES:
+            with pytest.raises(ModelInputError, match=words(q, u)):
                 em.energy(*bad(q, u))
 
 
