@@ -1,22 +1,27 @@
-"""MuJoCo adapter against the reference, with the real MuJoCo 4.0 (no mocks).
+"""What only the MuJoCo adapter does, with the real MuJoCo 4.0 (no mocks).
+
+What every engine does (state maps both ways, the judged answer and energy, M and f against
+the reference, the fingerprint, the nominal maps, faults seen, the timing hook, refusals) is
+tests/test_engine_contract.py. Here: that the maps put MuJoCo's bodies where the reference's
+are, its soft answer against the impedance it is built with, the sign and frame of every
+constraint force on poses done by hand, the MJCF files, its own integrators, and why the
+models are built as they are (a light rod, not a tendon equality).
 
 Tolerances (one per quantity, with the reason):
 - TOL_RIGID = 1e-9: the de-regularized answer f + A^-1 R f and its accelerations.
   Measured floor 1e-11 to 2e-10 of the force scale: MuJoCo's own soft solve stops that far from
   the exact soft solution at d = 0.9999 (1e-14 at d = 0.9: it scales with 1/(1 - d)), the
   recovery passes it on 1:1, and states projected to ~1e-13 add MuJoCo's stabilization K r.
-- relative errors are max|err| / max(max|ref|, SCALE), SCALE the same quantity's magnitude at
-  the model's initial state: a multiplier passing through zero (a slack pendulum rod) has no
-  relative precision of its own, only one relative to the forces the model carries.
+- slack of the soft bounds: TOL_RIGID x max(max|ref|, SCALE), SCALE the same quantity's
+  magnitude at the model's initial state: a multiplier passing through zero (a slack pendulum
+  rod) has no relative precision of its own, only one relative to the forces the model carries.
 - raw soft answer: within the bound derived from the impedance, eps |G A^-1 D|_inf |f|_inf with
   eps = (1 - d)/d (module docstring), and equal to the predicted error vector to PRED_REL.
 - TOL_MAP = 1e-12: state maps are plain arithmetic (angles, quaternions) on O(1) numbers.
 - TOL_KIN = 1e-12: engine mass-center positions/velocities/rotations vs the reference's r_G,
   v_G, R, omega (forward kinematics, round-off only).
-- TOL_ENERGY = 1e-12 relative to |K| + |V| (or its value at the initial state, if larger):
-  d.energy vs the reference (same datum).
-- TOL_MASS = 1e-11: M and f mapped to the reference; the light bodies (1e-12 relative inertia)
-  bias M by 1e-12.
+- TOL_MASS = 1e-11: M projected onto the manifold against MuJoCo's; the light bodies (1e-12
+  relative inertia) bias M by 1e-12.
 """
 
 from __future__ import annotations
@@ -28,18 +33,15 @@ import mujoco
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
-from crosscheck.engines.base import EngineUnsupported
 from crosscheck.engines.mujoco.adapter import MJCF_DIR, SOLIMP, MujocoAdapter, mjcf, write_mjcf
 from reference.models import get
 from reference.numeric.model import NumericModel
+from tests.support import QUICK_MODELS, max_abs, representative, scaled_error, states
 
 TOL_RIGID = 1e-9
 TOL_MAP = 1e-12
 TOL_KIN = 1e-12
-TOL_ENERGY = 1e-12
 TOL_MASS = 1e-11
 PRED_REL = 1e-3  # |actual raw error - predicted| / |predicted|: floor 1e-9 / 1e-4 = 1e-5
 EPS_SOFT = (1 - SOLIMP[0]) / SOLIMP[0]  # (1 - d)/d = 1.0001e-4
@@ -59,13 +61,19 @@ CASES = [
     ("exercise_6_2", None),
     ("exercise_6_4", None),
 ]
-IDS = [n if v is None else f"{n}[{v}]" for n, v in CASES]
-DETERMINISTIC = settings(
-    derandomize=True,
-    max_examples=15,
-    deadline=None,
-    database=None,
-    suppress_health_check=[HealthCheck.too_slow],
+SOME_CASES = representative(CASES, QUICK_MODELS, key=lambda c: c[0])
+# the engine models with soft rows (connect equalities): the others are trees, exact
+SOFT_CASES = representative(
+    [
+        ("pendulum_xy", None),
+        ("slider_crank", None),
+        ("slider_crank_split", None),
+        ("double_pendulum_3d", "free"),
+        ("top_cartesian", None),
+        ("exercise_6_1", None),
+    ],
+    QUICK_MODELS,
+    key=lambda c: c[0],
 )
 
 ADAPTER = MujocoAdapter()
@@ -81,84 +89,12 @@ def engine(name: str, variant: str | None):
     return ADAPTER.build(name, None, variant)
 
 
-def maxabs(x) -> float:
-    x = np.asarray(x, float)
-    return float(np.max(np.abs(x))) if x.size else 0.0
-
-
 @cache
 def scales(name: str, formulation: str | None = None) -> tuple[float, float]:
     """(|u'|, |lambda|) of the reference at the model's initial state."""
     nm = reference(name, formulation)
     fw = nm.forward(nm.model.initial_q, nm.model.initial_u)
-    return maxabs(fw.accelerations), maxabs(fw.multipliers)
-
-
-def rel_err(x, ref, scale) -> float:
-    err = maxabs(np.asarray(x, float) - np.asarray(ref, float))
-    den = max(maxabs(ref), scale)
-    return err / den if den > 0 else (math.inf if err else 0.0)
-
-
-# ---- consistent states ------------------------------------------------------------------------
-def _closure(p, th1, w1):
-    """Example 2's rod angle on the +x branch and its rate."""
-    th2 = math.asin(-p["l1"] * math.sin(th1) / p["l2"])
-    w2 = -p["l1"] * math.cos(th1) * w1 / (p["l2"] * math.cos(th2))
-    return th2, w2
-
-
-def state_from_primaries(name, nm, a, b, seed):
-    """A consistent state from two primary numbers a in [-1, 1], b in [-1, 1] (or a seed for
-    the models with their own sampler), projected with NumericModel.project."""
-    p = nm.params
-    if name == "pendulum_angle":
-        q, u = [math.pi * a], [4.0 * b]
-    elif name == "pendulum_xy":
-        th, w, L = math.pi * a, 4.0 * b, p["L"]
-        q = [L * math.sin(th) * 1.01, L * math.cos(th) * 0.99]  # off the circle: projected
-        u = [L * w * math.cos(th) + 0.1, -L * w * math.sin(th)]
-    elif name.startswith("slider_crank"):
-        th1, w1 = math.pi * a, 10.0 * b
-        th2, w2 = _closure(p, th1, w1)
-        if name == "slider_crank_split":
-            x = p["l1"] * math.cos(th1) + p["l2"] * math.cos(th2)
-            xd = -p["l1"] * math.sin(th1) * w1 - p["l2"] * math.sin(th2) * w2
-            q, u = [th1, x + 1e-3, th2 + math.pi], [w1, xd, w2 + 0.1]
-        elif name == "slider_crank":
-            q, u = [th1, th2 + 1e-3], [w1, w2 + 0.1]
-        else:  # free: any (theta1, theta2)
-            q, u = [th1, th2 + 0.7 * a], [w1, w2 + 3.0 * b]
-    elif name.startswith("exercise_6_"):  # the mechanism's own coordinates, then dependent ones
-        rng = np.random.default_rng(seed)
-        th, w = math.pi * a, 4.0 * b
-        S, C = math.sin(th), math.cos(th)
-        if name == "exercise_6_1":  # any bar angle: x = l S, y = l C (slightly off: projected)
-            l = p["l"]
-            q = [l * S + 1e-3, l * C, th]
-            u = [l * C * w, -l * S * w + 0.1, w]
-        elif name == "exercise_6_2":  # block x, bar angle; G - A = (l/2)(S, C)
-            h = p["l"] / 2
-            x, xd = rng.uniform(-0.5, 0.5), rng.uniform(-2, 2)
-            q, u = [x, th, h * S, h * C - 1e-3], [xd, w, h * C * w, -h * S * w]
-        else:  # exercise_6_4: disk angle and rate, bar angle; G = (R + (l/2) S, -(l/2) C)
-            h, R = p["l"] / 2, p["R"]
-            phi, phid = rng.uniform(-math.pi, math.pi), rng.uniform(-5, 5)
-            q, u = [phi, th, R + h * S, -h * C], [phid, w, h * C * w + 0.1, h * S * w]
-    else:
-        q, u = nm.model.state_sampler(np.random.default_rng(seed), p)
-    return nm.project(q, u)
-
-
-def random_states(name, n, seed=0, formulation=None):
-    nm = reference(name, formulation)
-    rng = np.random.default_rng(seed)
-    return [
-        state_from_primaries(
-            name, nm, rng.uniform(-1, 1), rng.uniform(-1, 1), int(rng.integers(2**31))
-        )
-        for _ in range(n)
-    ]
+    return max_abs(fw.accelerations), max_abs(fw.multipliers)
 
 
 # ---- the reference's kinematics, for an independent check of the state map -------------------
@@ -199,129 +135,70 @@ def engine_body_state(em, body: str, q, u):
 # ======================================================================================
 # state maps
 # ======================================================================================
-@pytest.mark.parametrize("name,variant", CASES, ids=IDS)
-def test_state_map_both_ways_and_kinematics(name, variant):
-    """ref -> engine -> ref is the identity (angles modulo 2 pi, quaternion sign), engine ->
-    ref -> engine too, and the engine's mass centers, their velocities, the body rotations and
-    angular velocities equal the reference's r_G, v_G, R, omega: the map is the right one, not
-    only self-consistent."""
+@pytest.mark.parametrize("name,variant", SOME_CASES)
+def test_the_maps_put_mujocos_bodies_where_the_references_are(name, variant):
+    """engine -> reference -> engine is the identity (qpos and qvel as MuJoCo holds them,
+    quaternions with their sign), and the engine's mass centers, their velocities, the body
+    rotations and angular velocities equal the reference's r_G, v_G, R, omega: the map is the
+    right one, not only self-consistent (the reference -> engine -> reference round trip is
+    the contract's)."""
     em = engine(name, variant)
     kin = body_kinematics(name)
-    for q, u in random_states(name, 12, seed=1):
+    for q, u in states(reference(name), 12, seed=1):
         qe, ve = em.to_engine_state(q, u)
-        q2, u2 = em.from_engine_state(qe, ve)
-        dq = np.asarray(q2) - q
-        if name == "double_pendulum_3d":  # 3-1-3 angles: theta1, theta3 modulo 2 pi
-            dq = (dq + math.pi) % (2 * math.pi) - math.pi
-        assert maxabs(dq) <= TOL_MAP * (1 + maxabs(q)), (name, q, q2)
-        assert maxabs(np.asarray(u2) - u) <= TOL_MAP * (1 + maxabs(u)), (name, u, u2)
-        qe2, ve2 = em.to_engine_state(q2, u2)
-        assert maxabs(np.asarray(qe2) - qe) <= TOL_MAP * (1 + maxabs(qe)), (name, qe, qe2)
-        assert maxabs(np.asarray(ve2) - ve) <= TOL_MAP * (1 + maxabs(ve)), (name, ve, ve2)
+        qe2, ve2 = em.to_engine_state(*em.from_engine_state(qe, ve))
+        assert max_abs(np.asarray(qe2) - qe) <= TOL_MAP * (1 + max_abs(qe)), (name, qe, qe2)
+        assert max_abs(np.asarray(ve2) - ve) <= TOL_MAP * (1 + max_abs(ve)), (name, ve, ve2)
         args = list(q) + list(u)
         for body, (r_f, v_f, R_f, w_f) in kin.items():
             r_e, v_e, R_e, w_e = engine_body_state(em, body, q, u)
             r_r = np.asarray(r_f(*args), float).ravel()
             v_r = np.asarray(v_f(*args), float).ravel()
-            assert maxabs(r_e - r_r) <= TOL_KIN * (1 + maxabs(r_r)), (name, body, r_e, r_r)
-            assert maxabs(v_e - v_r) <= TOL_KIN * (1 + maxabs(v_r)), (name, body, v_e, v_r)
+            assert max_abs(r_e - r_r) <= TOL_KIN * (1 + max_abs(r_r)), (name, body, r_e, r_r)
+            assert max_abs(v_e - v_r) <= TOL_KIN * (1 + max_abs(v_r)), (name, body, v_e, v_r)
             if R_f is not None:
                 R_r = np.asarray(R_f(*args), float)
                 w_r = np.asarray(w_f(*args), float).ravel()
-                assert maxabs(R_e - R_r) <= TOL_KIN, (name, body, R_e, R_r)
-                assert maxabs(w_e - w_r) <= TOL_KIN * (1 + maxabs(w_r)), (name, body, w_e, w_r)
+                assert max_abs(R_e - R_r) <= TOL_KIN, (name, body, R_e, R_r)
+                assert max_abs(w_e - w_r) <= TOL_KIN * (1 + max_abs(w_r)), (name, body, w_r)
 
 
 # ======================================================================================
-# instantaneous answers at consistent states
+# the soft answer at consistent states
 # ======================================================================================
-def check_forward(name, variant, formulation, q, u):
-    """All instantaneous checks at one state; returns the error figures."""
-    nm = reference(name, formulation)
-    em = engine(name, variant)
-    ref = nm.forward(q, u)
-    fw = em.forward(q, u)
-    raw = fw.raw
-    s_acc, s_lam = scales(name, formulation)
-    out = {}
-    # de-regularized (rigid) answer: RIGID_RECOVERY's 1e-9
-    out["acc_rigid"] = rel_err(raw["rigid_accelerations"], ref.accelerations, s_acc)
-    assert out["acc_rigid"] <= TOL_RIGID, (
-        name,
-        q,
-        u,
-        raw["rigid_accelerations"],
-        ref.accelerations,
-    )
-    if fw.multipliers is not None:
-        out["lam_rigid"] = rel_err(raw["rigid_multipliers"], ref.multipliers, s_lam)
-        assert out["lam_rigid"] <= TOL_RIGID, (
-            name,
-            q,
-            u,
-            raw["rigid_multipliers"],
-            ref.multipliers,
-        )
-    if "impedance" in raw:  # soft equality rows
-        # raw soft answer: impedance d = solimp[0] on every row, R = (1-d)/d diagA
+@pytest.mark.parametrize("name,variant", SOFT_CASES)
+def test_soft_answer_is_the_impedance_prediction(name, variant):
+    """Where MuJoCo's rows are soft (its connect equalities), at 15 consistent states: the
+    impedance is solimp's d on every row and R = (1 - d)/d diag(A) as documented; the raw
+    answer lies within the bound derived from eps = (1 - d)/d and equals the error predicted
+    from the impedance alone; the soft model holds on MuJoCo's output, the recovered answer is
+    rigid, and aref is -J-dot v (the connect rows carry J-dot v). The recovered answer itself
+    is the contract's (RIGID_RECOVERY)."""
+    nm, em = reference(name), engine(name, variant)
+    s_acc, s_lam = scales(name)
+    for q, u in states(reference(name), 15, seed=2):
+        ref, fw = nm.forward(q, u), em.forward(q, u)
+        raw = fw.raw
+        assert fw.soft and "impedance" in raw
         assert np.allclose(raw["impedance"], SOLIMP[0], rtol=0, atol=1e-15)
         assert raw["R_model_rel_mismatch"] <= 1e-12
         e_lam = fw.multipliers - ref.multipliers
         e_acc = fw.accelerations - ref.accelerations
+        slack_l = TOL_RIGID * max(max_abs(ref.multipliers), s_lam)
+        slack_a = TOL_RIGID * max(max_abs(ref.accelerations), s_acc)
         # within the bound derived from eps = (1 - d)/d ...
-        slack_l, slack_a = (
-            TOL_RIGID * max(maxabs(ref.multipliers), s_lam),
-            TOL_RIGID * max(maxabs(ref.accelerations), s_acc),
-        )
-        assert maxabs(e_lam) <= raw["raw_multiplier_error_bound"] + slack_l
-        assert maxabs(e_acc) <= raw["raw_acceleration_error_bound"] + slack_a
+        assert max_abs(e_lam) <= raw["raw_multiplier_error_bound"] + slack_l
+        assert max_abs(e_acc) <= raw["raw_acceleration_error_bound"] + slack_a
         # ... and equal to the error predicted from the impedance alone
         p_lam, p_acc = raw["predicted_multiplier_error"], raw["predicted_acceleration_error"]
-        assert maxabs(e_lam - p_lam) <= PRED_REL * maxabs(p_lam) + slack_l, (e_lam, p_lam)
-        assert maxabs(e_acc - p_acc) <= PRED_REL * maxabs(p_acc) + slack_a, (e_acc, p_acc)
-        out["lam_raw"] = rel_err(fw.multipliers, ref.multipliers, s_lam)
-        out["acc_raw"] = rel_err(fw.accelerations, ref.accelerations, s_acc)
-        # the soft model holds on MuJoCo's output, the recovered answer is rigid
-        assert raw["soft_model_residual"] <= 1e-9 * (1 + maxabs(raw["engine_accelerations"]))
-        assert raw["rigid_residual"] <= 1e-9 * (1 + maxabs(raw["rigid_engine_accelerations"]))
+        assert max_abs(e_lam - p_lam) <= PRED_REL * max_abs(p_lam) + slack_l, (e_lam, p_lam)
+        assert max_abs(e_acc - p_acc) <= PRED_REL * max_abs(p_acc) + slack_a, (e_acc, p_acc)
+        # the soft model holds on MuJoCo's output (its solver's 1e-15 tolerance, amplified by
+        # 1/R), the recovered answer is rigid
+        assert raw["soft_model_residual"] <= 1e-9 * (1 + max_abs(raw["engine_accelerations"]))
+        assert raw["rigid_residual"] <= 1e-9 * (1 + max_abs(raw["rigid_engine_accelerations"]))
         # at a consistent state MuJoCo's aref is -J-dot v (the connect rows carry J-dot v)
-        assert raw["aref_plus_jdot_v"] <= 1e-8 * (1 + maxabs(raw["rigid_engine_accelerations"]))
-    else:  # no soft rows: the raw answer is the answer
-        assert rel_err(fw.accelerations, ref.accelerations, s_acc) <= TOL_RIGID
-        if fw.multipliers is not None:
-            assert rel_err(fw.multipliers, ref.multipliers, s_lam) <= TOL_RIGID
-    # energy, same datum
-    K, V = nm.energy(q, u)
-    Ke, Ve = em.energy(q, u)
-    K0, V0 = nm.energy(nm.model.initial_q, nm.model.initial_u)
-    out["energy"] = (abs(K - Ke) + abs(V - Ve)) / max(abs(K) + abs(V), abs(K0) + abs(V0))
-    assert out["energy"] <= TOL_ENERGY, (name, K, V, Ke, Ve)
-    # M and f where the coordinates map linearly
-    Me = em.mass_matrix(q)
-    if Me is not None:
-        M, f, _, _ = nm.matrices(q, u)
-        fe = em.forcing(q, u)
-        assert maxabs(Me - M) <= TOL_MASS * maxabs(M), (name, Me, M)
-        assert maxabs(fe - f) <= TOL_MASS * max(maxabs(f), maxabs(M) * s_acc), (name, fe, f)
-    return out
-
-
-@pytest.mark.parametrize("name,variant", CASES, ids=IDS)
-def test_forward_every_formulation(name, variant):
-    """Every formulation of the model, a few seeded consistent states each."""
-    for formulation in get(name).formulations:
-        for q, u in random_states(name, 5, seed=2, formulation=formulation):
-            check_forward(name, variant, formulation, q, u)
-
-
-@pytest.mark.parametrize("name,variant", CASES, ids=IDS)
-@DETERMINISTIC
-@given(a=st.floats(-1, 1), b=st.floats(-1, 1), seed=st.integers(0, 2**31 - 1))
-def test_forward_hypothesis(name, variant, a, b, seed):
-    """Hypothesis-generated consistent states (derandomized: the same examples every run)."""
-    nm = reference(name)
-    q, u = state_from_primaries(name, nm, a, b, seed)
-    check_forward(name, variant, None, q, u)
+        assert raw["aref_plus_jdot_v"] <= 1e-8 * (1 + max_abs(raw["rigid_engine_accelerations"]))
 
 
 def test_raw_error_is_the_impedance_prediction():
@@ -330,13 +207,13 @@ def test_raw_error_is_the_impedance_prediction():
     lambda_raw / lambda = d = 0.9999 (a relative error (1-d) ~ 1e-4), the tangential
     acceleration is untouched, and the bound eps |A^-1 D| equals eps."""
     nm, em = reference("pendulum_xy"), engine("pendulum_xy", None)
-    for q, u in random_states("pendulum_xy", 6, seed=3):
+    for q, u in states(reference("pendulum_xy"), 6, seed=3):
         ref, fw = nm.forward(q, u), em.forward(q, u)
         assert fw.multipliers[0] / ref.multipliers[0] == pytest.approx(SOLIMP[0], abs=1e-9)
         # |A^-1 D|_inf = max_i |r_i| (|r_x| + |r_y|)/L^2 in the world rows, in [1, 1.21]
         assert EPS_SOFT * (1 - 1e-9) <= fw.raw["predicted_rel_force_bound"] <= EPS_SOFT * 1.21
         t = np.array([u[0], u[1]]) / np.hypot(*u)  # tangential direction
-        assert abs((fw.accelerations - ref.accelerations) @ t) <= 1e-9 * (1 + maxabs(u) ** 2)
+        assert abs((fw.accelerations - ref.accelerations) @ t) <= 1e-9 * (1 + max_abs(u) ** 2)
 
 
 @pytest.mark.parametrize("solimp0", [0.9, 0.99])
@@ -346,27 +223,28 @@ def test_deregularization_does_not_depend_on_d(solimp0):
     ad = MujocoAdapter(solimp=(solimp0, solimp0, 0.001, 0.5, 2.0))
     em = ad.build("slider_crank_split")
     nm = reference("slider_crank_split")
-    s_acc, s_lam = scales("slider_crank_split")
-    for q, u in random_states("slider_crank_split", 5, seed=4):
+    _, s_lam = scales("slider_crank_split")
+    for q, u in states(reference("slider_crank_split"), 5, seed=4):
         ref, fw = nm.forward(q, u), em.forward(q, u)
         eps = (1 - solimp0) / solimp0
-        assert rel_err(fw.multipliers, ref.multipliers, s_lam) >= 0.1 * eps  # really soft
-        assert rel_err(fw.raw["rigid_multipliers"], ref.multipliers, s_lam) <= TOL_RIGID
-        assert rel_err(fw.raw["rigid_accelerations"], ref.accelerations, s_acc) <= TOL_RIGID
+        force_scale = max(max_abs(ref.multipliers), s_lam)  # the forces the model carries
+        assert max_abs(fw.multipliers - ref.multipliers) >= 0.1 * eps * force_scale  # soft
+        assert scaled_error(fw.raw["rigid_multipliers"], ref.multipliers) <= TOL_RIGID
+        assert scaled_error(fw.raw["rigid_accelerations"], ref.accelerations) <= TOL_RIGID
 
 
 def test_sparse_jacobian_storage_gives_the_same_answer():
     """efc_J in CSR storage (mj_isSparse) is read as the dense one (the two storages change
     MuJoCo's own round-off, ~1e-11 here, amplified by 1/R in the soft solve)."""
     em = ADAPTER.build("double_pendulum_3d", None, "free")
-    q, u = random_states("double_pendulum_3d", 1, seed=5)[0]
+    q, u = states(reference("double_pendulum_3d"), 1, seed=5)[0]
     dense = em.forward(q, u)
     assert not dense.raw["sparse_jacobian"]
     em.m.opt.jacobian = mujoco.mjtJacobian.mjJAC_SPARSE
     sparse = em.forward(q, u)
     assert sparse.raw["sparse_jacobian"]
     for key in ("rigid_accelerations", "rigid_multipliers"):  # MuJoCo's soft-solve floor
-        assert maxabs(sparse.raw[key] - dense.raw[key]) <= 1e-10 * maxabs(dense.raw[key])
+        assert max_abs(sparse.raw[key] - dense.raw[key]) <= 1e-10 * max_abs(dense.raw[key])
 
 
 # ======================================================================================
@@ -592,7 +470,7 @@ def test_energy_includes_the_joint_springs(name):
     no_springs = ADAPTER.build(name)
     assert np.count_nonzero(no_springs.m.jnt_stiffness) == 1
     no_springs.m.jnt_stiffness[:] = 0.0
-    for q, u in random_states(name, 3, seed=8):
+    for q, u in states(reference(name), 3, seed=8):
         _, V = nm.energy(q, u)
         spring = 0.5 * nm.params["k"] * (q[1] if name == "exercise_6_4" else q[0]) ** 2
         assert spring > 1e-6
@@ -609,7 +487,7 @@ def test_exercise_mass_matrix_on_the_manifold(name):
     nm = reference(name)
     em = engine(name, None)
     assert em.mass_matrix(nm.model.initial_q) is None
-    for q, u in random_states(name, 4, seed=9):
+    for q, u in states(reference(name), 4, seed=9):
         qe, ve = em.to_engine_state(q, u)
         Z = np.column_stack(
             [
@@ -622,65 +500,7 @@ def test_exercise_mass_matrix_on_the_manifold(name):
         mujoco.mj_forward(em.m, em.d)
         Me = np.zeros((em.m.nv, em.m.nv))
         mujoco.mj_fullM(em.m, em.d, Me)
-        assert maxabs(Z.T @ M @ Z - Me) <= TOL_MASS * maxabs(Me), (name, Z.T @ M @ Z, Me)
-
-
-# ======================================================================================
-# timing hook for `crosscheck bench`
-# ======================================================================================
-@pytest.mark.parametrize("name,variant", CASES, ids=IDS)
-def test_timed_forward_is_forwards_engine_call(name, variant):
-    """timed_forward(q, u) returns a callable doing only qpos/qvel + mj_forward: its qacc is
-    bit-for-bit forward()'s raw engine accelerations, at every call, also after other states
-    were evaluated on the same MjData."""
-    em = engine(name, variant)
-    states = random_states(name, 2, seed=10)
-    (q, u), (q2, u2) = states
-    fn = em.timed_forward(q, u)
-    a1 = np.array(fn())
-    fw = em.forward(q, u)
-    assert np.array_equal(a1, fw.raw["engine_accelerations"])
-    em.forward(q2, u2)  # the same MjData moved elsewhere
-    assert np.array_equal(np.array(fn()), a1)
-
-
-# ======================================================================================
-# the checks can fail
-# ======================================================================================
-PERTURBED = [
-    ("slider_crank", "m2"),
-    ("slider_crank_split", "m2"),
-    ("double_pendulum_3d", "m2"),
-    ("exercise_6_1", "m_p"),
-    ("exercise_6_1", "c"),
-    ("exercise_6_2", "m2"),
-    ("exercise_6_2", "k"),
-    ("exercise_6_4", "m"),
-    ("exercise_6_4", "k"),
-]
-
-
-@pytest.mark.parametrize("name,param", PERTURBED, ids=[f"{n}:{p}" for n, p in PERTURBED])
-def test_perturbed_parameter_fails_the_rigid_comparison(name, param):
-    """One parameter * (1 + 1e-6) in MuJoCo's model only (a mass, or the spring/damper that
-    MuJoCo applies as joint stiffness/damping): the de-regularized answer moves by ~1e-7
-    relative, far outside TOL_RIGID, while the nominal model passes."""
-    nm = reference(name)
-    bad = ADAPTER.build(name, {param: nm.params[param] * (1 + 1e-6)})
-    good = engine(name, None)
-    s_acc, s_lam = scales(name)
-    worst = 0.0
-    for q, u in random_states(name, 4, seed=6):
-        ref = nm.forward(q, u)
-        ok = good.forward(q, u).raw
-        assert rel_err(ok["rigid_accelerations"], ref.accelerations, s_acc) <= TOL_RIGID
-        raw = bad.forward(q, u).raw
-        worst = max(
-            worst,
-            rel_err(raw["rigid_accelerations"], ref.accelerations, s_acc),
-            rel_err(raw["rigid_multipliers"], ref.multipliers, s_lam),
-        )
-    assert worst > 10 * TOL_RIGID, worst
+        assert max_abs(Z.T @ M @ Z - Me) <= TOL_MASS * max_abs(Me), (name, Z.T @ M @ Z, Me)
 
 
 # ======================================================================================
@@ -738,11 +558,11 @@ def test_simulate_rk4_matches_reference_and_energy_is_read_after_forward():
         atol=1e-12,
         method="DOP853",
     )
-    assert maxabs(tr.q[:, 0] - sol.y[0]) <= 1e-9
-    assert maxabs(tr.u[:, 0] - sol.y[1]) <= 1e-8
+    assert max_abs(tr.q[:, 0] - sol.y[0]) <= 1e-9
+    assert max_abs(tr.u[:, 0] - sol.y[1]) <= 1e-8
     E = tr.energy
     assert E[0] == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-14)
-    assert maxabs(E - E[0]) <= 1e-10
+    assert max_abs(E - E[0]) <= 1e-10
     # lagged energy straight after mj_step
     m = mujoco.MjModel.from_xml_string(em.xml)
     d = mujoco.MjData(m)
@@ -792,9 +612,9 @@ def test_simulate_constrained_drift(integrator):
     tr = em.simulate(q0, u0, np.linspace(0.0, 0.5, 51), integrator=integrator, timestep=1e-3)
     assert tr.q.shape == (51, 3) and tr.u.shape == (51, 3) and tr.steps == 500
     pos, _ = nm.residuals(tr.q[-1], tr.u[-1])
-    assert maxabs(pos) == pytest.approx(tr.violation[-1], rel=1e-6, abs=1e-12)
+    assert max_abs(pos) == pytest.approx(tr.violation[-1], rel=1e-6, abs=1e-12)
     limit = {"Euler": 5e-3, "implicitfast": 5e-3, "RK4": 1e-4}[integrator]
-    assert maxabs(tr.violation) <= limit
+    assert max_abs(tr.violation) <= limit
     E = tr.energy
     assert E[0] == pytest.approx(sum(nm.energy(q0, u0)), abs=1e-12)
     # the energy error's size: tests/test_mujoco_bounds.py (derived from order and step)
@@ -815,8 +635,8 @@ def test_simulate_exercises_against_reference(name, limit):
     tr = engine(name, None).simulate(q0, u0, [0.0, 1.0], integrator="RK4", timestep=1e-3)
     ref = simulate(nm, q0, u0, 1.0, "projection", rtol=1e-12, atol=1e-12)
     assert tr.t[-1] == pytest.approx(ref.t[-1])
-    assert maxabs(tr.q[-1] - ref.q[-1]) <= limit
-    assert maxabs(tr.violation) <= limit
+    assert max_abs(tr.q[-1] - ref.q[-1]) <= limit
+    assert max_abs(tr.violation) <= limit
     E0 = sum(nm.energy(q0, u0))
     assert tr.energy[0] == pytest.approx(E0, abs=1e-12 * (1 + abs(E0)))
 
@@ -849,15 +669,3 @@ def test_mjcf_gravity_follows_the_reference_axes():
     assert tuple(engine("double_pendulum_3d", "free").m.opt.gravity) == (0.0, -9.81, 0.0)
     assert tuple(engine("top_euler", None).m.opt.gravity) == (0.0, 0.0, -9.81)
     assert "m2" not in mjcf("slider_crank")  # numbers, not names: generated from parameters
-
-
-def test_unsupported_and_bad_variants():
-    with pytest.raises(EngineUnsupported, match="nonholonomic"):
-        ADAPTER.build("knife_edge")
-    with pytest.raises(EngineUnsupported):
-        ADAPTER.build("double_pendulum_3d", None, "nonsense")
-    with pytest.raises(EngineUnsupported):
-        ADAPTER.build("pendulum_xy", None, "tendon")
-    with pytest.raises(EngineUnsupported):
-        ADAPTER.build("no_such_model")
-    assert ADAPTER.name == "mujoco"
