@@ -96,3 +96,21 @@ def frame_bar_from_engine(qe, ve) -> tuple[np.ndarray, np.ndarray]:
         np.array(qe, float).copy(),
         np.array([-math.sin(th) * ve[0], ve[1], math.cos(th) * ve[0]]),
     )
+
+
+def xyz_angles(R) -> np.ndarray:
+    """Body-fixed X-Y-Z angles (x, y, z) with R = Rx(x) Ry(y) Rz(z) (OpenSim's ball and free
+    joints and its frames' orientations), y in [-pi/2, pi/2]."""
+    R = np.asarray(R, float)
+    y = math.asin(max(-1.0, min(1.0, R[0, 2])))
+    return np.array([math.atan2(-R[1, 2], R[2, 2]), y, math.atan2(-R[0, 1], R[0, 0])])
+
+
+def rotation_xyz(x: float, y: float, z: float) -> np.ndarray:
+    """Rx(x) Ry(y) Rz(z), the inverse of ``xyz_angles``."""
+    cx, sx, cy, sy = math.cos(x), math.sin(x), math.cos(y), math.sin(y)
+    cz, sz = math.cos(z), math.sin(z)
+    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return Rx @ Ry @ Rz

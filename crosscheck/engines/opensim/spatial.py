@@ -20,6 +20,8 @@ from crosscheck.engines.kinematics import (
     angles313,
     frame_bar_from_engine,
     frame_bar_to_engine,
+    rotation_xyz,
+    xyz_angles,
 )
 from crosscheck.engines.opensim.engine_model import OsimModel, custom_joint, vec3
 from crosscheck.engines.opensim.exercises import prescribed_load, reaction
@@ -37,27 +39,6 @@ def _rotation(frame, state) -> np.ndarray:
     T = frame.getTransformInGround(state)
     R = T.R()
     return np.array([[R.get(i, j) for j in range(3)] for i in range(3)])
-
-
-def _xyz(R) -> np.ndarray:
-    """Body-fixed X-Y-Z angles (x, y, z) with R = Rx(x) Ry(y) Rz(z)."""
-    y = math.asin(max(-1.0, min(1.0, R[0, 2])))
-    return np.array([math.atan2(-R[1, 2], R[2, 2]), y, math.atan2(-R[0, 1], R[0, 0])])
-
-
-def _Rxyz(x, y, z) -> np.ndarray:
-    cx, sx, cy, sy, cz, sz = (
-        math.cos(x),
-        math.sin(x),
-        math.cos(y),
-        math.sin(y),
-        math.cos(z),
-        math.sin(z),
-    )
-    Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return Rx @ Ry @ Rz
 
 
 class DoublePendulum3D(OsimModel):
@@ -108,13 +89,13 @@ class DoublePendulum3D(OsimModel):
         q, u = np.asarray(q, float), np.asarray(u, float)
         R1, R2 = R313(*q[0:3]), R313(*q[3:6])
         B1, B2 = R1.T, R2.T
-        qe = np.concatenate([_xyz(B1), _xyz(R1 @ B2)])
+        qe = np.concatenate([xyz_angles(B1), xyz_angles(R1 @ B2)])
         ve = np.concatenate([B1 @ u[0:3], R1 @ B2 @ u[3:6] - u[0:3]])
         return qe, ve
 
     def _rotations(self, qe):
-        B1 = _Rxyz(*qe[0:3])
-        return B1, B1 @ _Rxyz(*qe[3:6])
+        B1 = rotation_xyz(*qe[0:3])
+        return B1, B1 @ rotation_xyz(*qe[3:6])
 
     def from_engine_state(self, qe, ve):
         B1, B2 = self._rotations(qe)
@@ -188,12 +169,12 @@ class DoublePendulum3DFree(DoublePendulum3D):
         v1 = u[6:9] - np.cross(w1g, B1 @ self.rho[0])
         v2 = u[9:12] - np.cross(w2g, B2 @ self.rho[1])
         return (
-            np.concatenate([_xyz(B1), np.zeros(3), _xyz(B2), A]),
+            np.concatenate([xyz_angles(B1), np.zeros(3), xyz_angles(B2), A]),
             np.concatenate([w1g, v1, w2g, v2]),
         )
 
     def _rotations(self, qe):
-        return _Rxyz(*qe[0:3]), _Rxyz(*qe[6:9])
+        return rotation_xyz(*qe[0:3]), rotation_xyz(*qe[6:9])
 
     def from_engine_state(self, qe, ve):
         B1, B2 = self._rotations(qe)
@@ -276,11 +257,11 @@ class _Top(OsimModel):
     def _engine(self, eps, eps_dot):
         R = _R_eps(eps)
         self._branch = np.array(eps, float)
-        return _xyz(R), R @ (2.0 * _E(eps) @ eps_dot)
+        return xyz_angles(R), R @ (2.0 * _E(eps) @ eps_dot)
 
     def _reference(self, qe, ve):
         """(eps, eps', omega_body, R) of an engine state, on the current branch."""
-        R = _Rxyz(*qe[0:3])
+        R = rotation_xyz(*qe[0:3])
         eps = _eps_of(R)
         if self._branch is not None and eps @ self._branch < 0:
             eps = -eps
