@@ -2,6 +2,9 @@
 
 `--perturb ENGINE:PARAM=REL` changes one parameter of one engine's model by a relative amount
 (`crosscheck run`, `crosscheck sweep`): a run with mujoco:m2=1e-6 on the slider-crank must fail.
+A user's MJCF file has no parameters (its numbers are MuJoCo's compiled ones); its
+perturbable numbers are those the engines' models of it read, named as in
+crosscheck.engines.compiled_model (``crank.mass``, ``crank.I2``, ``A.damping``, ``gravity``).
 """
 
 from __future__ import annotations
@@ -40,14 +43,45 @@ def check_parameters(name: str, parameter_names, perturb: dict[str, dict[str, fl
                 )
 
 
+def parameter_defaults(name: str) -> dict[str, float]:
+    """What a perturbation of a model may change, with the values at its defaults.
+
+    Parameters
+    ----------
+    name : str
+        A registered model.
+
+    Returns
+    -------
+    dict of str to float
+        Its parameters' defaults; for a user's MJCF file (which has none), the compiled numbers
+        the engines' models of it read (crosscheck.engines.compiled_model.perturbable).
+    """
+    from reference import models
+
+    out = {p.name: p.default for p in models.get(name).parameters}
+    src = models.user_source(name)
+    if not out and hasattr(src, "mj"):
+        from crosscheck.engines.compiled_model import perturbable
+
+        out = perturbable(src.mj)
+    return out
+
+
 def perturbed(name, params: dict, perturb: dict) -> dict:
-    """The parameters with the relative perturbations of one engine applied (fault injection)."""
+    """The parameters with the relative perturbations of one engine applied (fault injection);
+    a perturbed number the parameters do not hold (a user's MJCF file's compiled numbers)
+    starts from its value in the model (parameter_defaults)."""
     params = dict(params)
     for p, rel in perturb.items():
         if p not in params:
-            raise ModelInputError(
-                f"--perturb: model {name!r} has no parameter {p!r}; valid: {', '.join(params)}"
-            )
+            defaults = parameter_defaults(name)
+            if p not in defaults:
+                raise ModelInputError(
+                    f"--perturb: model {name!r} has no parameter {p!r}; valid: "
+                    f"{', '.join(defaults)}"
+                )
+            params[p] = defaults[p]
         params[p] *= 1.0 + rel
     return params
 
@@ -64,9 +98,30 @@ def check_perturb(names, perturb: dict) -> None:
     for name in names:
         model = models.get(name)
         for ps in perturb.values():
+            if not model.parameters:  # a user's MJCF file: its compiled numbers
+                _check_compiled(name, perturbed(name, {}, ps))
+                continue
             resolve_parameters(
                 model, perturbed(name, {p.name: p.default for p in model.parameters}, ps)
             )
+
+
+def _check_compiled(name: str, values: dict[str, float]) -> None:
+    """Perturbed compiled numbers of a user's file stay finite and keep their sign (a mass,
+    an inertia, a stiffness, a damping, an armature or gravity's length)."""
+    import math
+
+    defaults = parameter_defaults(name)
+    bad = [
+        f"{p}={v}"
+        for p, v in values.items()
+        if not math.isfinite(v) or (defaults[p] >= 0 and v < 0) or (defaults[p] > 0 and v == 0)
+    ]
+    if bad:
+        raise ModelInputError(
+            f"--perturb on {name!r}: {', '.join(bad)} is not a valid value (finite, and of the "
+            "compiled number's sign)"
+        )
 
 
 def check_perturb_changes(names, engine_names, perturb: dict) -> None:
@@ -78,7 +133,6 @@ def check_perturb_changes(names, engine_names, perturb: dict) -> None:
     from crosscheck.checks.instantaneous import build
     from crosscheck.engines.base import EngineUnsupported
     from crosscheck.engines.registry import get_engine
-    from reference import models
 
     for engine, ps in perturb.items():
         if engine not in engine_names:
@@ -89,7 +143,7 @@ def check_perturb_changes(names, engine_names, perturb: dict) -> None:
             )
         adapter = get_engine(engine)
         for name in names:
-            defaults = {p.name: p.default for p in models.get(name).parameters}
+            defaults = parameter_defaults(name)
             for variant in adapter.variants(name):
                 for p, rel in ps.items():
                     try:
