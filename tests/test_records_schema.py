@@ -49,7 +49,7 @@ def runs(tmp_path_factory, session_child) -> dict[str, Path]:
     built-in MODELS; a user's MJCF four-bar with equality constraints, for Pinocchio's parser
     record and MuJoCo's reported trajectories; the A02 one-cell four-bar, whose reference reaches
     a flat pose, so its horizon is cut) and "faulty" (MuJoCo's slider-crank with m2 changed by
-    1e-6: failing records)."""
+    1e-6: failing records; with the derivatives records, analytical, differenced and soft)."""
     root = tmp_path_factory.mktemp("runs")
     a02 = root / "a02_1.xml"
     a02.write_text(_nfourbar().mjcf(1))
@@ -69,7 +69,14 @@ def runs(tmp_path_factory, session_child) -> dict[str, Path]:
     )
     assert clean.returncode == 0, clean.stdout + clean.stderr
     faulty = session_child.crosscheck(
-        "run", "slider_crank", "--perturb", "mujoco:m2=1e-6", *common, "--out", root / "faulty"
+        "run",
+        "slider_crank",
+        "--perturb",
+        "mujoco:m2=1e-6",
+        "--derivatives",
+        *common,
+        "--out",
+        root / "faulty",
     )
     assert faulty.returncode == 1, faulty.stdout + faulty.stderr
     return {k: root / k / "results.json" for k in ("clean", "faulty")}

@@ -32,6 +32,7 @@ Check = Literal[
     "instantaneous_generic",
     "trajectory",
     "parser",
+    "derivatives",
 ]
 # the keys of crosscheck.checks.tolerances.METRICS
 Metric = Literal["scaled_error", "relative_energy_error", "relative_miss"]
@@ -66,6 +67,15 @@ class Details(TypedDict, total=False):
     engine_warnings: dict[str, int]
     failure: bool
     judged_tolerance: float
+    derivative_method: str
+    difference_step: float
+    truncation_estimate: float
+    round_off_estimate: float
+    kkt_condition: float
+    map_error: float
+    differences_error: float
+    engine_differences_miss: float
+    directions: Literal["whole Jacobians", "consistent directions"]
 
 
 class Record(Details):

@@ -51,6 +51,11 @@ def cmd_bench(args) -> int:
         "modules": dict(kernels.TIMINGS),
     }
     log("forward records done")
+    from crosscheck.bench.derivatives import derivative_records
+
+    # the reference's exact derivatives per state against Pinocchio's analytical ones
+    result["derivatives"] = derivative_records(names, engines)
+    log("derivative timings done")
     # engines by name: an adapter that cannot be imported gets rows marked skipped with the reason
     result["work_precision"] = work_precision_records(names, args.quick, requested, log=log)
     result["stress"] = stress_records(args.quick, log=log)

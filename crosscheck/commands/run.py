@@ -132,12 +132,21 @@ def _checks(args, names, engine_names, perturb, jobs, progress, agreement):
             trajectories=not args.instantaneous,
             t_end=args.t_end,
             agreement=agreement,
+            derivatives=args.derivatives,
         )
         return records, series, meta(sys.argv[1:])
     from crosscheck.run.jobs import ModelJob, run_models
 
     work = [
-        ModelJob(n, tuple(engine_names), args.states, perturb, not args.instantaneous, args.t_end)
+        ModelJob(
+            n,
+            tuple(engine_names),
+            args.states,
+            perturb,
+            not args.instantaneous,
+            args.t_end,
+            derivatives=args.derivatives,
+        )
         for n in names
     ]
     provenance: dict = {}
@@ -225,6 +234,13 @@ def register(sub):
         help="only the checks at consistent states, no trajectories",
     )
     r.add_argument(
+    r.add_argument(
+        "--derivatives",
+        action="store_true",
+        help="also the derivatives of u' and lambda with respect to coordinates, speeds and "
+        "applied forces: the reference's exact ones against its slow path and every engine's "
+        "(docs/checks.md)",
+    )
         "--t-end",
         type=horizon,
         default=5.0,

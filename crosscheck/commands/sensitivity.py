@@ -36,6 +36,7 @@ def cmd_sensitivity(args) -> int:
         for engine in engines:
             rows += engine_thresholds(name, engine, args.states)
     doc = {
+    blocks = _derivative_rows(names, engines, args.states) if args.derivatives else []
         "command": "crosscheck " + " ".join(sys.argv[1:]),
         "decades": [10.0**k for k in DECADES],
         "states_per_model": args.states,
@@ -43,6 +44,8 @@ def cmd_sensitivity(args) -> int:
         "thresholds": [r.to_json() for r in rows],
     }
     (out / "sensitivity.json").write_text(json.dumps(doc, indent=2))
+    if args.derivatives:
+        doc["derivative_thresholds"] = [r.to_json() for r in blocks]
     for r in rows:
         at = f"{r.caught_at:.0e}" if r.caught_at is not None else "NOT CAUGHT"
         print(
@@ -50,13 +53,26 @@ def cmd_sensitivity(args) -> int:
             f"{r.failing_check or r.reason}"
         )
     print(
-        f"crosscheck sensitivity: {len(rows)} parameters in {doc['wall_s']:.1f} s -> "
-        f"{out / 'sensitivity.json'}"
+    for b in blocks:
+        at = f"{b.caught_at:.0e}" if b.caught_at is not None else "NOT SEARCHED"
+        which = f"{b.engine}/{b.variant}" if b.variant else b.engine
+        print(f"{b.model:20s} {which:15s} {b.quantity:26s} {at:>12s}  {b.reason}")
+        f"crosscheck sensitivity: {len(rows)} parameters"
+        + (f", {len(blocks)} derivative blocks" if args.derivatives else "")
+        + f" in {doc['wall_s']:.1f} s -> {out / 'sensitivity.json'}"
     )
     return 0
 
 
 def register(sub) -> None:
+def _derivative_rows(names, engines, n_states) -> list:
+    """The smallest relative error in each block of each engine's derivatives that the
+    derivatives records catch (crosscheck.checks.derivatives.sensitivity)."""
+    from crosscheck.checks.derivatives.sensitivity import derivative_thresholds
+
+    return [b for n in names for e in engines for b in derivative_thresholds(n, e, n_states)]
+
+
     s = sub.add_parser(
         "sensitivity", help="smallest relative parameter error in each engine the suite catches"
     )
@@ -65,3 +81,9 @@ def register(sub) -> None:
     s.add_argument("--states", type=int, default=STATES, help="consistent states per model")
     s.add_argument("--out", default="out", help="directory for sensitivity.json")
     s.set_defaults(func=cmd_sensitivity)
+    s.add_argument(
+        "--derivatives",
+        action="store_true",
+        help="also the smallest relative error in each block of each engine's derivatives "
+        "(du'/dq ... dlambda/dtau) the derivatives records catch",
+    )

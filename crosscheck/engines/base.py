@@ -38,6 +38,9 @@ class EngineUnsupported(Exception):
     """The engine cannot represent this model; the message is the reason shown in results."""
 
 
+DERIVATIVE_KINDS = ("numerical", "analytic", "engine_differences")
+
+
 @dataclass(frozen=True)
 class Capabilities:
     """What an engine can answer, declared once by its adapter.
@@ -77,6 +80,11 @@ class Capabilities:
         (reference.integrate.rk.LeanDOP853): their error per rtol is the reference's, which the
         trajectory check measures in the run, so the engine is not integrated a second time to
         estimate it.
+    derivatives : {"numerical", "analytic", "engine_differences"}
+        Where the ``derivatives`` records' engine side comes from: central differences of
+        forward() (every engine), plus the engine's own derivative routines where a built
+        model has them (``EngineModel.derivatives``): "analytic" ones, or the engine's own
+        finite differences of its soft answer (MuJoCo's mjd_transitionFD).
 
     Raises
     ------
@@ -96,6 +104,7 @@ class Capabilities:
     soft_prediction: bool = False
     soft_limit: bool = False
     reference_integrators: tuple[str, ...] = ()
+    derivatives: str = "numerical"
 
     def __post_init__(self) -> None:
         extra = set(self.adaptive_integrators) - set(self.integrators)
@@ -105,6 +114,10 @@ class Capabilities:
         if extra:
             raise ValueError(
                 f"reference_integrators {sorted(extra)} are not in adaptive_integrators"
+            )
+        if self.derivatives not in DERIVATIVE_KINDS:
+            raise ValueError(
+                f"derivatives {self.derivatives!r}: one of {', '.join(DERIVATIVE_KINDS)}"
             )
 
     def as_dict(self) -> dict[str, Any]:
@@ -121,6 +134,7 @@ class Capabilities:
             "soft_prediction": self.soft_prediction,
             "soft_limit": self.soft_limit,
             "reference_integrators": list(self.reference_integrators),
+            "derivatives": self.derivatives,
         }
 
 
@@ -426,6 +440,32 @@ class EngineModel(ABC):
             No arguments; the default times the whole forward().
         """
         return lambda: self.forward(q, u)
+
+    def derivatives(self, q: np.ndarray, u: np.ndarray, t: float, directions: Any) -> Any:
+        """The engine's own derivatives of its answer along consistent directions
+        (Capabilities.derivatives "analytic" or "engine_differences").
+
+        Parameters
+        ----------
+        q, u : ndarray
+            A consistent reference state.
+        t : float
+            Time.
+        directions : reference.derivatives.directions.Directions
+            The q- and u-directions at the state (the generalized forces are the unit vectors
+            on the reference's speeds).
+
+        Returns
+        -------
+        crosscheck.engines.linearization.EngineDerivatives
+
+        Raises
+        ------
+        EngineUnsupported
+            This model has no derivative routine of the engine's own (the check then
+            differences forward()).
+        """
+        raise EngineUnsupported(f"{self.engine} gives no derivatives of its own")
 
     # the parameter values the adapter's maps (state, acceleration and multiplier maps, raw
     # figures) read: the nominal (unperturbed) set, given by crosscheck.checks.instantaneous.build,

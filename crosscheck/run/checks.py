@@ -151,8 +151,10 @@ def run(
     t_end=5.0,
     agreement: list | None = None,
 ):
+    derivatives: bool = False,
     """All records (and trajectory series) for the models; see the module docstring.
-    ``agreement``, when given, receives the agreement matrices (crosscheck.checks.agreement)."""
+    ``agreement``, when given, receives the agreement matrices (crosscheck.checks.agreement);
+    ``derivatives`` adds the derivatives records (crosscheck.checks.derivatives)."""
     from crosscheck.checks.trajectory.check import trajectory_records
 
     perturb = perturb or {}
@@ -190,6 +192,10 @@ def run(
             records += _soft_file_trajectories(name, recs, adapters)
             series += ser
         else:  # skipped on request: visible in the results, not silently absent
+        if derivatives:
+            from crosscheck.checks.derivatives.records import model_records
+
+            records += model_records(name, nm, states, adapters, perturb)
             records.append(
                 record(
                     name,

@@ -51,6 +51,7 @@ class ModelJob:
     perturb: dict
     trajectories: bool
     t_end: float
+    derivatives: bool = False  # the derivatives records (crosscheck.checks.derivatives)
     # the parent's CROSSCHECK_* settings when the job was made: the workers' server keeps the
     # environment it was started with, and a caller in one process may have changed it since
     settings: tuple[tuple[str, str], ...] = field(default_factory=_settings)
@@ -58,7 +59,8 @@ class ModelJob:
     @property
     def setting(self) -> str:
         """What the model's time depends on besides the model (run_order)."""
-        return setting_key(self.engines, self.n_states, self.trajectories, self.t_end)
+        key = setting_key(self.engines, self.n_states, self.trajectories, self.t_end)
+        return key + (" | derivatives" if self.derivatives else "")
 
 
 class WorkerError(RuntimeError):
@@ -98,6 +100,7 @@ def run_model(job: ModelJob) -> tuple:
         return ("ok", records, series, agreement, time.perf_counter() - start)
     except ModelInputError as exc:
         return ("input", str(exc))
+            derivatives=job.derivatives,
     except Exception:
         return ("internal", traceback.format_exc())
 

@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 from crosscheck.checks.tolerances import Tolerance
 from crosscheck.engines.base import Capabilities
-from crosscheck.engines.building import TableAdapter
+from crosscheck.engines.building import TableAdapter, is_user_model, single_variant
 from crosscheck.engines.exudyn.engine_model import INTEGRATORS, ExudynModel
 from crosscheck.engines.exudyn.exercises import Exercise61, Exercise62, Exercise64
 from crosscheck.engines.exudyn.planar import (
@@ -73,6 +73,17 @@ class ExudynAdapter(TableAdapter):
     )
     model_table = _MODELS
     refused = _UNSUPPORTED
+    user_files = True  # users' MJCF files, built from MuJoCo's compiled model (user_file.py)
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         return EXUDYN_EXACT
+
+    def build(
+        self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
+    ):
+        if is_user_model(_MODELS, model_name):
+            from crosscheck.engines.exudyn.user_file import ExudynUserFile
+
+            single_variant(self.name, model_name, variant, "a user's file")
+            return ExudynUserFile(model_name, params)
+        return super().build(model_name, params, variant)

@@ -302,8 +302,9 @@ class ExudynModel(EngineModel):
 
 
 def _plain(v):
-    """An Exudyn item dictionary as JSON-able data: arrays as lists, visualization left out,
-    a user function as its name and the numbers it closes over (its parameters)."""
+    """An Exudyn item dictionary as JSON-able data: arrays (and Exudyn's lists of 3-vectors and
+    3x3 matrices) as lists, visualization left out, a user function as its name and the
+    numbers it closes over (its parameters)."""
     if callable(v):
         cells = [c.cell_contents for c in getattr(v, "__closure__", None) or ()]
         return {
@@ -312,6 +313,8 @@ def _plain(v):
         }
     if isinstance(v, np.ndarray):
         return v.tolist()
+    if isinstance(v, (exu.Matrix3DList, exu.Vector3DList)):  # str() rounds to 8 digits
+        return [np.asarray(v[i]).tolist() for i in range(len(v))]
     if isinstance(v, dict):
         return {
             k: _plain(x) for k, x in v.items() if k != "visualization" and not k.startswith("V")

@@ -217,6 +217,7 @@ class MujocoAdapter(TableAdapter):
         variants=True,
         soft_prediction=True,
         soft_limit=True,
+        derivatives="engine_differences",  # mjd_transitionFD of the soft answer (derivatives.py)
     )
 
     def __init__(self, solref=SOLREF, solimp=SOLIMP):

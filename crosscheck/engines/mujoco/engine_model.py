@@ -370,6 +370,18 @@ class MjEngineModel(EngineModel):
 
     @staticmethod
     def _answer(acc, lam, raw) -> EngineForward:
+    def derivatives(self, q, u, t, directions):
+        """MuJoCo's own derivatives of its soft accelerations (mjd_transitionFD) along the
+        reference's consistent directions (crosscheck/engines/mujoco/derivatives.py); a model
+        without soft rows has none to give (its answer is differenced)."""
+        from crosscheck.engines.linearization import derivatives_along
+        from crosscheck.engines.mujoco import derivatives as md
+
+        if self.m.neq == 0:
+            raise EngineUnsupported("no soft rows: the exact answer is differenced")
+        q, u = self._check(q, u, t)
+        return derivatives_along(md.maps(self), q, u, directions, forces=False, answer="soft")
+
         """The typed answer; raw keeps the same arrays for diagnostics and the engine tests."""
         return EngineForward(
             acc,

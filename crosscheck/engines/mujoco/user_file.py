@@ -49,8 +49,10 @@ def user_import(model_name: str):
     src = models.user_source(model_name)
     if src is None or not hasattr(src, "mj"):
         raise EngineUnsupported(
-            f"{model_name} comes from {models.origin(model_name)}, a Python model: MuJoCo and "
-            "Pinocchio are given MJCF files; write the mechanism as MJCF to check it in them"
+            f"{model_name} comes from {models.origin(model_name)}, a Python model: the engines "
+            "check MJCF files (MuJoCo compiles the file, and Pinocchio's, Exudyn's and "
+            "OpenSim's models of it are built from MuJoCo's compiled model); write the "
+            "mechanism as MJCF to check it in them"
         )
     return src
 

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 from crosscheck.checks.tolerances import EXACT_KKT, Tolerance
 from crosscheck.engines.base import Capabilities
-from crosscheck.engines.building import TableAdapter
+from crosscheck.engines.building import TableAdapter, is_user_model, single_variant
 from crosscheck.engines.opensim.engine_model import FIXED_STEP, INTEGRATORS, OsimModel
 from crosscheck.engines.opensim.exercises import Exercise61, Exercise62, Exercise64
 from crosscheck.engines.opensim.planar import (
@@ -102,7 +102,18 @@ class OpenSimAdapter(TableAdapter):
 
     model_table = _MODELS
     refused = _UNSUPPORTED
+    user_files = True  # users' MJCF files, built from MuJoCo's compiled model (user_file.py)
 
     def exact_tolerance(self, model_name: str) -> Tolerance:
         """EXACT_KKT (1e-11) except the measured floor of the 3-D double pendulum."""
         return OPENSIM_DOUBLE_PENDULUM if model_name == "double_pendulum_3d" else EXACT_KKT
+
+    def build(
+        self, model_name: str, params: dict[str, float] | None = None, variant: str | None = None
+    ):
+        if is_user_model(_MODELS, model_name):
+            from crosscheck.engines.opensim.user_file import OsimUserFile
+
+            single_variant(self.name, model_name, variant, "a user's file")
+            return OsimUserFile(model_name, params)
+        return super().build(model_name, params, variant)

@@ -379,7 +379,8 @@ class OsimModel(EngineModel):
             E.append(sum(self._energy_of(state)))
         # the Manager records one row per integrator step (plus the initial state and the end
         # of each integrate call); its SimTK::Integrator is not wrapped for Python
-        steps = int(manager.getStatesTable().getNumRows()) - 1
+        self.last_states_table = manager.getStatesTable()  # every step's state, for subclasses
+        steps = int(self.last_states_table.getNumRows()) - 1
         return EngineTrajectory(
             t=np.array(T),
             q=np.array(Q),

@@ -147,6 +147,7 @@ class PinocchioAdapter(TableAdapter):
         variants=True,
         adaptive_integrators=INTEGRATORS,
         reference_integrators=INTEGRATORS,  # machinery.ivp_method: the reference's LeanDOP853
+        derivatives="analytic",  # computeConstraintDynamicsDerivatives, computeABADerivatives
     )
 
     model_table = _MODELS

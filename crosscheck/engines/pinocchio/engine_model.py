@@ -10,7 +10,12 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory
+from crosscheck.engines.base import (
+    EngineForward,
+    EngineModel,
+    EngineTrajectory,
+    EngineUnsupported,
+)
 from crosscheck.engines.building import check_state
 from crosscheck.engines.pinocchio.ode import JointLayout, joint_layout, normalized, right_hand_side
 
@@ -396,6 +401,17 @@ class PinEngineModel(EngineModel):
 
     def _extra_raw(self, qe, ve, ae, lam_e, raw) -> None:
         pass
+
+    def derivatives(self, q, u, t, directions):
+        """Pinocchio's analytical derivatives along the reference's consistent directions
+        (crosscheck/engines/pinocchio/derivatives.py); the 'kkt' solver has none."""
+        from crosscheck.engines.linearization import derivatives_along
+        from crosscheck.engines.pinocchio import derivatives as pd
+
+        if self.solver == "kkt":
+            raise EngineUnsupported(pd.KKT_ROWS)
+        q, u = self._check(q, u, t)
+        return derivatives_along(pd.maps(self, t), q, u, directions)
 
     @property
     def constrained_solve(self) -> bool:  # type: ignore[override]

@@ -1,0 +1,134 @@
+"""Central differences of an engine's answer along consistent directions, with the reference's
+answer on the same states.
+
+A direction d = (dq, du) tangent to the state manifold at a consistent state x is followed on
+the manifold itself: x(s) = P(x + s d), P the projection (Gauss-Newton on the position rows to
+round-off, then the least velocity correction; `project`), whose curve has tangent d at
+s = 0. Every engine is answered at consistent states only, as in every other check, and the
+fourth-order stencil (8 (g(h) - g(-h)) - (g(2h) - g(-2h))) / 12h of s -> answer(x(s)) is
+its derivative along d up to h^4 terms. The reference's forward answer on the same four
+states gives the same stencil of the reference, whose exact derivative is known: their
+difference is the truncation the engine's stencil has too (crosscheck.checks.derivatives
+.tolerances).
+
+A soft engine (MuJoCo) is differenced twice on the same states: its rigid recovery (judged
+against the reference's exact derivative) and its raw answer, beside the raw answer its
+documented impedance predicts from the reference's accelerations there (predict_soft).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from crosscheck.checks.derivatives.tolerances import STENCIL
+from crosscheck.engines.base import EngineModel
+from reference.numeric.redundant import RANK_RTOL
+
+# the answers differenced, by name: the judged one, the raw soft one, its prediction, and the
+# reference's
+KINDS = ("engine", "raw", "predicted", "reference")
+
+
+def project(nm, q, u, t: float, iterations: int = 50) -> tuple[np.ndarray, np.ndarray]:
+    """The consistent state nearest (q, u): Gauss-Newton on the position rows, then the least
+    velocity correction, both with the reference's rank cut (RANK_RTOL) on dependent rows. The
+    projection of NumericModel keeps a dependent row's round-off singular value (4.5e-15 of a
+    weld's Jacobian) as a direction and moves u by its round-off over it: 0.02 on
+    weld_sites.xml, a wrong curve."""
+    q, u = np.array(q, float), np.array(u, float)
+    rows = bool(nm.model.configuration_constraints)
+    for _ in range(iterations if rows else 0):
+        pos, _vel = nm.residuals(q, u, t)
+        if np.max(np.abs(pos)) <= 1e-15 * (1 + np.max(np.abs(q))):
+            break
+        q -= np.linalg.lstsq(nm._position_jacobian(q, t), pos, rcond=RANK_RTOL)[0]
+    A = nm.matrices(q, u, t)[2]
+    if A.shape[0]:
+        u -= np.linalg.lstsq(A, nm.residuals(q, u, t)[1], rcond=RANK_RTOL)[0]
+    return q, u
+
+
+def stencil_states(
+    nm, q, u, t: float, dq, du, h: float, on_manifold: bool = True
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The states of the stencil's offsets: on the manifold, x(k h) = P(x + k h d); off it
+    (whole Jacobians), x + k h d."""
+    if not on_manifold:
+        return [(q + k * h * dq, u + k * h * du) for k, _w in STENCIL]
+    return [project(nm, q + k * h * dq, u + k * h * du, t) for k, _w in STENCIL]
+
+
+def stencil(values: list[np.ndarray], h: float) -> np.ndarray:
+    """The fourth-order central difference of values taken at the stencil's offsets."""
+    return sum(w * v for (_k, w), v in zip(STENCIL, values, strict=True)) / (12.0 * h)  # type: ignore
+
+
+@dataclass
+class Differenced:
+    """Per block ('dq', 'du') and quantity ('accelerations', 'multipliers'): the difference
+    columns of each kind (KINDS) and the largest value scale max(max |g|, 1) met on the
+    stencil states (the round-off bound's scale)."""
+
+    h: float
+    columns: dict = field(default_factory=dict)  # (block, quantity, kind) -> list of columns
+    scales: dict = field(default_factory=dict)  # (block, quantity) -> float
+
+    def add(self, block: str, quantity: str, kind: str, column: np.ndarray) -> None:
+        self.columns.setdefault((block, quantity, kind), []).append(column)
+
+    def get(self, block: str, quantity: str, kind: str) -> np.ndarray | None:
+        cols = self.columns.get((block, quantity, kind))
+        if not cols:
+            return None
+        return np.array(cols).T
+
+
+def _answers(em: EngineModel, nm, qq, uu, t: float, soft: bool) -> dict:
+    """Every kind's (accelerations, multipliers, constraint forces A^T lambda) at one state
+    (None where absent). A^T lambda is the reference's A at the state times the multipliers,
+    on both sides (where rows are dependent every side reports the minimum-norm lambda)."""
+    ef = em.forward(qq, uu, t)
+    ref = nm.forward(qq, uu, t)
+    A = nm.matrices(qq, uu, t)[2] if nm.redundant else None
+
+    def with_forces(acc, lam):
+        return (acc, lam, None if A is None or lam is None else A.T @ np.asarray(lam, float))
+
+    out = {"reference": with_forces(ref.accelerations, ref.multipliers)}
+    if ef.soft:
+        out["engine"] = with_forces(ef.rigid_accelerations, ef.rigid_multipliers)
+        out["raw"] = with_forces(ef.accelerations, ef.multipliers)
+        if soft:
+            out["predicted"] = with_forces(*em.predict_soft(qq, uu, ref.accelerations))
+    else:
+        out["engine"] = with_forces(ef.accelerations, ef.multipliers)
+    return out
+
+
+def engine_differences(
+    em: EngineModel, nm, dirs, q, u, t: float, h: float, soft_prediction: bool
+) -> Differenced:
+    """The stencils of every kind along every q- and u-direction (module docstring)."""
+    q, u = np.asarray(q, float), np.asarray(u, float)
+    out = Differenced(h)
+    for block in ("dq", "du"):
+        DQ, DU = dirs.state_directions(block)
+        for k in range(DQ.shape[1]):
+            states = stencil_states(nm, q, u, t, DQ[:, k], DU[:, k], h, not dirs.whole)
+            answers = [_answers(em, nm, qq, uu, t, soft_prediction) for qq, uu in states]
+            for j, quantity in enumerate(("accelerations", "multipliers", "constraint_forces")):
+                for kind in KINDS:
+                    vals = [a.get(kind, (None, None, None))[j] for a in answers]
+                    if any(v is None for v in vals):
+                        continue
+                    vals = [np.asarray(v, float) for v in vals]
+                    out.add(block, quantity, kind, stencil(vals, h))
+                    if kind == "engine":
+                        key = (block, quantity)
+                        big = max(
+                            max(float(np.max(np.abs(v))) if v.size else 0.0, 1.0) for v in vals
+                        )
+                        out.scales[key] = max(out.scales.get(key, 1.0), big)
+    return out
