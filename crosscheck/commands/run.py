@@ -234,13 +234,13 @@ def register(sub):
         help="only the checks at consistent states, no trajectories",
     )
     r.add_argument(
-    r.add_argument(
         "--derivatives",
         action="store_true",
         help="also the derivatives of u' and lambda with respect to coordinates, speeds and "
         "applied forces: the reference's exact ones against its slow path and every engine's "
         "(docs/checks.md)",
     )
+    r.add_argument(
         "--t-end",
         type=horizon,
         default=5.0,

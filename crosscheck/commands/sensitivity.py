@@ -35,28 +35,28 @@ def cmd_sensitivity(args) -> int:
     for name in names:
         for engine in engines:
             rows += engine_thresholds(name, engine, args.states)
-    doc = {
     blocks = _derivative_rows(names, engines, args.states) if args.derivatives else []
+    doc = {
         "command": "crosscheck " + " ".join(sys.argv[1:]),
         "decades": [10.0**k for k in DECADES],
         "states_per_model": args.states,
         "wall_s": time.perf_counter() - t0,
         "thresholds": [r.to_json() for r in rows],
     }
-    (out / "sensitivity.json").write_text(json.dumps(doc, indent=2))
     if args.derivatives:
         doc["derivative_thresholds"] = [r.to_json() for r in blocks]
+    (out / "sensitivity.json").write_text(json.dumps(doc, indent=2))
     for r in rows:
         at = f"{r.caught_at:.0e}" if r.caught_at is not None else "NOT CAUGHT"
         print(
             f"{r.model:20s} {r.engine:10s} {r.parameter:8s} {at:>10s}  "
             f"{r.failing_check or r.reason}"
         )
-    print(
     for b in blocks:
         at = f"{b.caught_at:.0e}" if b.caught_at is not None else "NOT SEARCHED"
         which = f"{b.engine}/{b.variant}" if b.variant else b.engine
         print(f"{b.model:20s} {which:15s} {b.quantity:26s} {at:>12s}  {b.reason}")
+    print(
         f"crosscheck sensitivity: {len(rows)} parameters"
         + (f", {len(blocks)} derivative blocks" if args.derivatives else "")
         + f" in {doc['wall_s']:.1f} s -> {out / 'sensitivity.json'}"
@@ -64,7 +64,6 @@ def cmd_sensitivity(args) -> int:
     return 0
 
 
-def register(sub) -> None:
 def _derivative_rows(names, engines, n_states) -> list:
     """The smallest relative error in each block of each engine's derivatives that the
     derivatives records catch (crosscheck.checks.derivatives.sensitivity)."""
@@ -73,6 +72,7 @@ def _derivative_rows(names, engines, n_states) -> list:
     return [b for n in names for e in engines for b in derivative_thresholds(n, e, n_states)]
 
 
+def register(sub) -> None:
     s = sub.add_parser(
         "sensitivity", help="smallest relative parameter error in each engine the suite catches"
     )
@@ -80,10 +80,10 @@ def _derivative_rows(names, engines, n_states) -> list:
     s.add_argument("--engines", default=None, help="comma-separated (default: every engine)")
     s.add_argument("--states", type=int, default=STATES, help="consistent states per model")
     s.add_argument("--out", default="out", help="directory for sensitivity.json")
-    s.set_defaults(func=cmd_sensitivity)
     s.add_argument(
         "--derivatives",
         action="store_true",
         help="also the smallest relative error in each block of each engine's derivatives "
         "(du'/dq ... dlambda/dtau) the derivatives records catch",
     )
+    s.set_defaults(func=cmd_sensitivity)

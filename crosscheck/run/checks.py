@@ -150,8 +150,8 @@ def run(
     trajectories=True,
     t_end=5.0,
     agreement: list | None = None,
-):
     derivatives: bool = False,
+):
     """All records (and trajectory series) for the models; see the module docstring.
     ``agreement``, when given, receives the agreement matrices (crosscheck.checks.agreement);
     ``derivatives`` adds the derivatives records (crosscheck.checks.derivatives)."""
@@ -184,6 +184,10 @@ def run(
         if agreement is not None:
             agreement += answers.matrices()
         records += _generic_records(name, adapters, n_states, perturb)
+        if derivatives:
+            from crosscheck.checks.derivatives.records import model_records
+
+            records += model_records(name, nm, states, adapters, perturb)
         if trajectories:
             engine_params = {
                 a.name: perturbed(name, nm.params, perturb.get(a.name, {})) for a in adapters
@@ -192,10 +196,6 @@ def run(
             records += _soft_file_trajectories(name, recs, adapters)
             series += ser
         else:  # skipped on request: visible in the results, not silently absent
-        if derivatives:
-            from crosscheck.checks.derivatives.records import model_records
-
-            records += model_records(name, nm, states, adapters, perturb)
             records.append(
                 record(
                     name,

@@ -96,11 +96,11 @@ def run_model(job: ModelJob) -> tuple:
             trajectories=job.trajectories,
             t_end=job.t_end,
             agreement=agreement,
+            derivatives=job.derivatives,
         )
         return ("ok", records, series, agreement, time.perf_counter() - start)
     except ModelInputError as exc:
         return ("input", str(exc))
-            derivatives=job.derivatives,
     except Exception:
         return ("internal", traceback.format_exc())
 

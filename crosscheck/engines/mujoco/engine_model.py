@@ -363,13 +363,6 @@ class MjEngineModel(EngineModel):
         self._extra_raw(raw)
         return self._answer(acc, lam, raw)
 
-    def _soft_recovery(self, qe, ve, qacc, acc, raw) -> np.ndarray:
-        """The mapped multipliers of MuJoCo's soft answer at the state in self.d; fills raw
-        with the rigid answer recovered from it and its checks (soft_recovery.py)."""
-        return soft_recovery(self, qe, ve, qacc, acc, raw)
-
-    @staticmethod
-    def _answer(acc, lam, raw) -> EngineForward:
     def derivatives(self, q, u, t, directions):
         """MuJoCo's own derivatives of its soft accelerations (mjd_transitionFD) along the
         reference's consistent directions (crosscheck/engines/mujoco/derivatives.py); a model
@@ -382,6 +375,13 @@ class MjEngineModel(EngineModel):
         q, u = self._check(q, u, t)
         return derivatives_along(md.maps(self), q, u, directions, forces=False, answer="soft")
 
+    def _soft_recovery(self, qe, ve, qacc, acc, raw) -> np.ndarray:
+        """The mapped multipliers of MuJoCo's soft answer at the state in self.d; fills raw
+        with the rigid answer recovered from it and its checks (soft_recovery.py)."""
+        return soft_recovery(self, qe, ve, qacc, acc, raw)
+
+    @staticmethod
+    def _answer(acc, lam, raw) -> EngineForward:
         """The typed answer; raw keeps the same arrays for diagnostics and the engine tests."""
         return EngineForward(
             acc,

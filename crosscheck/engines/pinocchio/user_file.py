@@ -320,6 +320,16 @@ class UserFilePinModel(EngineModel):
             iterations=1 if len(lam) else 0,
         )
 
+    def derivatives(self, q, u, t, directions):
+        """Pinocchio's analytical derivatives, the file's rows as its constraint models
+        (crosscheck/engines/pinocchio/user_file_derivatives.py)."""
+        from crosscheck.engines.linearization import derivatives_along
+        from crosscheck.engines.pinocchio.user_file_derivatives import UserFileDerivatives
+
+        if "_derivatives" not in self.__dict__:
+            self._derivatives = UserFileDerivatives(self)
+        return derivatives_along(self._derivatives.maps(), q, u, directions)
+
     def energy(self, q, u) -> tuple[float, float]:
         qe, ve = self.to_engine_state(q, u)
         model, data, m = self.model, self.data, self.mj
@@ -338,16 +348,6 @@ class UserFilePinModel(EngineModel):
         qpos, _ = self._mj_state(qe, ve)
         for j in self.jmap:
             if int(m.jnt_type[j]) in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
-    def derivatives(self, q, u, t, directions):
-        """Pinocchio's analytical derivatives, the file's rows as its constraint models
-        (crosscheck/engines/pinocchio/user_file_derivatives.py)."""
-        from crosscheck.engines.linearization import derivatives_along
-        from crosscheck.engines.pinocchio.user_file_derivatives import UserFileDerivatives
-
-        if "_derivatives" not in self.__dict__:
-            self._derivatives = UserFileDerivatives(self)
-        return derivatives_along(self._derivatives.maps(), q, u, directions)
-
                 a = m.jnt_qposadr[j]
                 V += 0.5 * m.jnt_stiffness[j] * (qpos[a] - m.qpos_spring[a]) ** 2
         return float(K), float(V)
