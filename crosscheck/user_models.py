@@ -19,7 +19,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -103,16 +103,31 @@ def _safe(s: str) -> str:
     return "".join(c if c.isalnum() else "_" for c in s)
 
 
-def load_model_file(path, *, project: bool = False) -> list[UserModel]:
+def load_model_file(path, *, project: bool = False, ctrl=None) -> list[UserModel]:
     """The models a file defines, each with its origin: an MJCF file (.xml) gives one, a
-    Python file (.py) what its models() hook returns. project: see reference.mjcf.loader.import_mjcf
-    (an initial state off the constraint manifold is refused unless projected)."""
+    Python file (.py) what its models() hook returns.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    project : bool
+        An MJCF initial state off the constraint manifold is projected onto it (else refused);
+        see reference.mjcf.loader.import_mjcf.
+    ctrl : mapping of str to float, optional
+        MJCF actuator controls by name (the others: keyframe 0's, or 0); a name the file has
+        no actuator of is refused.
+
+    Returns
+    -------
+    list of UserModel
+    """
     path = Path(path)
     if not path.is_file():
         raise ModelFileError(f"{path}: no such file")
     suffix = path.suffix.lower()
     if suffix in (".xml", ".mjcf"):
-        imp = import_mjcf(path, project=project)
+        imp = import_mjcf(path, project=project, ctrl=ctrl)
         return [UserModel(imp.model, f"{path.name} (MJCF)", "mjcf", imp)]
     if suffix == ".py":
         return _load_python(path)
@@ -120,6 +135,31 @@ def load_model_file(path, *, project: bool = False) -> list[UserModel]:
         f"{path}: unknown model file type {suffix!r}; give an MJCF file "
         f"(.xml) or a Python file (.py) with a {HOOK}() function"
     )
+
+
+def _controls_by_file(paths: list[Path], ctrl: Mapping[str, float]) -> list[dict[str, float]]:
+    """Each MJCF file's share of the --ctrl controls (the names of its actuators); a name no
+    file has an actuator of is refused, naming the files' actuators."""
+    from reference.mjcf.actuators import actuator_name
+    from reference.mjcf.loader import compile_file
+
+    shares, seen = [], set()
+    for p in paths:
+        if p.suffix.lower() not in (".xml", ".mjcf") or not ctrl:
+            shares.append({})
+            continue
+        m = compile_file(p)
+        names = {actuator_name(m, a) for a in range(m.nu)}
+        seen |= names
+        shares.append({k: v for k, v in ctrl.items() if k in names})
+    unknown = sorted(set(ctrl) - seen)
+    if unknown:
+        listed = ", ".join(sorted(seen)) if seen else "none"
+        raise ModelFileError(
+            f"--ctrl {', '.join(unknown)}: no actuator of that name in the model files "
+            f"(their actuators: {listed})"
+        )
+    return shares
 
 
 def entry_point_models(group: str = ENTRY_POINT_GROUP) -> list[UserModel]:
@@ -145,12 +185,19 @@ def load_all(
     entry_points: bool = True,
     builtin_names: Iterable[str] = (),
     project: bool = False,
+    ctrl: Mapping[str, float] | None = None,
 ) -> list[UserModel]:
     """Models of every file in `paths` (in order) and of the entry points; a name given twice,
-    or the name of a built-in model, is an error naming both origins."""
+    or the name of a built-in model, is an error naming both origins. ``project`` and
+    ``ctrl`` as load_model_file; each control goes to the files with an actuator of that name,
+    and a name none has is refused."""
     found: list[UserModel] = []
+    paths = [Path(p) for p in paths]
     for p in paths:
-        found += load_model_file(p, project=project)
+        if not p.is_file():
+            raise ModelFileError(f"{p}: no such file")
+    for p, share in zip(paths, _controls_by_file(paths, dict(ctrl or {})), strict=True):
+        found += load_model_file(p, project=project, ctrl=share)
     if entry_points:
         found += entry_point_models()
     seen: dict[str, str] = {n: "the built-in models" for n in builtin_names}

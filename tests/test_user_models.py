@@ -193,7 +193,11 @@ def _write(tmp_path, body: str, extra: str = "", name: str = "m.xml") -> Path:
 @pytest.mark.parametrize(
     "body, extra, match",
     [
-        ("", '<actuator><motor name="mot" joint="j"/></actuator>', "actuator 'mot'"),
+        (
+            '<site name="s1"/>',
+            '<actuator><position name="mot" site="s1" kp="2"/></actuator>',
+            "actuator 'mot' has a site transmission",
+        ),
         (
             '<site name="s1"/>',
             (
@@ -202,22 +206,8 @@ def _write(tmp_path, body: str, extra: str = "", name: str = "m.xml") -> Path:
             ),
             "tendon 'ten'",
         ),
-        (
-            '<geom name="hit" contype="1" conaffinity="1" size="0.1"/>',
-            (
-                '<worldbody><geom name="floor" type="plane" size="1 1 .1" contype="1" '
-                'conaffinity="1"/></worldbody>'
-            ),
-            "geom 'floor' / geom 'hit'",
-        ),
-        (
-            "",
-            (
-                '<option><flag gravity="enable"/></option><default><joint limited="true" '
-                'range="-1 1"/></default>'
-            ),
-            "limit",
-        ),
+        ("", '<default><joint frictionloss="0.1"/></default>', "joint 'j' has dry friction"),
+        ("", '<option density="1.2"/>', "fluid forces"),
     ],
 )
 def test_unsupported_elements_are_named(tmp_path, body, extra, match):
@@ -226,12 +216,13 @@ def test_unsupported_elements_are_named(tmp_path, body, extra, match):
         import_mjcf(p)
 
 
-def test_joint_limit_named(tmp_path):
+def test_joint_limit_is_monitored_not_refused(tmp_path):
+    """A limit acts at the end of the range only: the file is accepted and the limit watched
+    (tests/test_mjcf_unilateral.py checks the states and trajectories around it)."""
     p = tmp_path / "lim.xml"
     p.write_text("""<mujoco><worldbody><body><joint name="knee" range="-1 1"/>
       <geom size=".1" contype="0" conaffinity="0"/></body></worldbody></mujoco>""")
-    with pytest.raises(UnsupportedModelError, match="joint 'knee' has a limit"):
-        import_mjcf(p)
+    assert import_mjcf(p).monitor.present.joint_limits == ("knee",)
 
 
 def test_malformed_and_rejected_files(tmp_path):
@@ -404,28 +395,3 @@ def test_fourbar_trajectory_with_dependent_rows():
     assert abs(s["energy_drift"]) < 1e-7
     with pytest.raises(ModelInputError, match="independent constraint rows"):
         simulate(nm, imp.model.initial_q, imp.model.initial_u, 0.1, method="nullspace")
-
-
-@pytest.mark.parametrize("flags", ["", '<option><flag filterparent="disable"/></option>'])
-def test_contact_pairs_are_the_ones_mujoco_collides(flags):
-    """Every geom overlaps every other, so MuJoCo's contacts are exactly the pairs its broad
-    phase keeps: contype/conaffinity, same weld body, parent filter, <exclude>."""
-    from reference.mjcf.checks import _contact_pairs
-
-    xml = f"""<mujoco>{flags}<worldbody><geom name="w" size="1"/>
-      <body name="a"><joint/><geom name="ga" size="1"/>
-        <body name="b"><joint/><geom name="gb" size="1"/>
-          <body name="c"><joint/><geom name="gc" size="1"/></body>
-          <body name="f"><geom name="gf" size="1"/></body></body></body>
-      <body name="d"><joint type="slide"/><geom name="gd" size="1" contype="2" conaffinity="2"/>
-        <geom name="gd2" size="1" contype="1" conaffinity="0"/></body>
-      <body name="e"><freejoint/><geom name="ge" size="1"/></body>
-    </worldbody><contact><exclude body1="c" body2="e"/></contact></mujoco>"""
-    m = mujoco.MjModel.from_xml_string(xml)
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    collided = set()
-    for c in d.contact[: d.ncon]:
-        g1, g2 = sorted((c.geom1, c.geom2))
-        collided.add(f"geom '{m.geom(g1).name}' / geom '{m.geom(g2).name}'")
-    assert collided and set(_contact_pairs(m)) == collided

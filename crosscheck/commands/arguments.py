@@ -150,8 +150,25 @@ def add_models(parser: argparse.ArgumentParser) -> None:
     add_model_files(parser)
 
 
-def add_model_files(parser: argparse.ArgumentParser) -> None:
-    """--model-file PATH (repeatable): an MJCF (.xml) or Python (.py) file of user models."""
+def control(text: str) -> tuple[str, float]:
+    """An actuator control NAME=VALUE (--ctrl): a name and a finite number."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=VALUE (an actuator's control)")
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: {value!r} is not a number") from None
+    if not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"{text!r}: the control must be finite")
+    return name.strip(), number
+
+
+def add_model_files(parser: argparse.ArgumentParser, project: bool = True) -> None:
+    """--model-file PATH (repeatable): an MJCF (.xml) or Python (.py) file of user models;
+    with it, how an MJCF file is loaded: --project (an initial state off the constraint
+    manifold is projected onto it; ``project=False`` where the command has its own --project,
+    which then says the same of the files) and --ctrl NAME=VALUE (an actuator's control)."""
     parser.add_argument(
         "--model-file",
         action="append",
@@ -160,6 +177,35 @@ def add_model_files(parser: argparse.ArgumentParser) -> None:
         help="load models from an MJCF (.xml) or Python (.py, a models() "
         "function) file; repeatable (docs/user_models.md)",
     )
+    if project:
+        _add_project(parser)
+    parser.add_argument(
+        "--ctrl",
+        action="append",
+        default=[],
+        type=control,
+        metavar="NAME=VALUE",
+        help="the control of an MJCF file's actuator NAME (repeatable; default: keyframe 0's "
+        "ctrl, else 0): its force at that control (gain and bias) is a load on its joint",
+    )
+
+
+def _add_project(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--project",
+        action="store_true",
+        help="project an MJCF file's initial state (keyframe 0 or qpos0) onto its constraint "
+        "manifold, positions and velocities, where it is off it (else the file is refused); "
+        "the records say by how much",
+    )
+
+
+def loading_options(args: argparse.Namespace) -> dict:
+    """How the --model-file files are loaded: {"project": bool, "ctrl": {name: value}}; an
+    actuator named twice is refused."""
+    pairs = list(getattr(args, "ctrl", None) or [])
+    unique([name for name, _ in pairs], "--ctrl for actuator")
+    return {"project": bool(getattr(args, "project", False)), "ctrl": dict(pairs)}
 
 
 def load_model_files(args: argparse.Namespace) -> list[str]:
@@ -171,12 +217,15 @@ def load_model_files(args: argparse.Namespace) -> list[str]:
 
     files = list(getattr(args, "model_file", None) or [])
     args.user_models = []
+    options = loading_options(args)
+    if options["ctrl"] and not files:
+        raise _refuse("--ctrl sets the control of an actuator in a --model-file; give the file")
     if not files and not metadata.entry_points(group="crosscheck.models"):
         return []  # nothing to load: the commands stay as light as before (no MuJoCo import)
     from crosscheck.user_models import load_all, register_all
     from reference import models
 
-    found = load_all(files, builtin_names=models.names())
+    found = load_all(files, builtin_names=models.names(), **options)
     names = register_all(found)
     args.user_models = [um.name for um in found if um.kind != "entry-point"]
     return names

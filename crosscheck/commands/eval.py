@@ -86,8 +86,9 @@ def register(sub) -> None:
     e.add_argument(
         "--project",
         action="store_true",
-        help="project the state onto the constraint manifold instead of refusing it",
+        help="project the state onto the constraint manifold instead of refusing it (and a "
+        "--model-file's initial state, as the other commands' --project)",
     )
     e.add_argument("--json", action="store_true")
-    add_model_files(e)
+    add_model_files(e, project=False)
     e.set_defaults(func=cmd_eval)

@@ -159,6 +159,7 @@ def _checks(args, names, engine_names, perturb, jobs, progress, agreement):
         # meta's engine versions import every engine's adapter, also those this run does
         # not use (about 0.4 s): read while the hand-out waits for the workers' server
         meanwhile=lambda: provenance.update(meta(sys.argv[1:])),
+        loading=(args.project, tuple(args.ctrl)),
     )
     return records, series, provenance
 

@@ -26,7 +26,8 @@ def cmd_sensitivity(args) -> int:
     from crosscheck.commands.arguments import name_list, resolve_models
     from crosscheck.engines.registry import available_engines
 
-    names = resolve_models(args.models) if args.models else list(DEFAULT_MODELS)
+    files = getattr(args, "user_models", None)
+    names = resolve_models(args.models, files) if args.models or files else list(DEFAULT_MODELS)
     engines = name_list(args.engines) if args.engines else list(available_engines())
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -76,7 +77,14 @@ def register(sub) -> None:
     s = sub.add_parser(
         "sensitivity", help="smallest relative parameter error in each engine the suite catches"
     )
-    s.add_argument("models", nargs="*", help=f"models (default: {', '.join(DEFAULT_MODELS)})")
+    from crosscheck.commands.arguments import add_model_files
+
+    s.add_argument(
+        "models",
+        nargs="*",
+        help=f"models (default: the --model-file models, else {', '.join(DEFAULT_MODELS)})",
+    )
+    add_model_files(s)
     s.add_argument("--engines", default=None, help="comma-separated (default: every engine)")
     s.add_argument("--states", type=int, default=STATES, help="consistent states per model")
     s.add_argument("--out", default="out", help="directory for sensitivity.json")

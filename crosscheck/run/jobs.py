@@ -67,13 +67,17 @@ class WorkerError(RuntimeError):
     """A worker's internal error (a bug, not a failed check), with the worker's traceback."""
 
 
-def _start_worker(parent: int, model_files: tuple[str, ...]) -> None:
+def _start_worker(parent: int, model_files: tuple[str, ...], loading: tuple = ()) -> None:
     """workers.start_worker, then register the user's models (their files, the
-    `crosscheck.models` entry points) as the parent did: a worker is a fresh process."""
+    `crosscheck.models` entry points) as the parent did, loaded the same way (``loading``:
+    the --project flag and the --ctrl pairs): a worker is a fresh process."""
     start_worker(parent)
     from crosscheck.commands.arguments import load_model_files
 
-    load_model_files(argparse.Namespace(model_file=list(model_files)))
+    project, ctrl = loading or (False, ())
+    load_model_files(
+        argparse.Namespace(model_file=list(model_files), project=project, ctrl=list(ctrl))
+    )
 
 
 def run_model(job: ModelJob) -> tuple:
@@ -112,11 +116,13 @@ def run_models(
     progress=None,
     agreement: list | None = None,
     meanwhile=None,
+    loading: tuple = (),
 ) -> tuple[list, list]:
     """run() over `jobs` on `workers` processes: (records, series) in the jobs' order;
     ``agreement`` receives the matrices as run() gives them; ``progress(name)`` is called as
     each model completes; ``meanwhile()`` runs while the models are handed out (_Meanwhile),
-    its exception raised here. Models go out longest first (run_order)."""
+    its exception raised here; ``loading`` is how the workers load ``model_files``
+    (--project, the --ctrl pairs). Models go out longest first (run_order)."""
     outcomes: dict[int, tuple] = {}
     setting = jobs[0].setting if jobs else ""
     order = hand_out_order([j.name for j in jobs], known_times(setting))
@@ -124,7 +130,7 @@ def run_models(
         workers,
         process_context(*WORKER_MODULES, engines=jobs[0].engines if jobs else None),
         _start_worker,
-        (os.getpid(), tuple(model_files)),
+        (os.getpid(), tuple(model_files), tuple(loading)),
     )
     side = _Meanwhile(meanwhile) if meanwhile is not None else None
     try:

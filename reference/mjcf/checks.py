@@ -2,16 +2,20 @@
 constraint manifold.
 
 The reference models rigid bodies, joints, gravity, joint armature, damping and (hinge/slide)
-springs, and the equality constraints connect, weld and joint. Everything else that changes
-the dynamics is refused here, once, with every offending element named and the way out:
-tendons that act (stiffness, damping, friction, limits, armature), actuators that can push,
-flex bodies, contacts between bodies that could touch (contype/conaffinity, explicit pairs),
-joint limits, dry friction, fluid forces, gravity compensation, nonlinear springs and dampers,
-plugins, and equality types other than the three. Elements that cannot act are accepted and
-reported as notes (an inactive equality, a disabled feature).
+springs, the equality constraints connect, weld and joint, and actuators on hinges and slides at
+a stated control (reference.mjcf.actuators). Contacts, joint and tendon limits and force clamps
+act at some states only: they are checked where they do not act (reference.mjcf.unilateral).
+What acts at every state and the reference cannot represent is refused here, once, in one line
+that names every offending element, grouped by problem, and the way out: tendons that act
+(stiffness, damping, friction, armature), actuators it cannot express, flex bodies, dry
+friction, fluid forces, gravity compensation, nonlinear springs and dampers, springs on ball
+and free joints, plugins, and equality types other than the three. Elements that cannot act are
+accepted and reported as notes (an inactive equality, a disabled feature).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -20,173 +24,180 @@ from reference.errors import OffManifoldError, UnsupportedModelError
 
 OBJ = mujoco.mjtObj
 EQ = mujoco.mjtEq
+# names listed in a refusal's group before "and N more": the line stays readable
+LISTED = 5
+
+__all__ = [
+    "Refusals",
+    "check_supported",
+    "dense_efc_J",
+    "disabled",
+    "element",
+    "project_state",
+    "violation",
+]
 
 
 def disabled(m, flag: str) -> bool:
+    """Whether a MuJoCo disable flag (mjDSBL_...) is set in the file's options."""
     bit = getattr(mujoco.mjtDisableBit, flag, None)
     return bit is not None and bool(m.opt.disableflags & int(bit))
 
 
-def _n(m, obj, i, prefix):
-    n = mujoco.mj_id2name(m, obj, i)
-    return f"{prefix} {n!r}" if n else f"{prefix} #{i}"
+def element(m, obj, i: int) -> str:
+    """An element's name in the file, or #index where it has none."""
+    return mujoco.mj_id2name(m, obj, i) or f"#{i}"
 
 
-def _contact_pairs(m) -> list[str]:
-    """Geom pairs MuJoCo's broad phase would test (contype/conaffinity, weld and parent
-    filters, <exclude>), by name; empty when contacts are disabled."""
-    if disabled(m, "mjDSBL_CONTACT") or disabled(m, "mjDSBL_CONSTRAINT"):
-        return []
-    excluded = {int(s) for s in m.exclude_signature[: m.nexclude]}
-    weld, parent = m.body_weldid, m.body_parentid
-    out = []
-    for g1 in range(m.ngeom):
-        for g2 in range(g1 + 1, m.ngeom):
-            c1, a1, c2, a2 = (
-                m.geom_contype[g1],
-                m.geom_conaffinity[g1],
-                m.geom_contype[g2],
-                m.geom_conaffinity[g2],
+@dataclass
+class Refusals:
+    """Problems grouped by kind, for one line: 'joint 'a' has dry friction (frictionloss): set
+    it to 0' for one element, '3 joints have dry friction (frictionloss): a, b, c: set it to 0'
+    for several."""
+
+    groups: dict[tuple, list[str]] = field(default_factory=dict)
+
+    def add(self, one: str, many: str, way_out: str, name: str) -> None:
+        """One offending element; ``one`` takes {name}, ``many`` takes {n}."""
+        self.groups.setdefault((one, many, way_out), []).append(name)
+
+    def lines(self) -> list[str]:
+        out = []
+        for (one, many, way_out), names in self.groups.items():
+            if len(names) == 1:
+                out.append(f"{one.format(name=repr(names[0]))}: {way_out}")
+                continue
+            listed = ", ".join(names[:LISTED])
+            more = f" and {len(names) - LISTED} more" if len(names) > LISTED else ""
+            out.append(f"{many.format(n=len(names))}: {listed}{more}: {way_out}")
+        return out
+
+    def raise_if_any(self, where: str, extra: list[str] | None = None) -> None:
+        problems = self.lines() + list(extra or [])
+        if problems:
+            raise UnsupportedModelError(
+                f"{where}: not representable in the reference: " + "; ".join(problems)
             )
-            if not ((c1 & a2) or (c2 & a1)):
-                continue
-            b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
-            w1, w2 = weld[b1], weld[b2]
-            if w1 == w2:
-                continue  # same rigid group (or both static)
-            if (
-                not disabled(m, "mjDSBL_FILTERPARENT")
-                and w1
-                and w2
-                and (w1 == weld[parent[w2]] or w2 == weld[parent[w1]])
-            ):
-                continue
-            lo, hi = min(b1, b2), max(b1, b2)
-            if (lo << 16) + hi in excluded or (hi << 16) + lo in excluded:  # MuJoCo's signature
-                continue
-            out.append(f"{_n(m, OBJ.mjOBJ_GEOM, g1, 'geom')} / {_n(m, OBJ.mjOBJ_GEOM, g2, 'geom')}")
-    return out
 
 
-def _actuator_problems(m) -> list[str]:
-    if m.nu == 0 or disabled(m, "mjDSBL_ACTUATION"):
-        return []
-    out = []
-    for a in range(m.nu):
-        lo, hi = m.actuator_ctrlrange[a]
-        inert = (
-            m.actuator_ctrllimited[a] and lo == 0 and hi == 0 and not np.any(m.actuator_biasprm[a])
+def _actuator_problems(problems: Refusals, unexpressed: list[tuple[str, str]]) -> None:
+    for name, why in unexpressed:
+        problems.add(
+            f"actuator {{name}} has {why}",
+            f"{{n}} actuators have {why}",
+            "the reference expresses actuators on hinge and slide joints (directly or through "
+            "a fixed tendon) with fixed or affine gain and bias; one that applies no force at "
+            "its control is left out (--ctrl NAME=0), or remove them, or disable actuation "
+            '(<option><flag actuation="disable"/></option>)',
+            name,
         )
-        if not inert:
-            out.append(
-                f"{_n(m, OBJ.mjOBJ_ACTUATOR, a, 'actuator')} can apply a force "
-                f'(remove it, set ctrlrange="0 0" with no bias, or disable actuation: '
-                f'<option><flag actuation="disable"/></option>)'
-            )
-    return out
 
 
-def _tendon_problems(m) -> list[str]:
-    out = []
+def _tendon_problems(m, problems: Refusals) -> None:
     for t in range(m.ntendon):
         acts = []
         if m.tendon_stiffness[t] or np.any(m.tendon_stiffnesspoly[t]):
             acts.append("stiffness")
         if m.tendon_damping[t] or np.any(m.tendon_dampingpoly[t]):
             acts.append("damping")
-        if m.tendon_frictionloss[t]:
+        if m.tendon_frictionloss[t] and not disabled(m, "mjDSBL_FRICTIONLOSS"):
             acts.append("frictionloss")
-        if m.tendon_limited[t]:
-            acts.append("limits")
         if m.tendon_armature[t]:
             acts.append("armature")
         if acts:
-            out.append(
-                f"{_n(m, OBJ.mjOBJ_TENDON, t, 'tendon')} acts on the bodies "
-                f"({', '.join(acts)}); the reference has no tendons: remove them"
+            what = ", ".join(acts)
+            problems.add(
+                f"tendon {{name}} acts on the bodies ({what})",
+                f"{{n}} tendons act on the bodies ({what})",
+                "the reference has no tendons: remove them",
+                element(m, OBJ.mjOBJ_TENDON, t),
             )
-    return out
 
 
-def _joint_problems(m) -> list[str]:
-    out = []
-    limits = not (disabled(m, "mjDSBL_LIMIT") or disabled(m, "mjDSBL_CONSTRAINT"))
+def _joint_problems(m, problems: Refusals) -> None:
     friction = not (disabled(m, "mjDSBL_FRICTIONLOSS") or disabled(m, "mjDSBL_CONSTRAINT"))
+    spatial = (int(mujoco.mjtJoint.mjJNT_BALL), int(mujoco.mjtJoint.mjJNT_FREE))
     for j in range(m.njnt):
-        name = _n(m, OBJ.mjOBJ_JOINT, j, "joint")
-        if limits and m.jnt_limited[j]:
-            out.append(
-                f"{name} has a limit (range); the reference has no unilateral "
-                f'constraints: set limited="false" or disable limits'
-            )
+        name = element(m, OBJ.mjOBJ_JOINT, j)
         if np.any(m.jnt_stiffnesspoly[j]):
-            out.append(f"{name} has a nonlinear spring (stiffnesspoly): use stiffness only")
-        if m.jnt_stiffness[j] and m.jnt_type[j] in (
-            int(mujoco.mjtJoint.mjJNT_BALL),
-            int(mujoco.mjtJoint.mjJNT_FREE),
-        ):
-            out.append(
-                f'{name}: springs on ball and free joints are not modelled: set stiffness="0"'
+            problems.add(
+                "joint {name} has a nonlinear spring (stiffnesspoly)",
+                "{n} joints have nonlinear springs (stiffnesspoly)",
+                "use stiffness only",
+                name,
             )
-        for k in range(m.jnt_dofadr[j], m.jnt_dofadr[j] + _ndof(m.jnt_type[j])):
-            if friction and m.dof_frictionloss[k]:
-                out.append(f"{name} has dry friction (frictionloss): set it to 0")
-                break
-            if np.any(m.dof_dampingpoly[k]):
-                out.append(f"{name} has a nonlinear damper (dampingpoly): use damping only")
-                break
-    return out
+        if m.jnt_stiffness[j] and m.jnt_type[j] in spatial:
+            problems.add(
+                "joint {name} is a ball or free joint with a spring",
+                "{n} ball or free joints have springs",
+                'springs on ball and free joints are not modelled: set stiffness="0"',
+                name,
+            )
+        dofs = range(m.jnt_dofadr[j], m.jnt_dofadr[j] + _ndof(m.jnt_type[j]))
+        if friction and any(m.dof_frictionloss[k] for k in dofs):
+            problems.add(
+                "joint {name} has dry friction (frictionloss)",
+                "{n} joints have dry friction (frictionloss)",
+                "set it to 0",
+                name,
+            )
+        if any(np.any(m.dof_dampingpoly[k]) for k in dofs):
+            problems.add(
+                "joint {name} has a nonlinear damper (dampingpoly)",
+                "{n} joints have nonlinear dampers (dampingpoly)",
+                "use damping only",
+                name,
+            )
 
 
 def _ndof(t) -> int:
     return {int(mujoco.mjtJoint.mjJNT_FREE): 6, int(mujoco.mjtJoint.mjJNT_BALL): 3}.get(t, 1)
 
 
-def check_supported(m, where: str) -> tuple[str, ...]:
-    """Raise UnsupportedModelError naming every element the reference cannot represent;
-    return notes on elements accepted because they cannot act."""
-    problems, notes = [], []
-    problems += _tendon_problems(m)
-    problems += _actuator_problems(m)
-    problems += _joint_problems(m)
+def _model_problems(m, problems: Refusals) -> list[str]:
+    """The whole-model problems (one line each) and the bodies with gravcomp."""
+    out = []
     if m.nflex:
-        problems.append(
-            f"{m.nflex} flex object(s): deformable bodies are not modelled; remove them"
-        )
+        out.append(f"{m.nflex} flex object(s): deformable bodies are not modelled; remove them")
     if m.nplugin:
-        problems.append(f"{m.nplugin} plugin(s): their forces are unknown to the reference")
+        out.append(f"{m.nplugin} plugin(s): their forces are unknown to the reference")
     if m.opt.density or m.opt.viscosity:
-        problems.append("fluid forces (option density/viscosity): set both to 0")
+        out.append("fluid forces (option density/viscosity): set both to 0")
     for b in range(m.nbody):
         if m.body_gravcomp[b]:
-            problems.append(f"{_n(m, OBJ.mjOBJ_BODY, b, 'body')} has gravcomp: set it to 0")
-    if m.npair and not disabled(m, "mjDSBL_CONTACT"):
-        problems.append(
-            f"{m.npair} explicit contact pair(s) (<contact><pair>): remove them or disable contacts"
-        )
-    pairs = _contact_pairs(m)
-    if pairs:
-        more = f" and {len(pairs) - 5} more" if len(pairs) > 5 else ""
-        problems.append(
-            f"contacts possible between {'; '.join(pairs[:5])}{more}: give the "
-            f'geoms contype="0" conaffinity="0", add <exclude>, or disable '
-            f'contacts (<option><flag contact="disable"/></option>)'
-        )
+            problems.add(
+                "body {name} has gravcomp",
+                "{n} bodies have gravcomp",
+                "set it to 0",
+                element(m, OBJ.mjOBJ_BODY, b),
+            )
+    return out
+
+
+def check_supported(m, where: str, unexpressed: list[tuple[str, str]] = ()) -> tuple[str, ...]:
+    """Raise UnsupportedModelError naming, in one line grouped by problem, every element that
+    acts at every state and that the reference cannot represent (``unexpressed``: the
+    actuators reference.mjcf.actuators cannot express, as (name, why)); return notes on
+    elements accepted because they cannot act."""
+    problems, notes = Refusals(), []
+    _tendon_problems(m, problems)
+    _actuator_problems(problems, list(unexpressed))
+    _joint_problems(m, problems)
+    whole = _model_problems(m, problems)
     eq_on = not (disabled(m, "mjDSBL_EQUALITY") or disabled(m, "mjDSBL_CONSTRAINT"))
     for e in range(m.neq):
-        name = _n(m, OBJ.mjOBJ_EQUALITY, e, "equality")
+        name = element(m, OBJ.mjOBJ_EQUALITY, e)
         if not m.eq_active0[e] or not eq_on:
-            notes.append(f"{name} is inactive and left out")
+            notes.append(f"equality {name!r} is inactive and left out")
         elif m.eq_type[e] not in (int(EQ.mjEQ_CONNECT), int(EQ.mjEQ_WELD), int(EQ.mjEQ_JOINT)):
             kind = mujoco.mjtEq(int(m.eq_type[e])).name.removeprefix("mjEQ_").lower()
-            problems.append(
-                f"{name} is a {kind} equality; the reference supports connect, "
-                f"weld and joint: remove it"
+            problems.add(
+                f"equality {{name}} is a {kind} equality",
+                f"{{n}} equalities are {kind} equalities",
+                "the reference supports connect, weld and joint: remove them",
+                name,
             )
-    if problems:
-        raise UnsupportedModelError(
-            f"{where}: not representable in the reference: " + "; ".join(problems)
-        )
+    problems.raise_if_any(where, whole)
     return tuple(notes)
 
 

@@ -18,10 +18,15 @@ The reference Model is then written in the file's joint coordinates, qpos in MuJ
   weld (p1 - p2 = 0 and the vector part of the relative rotation, R2^T R1 R_rel = 1, scaled as
   MuJoCo's quaternion rows at the manifold), joint (q1 - q1_0 = sum c_i (q2 - q2_0)^i).
 
-Anything else that changes the dynamics is refused with the element's name and the way out
-(reference.mjcf.checks). Constants enter the equations as exact rationals of the compiled
-doubles (short ones where the double is exactly a short fraction), so no digit is lost in code
-generation.
+- actuators on hinges and slides at a stated control (reference.mjcf.actuators): MuJoCo's gain
+  and bias force as a load on the joint's rate;
+- contacts, joint and tendon limits and force clamps act at some states only: the import keeps
+  a Monitor of them (reference.mjcf.unilateral), and the checks run where none acts.
+
+Anything else that changes the dynamics at every state is refused with the element's name and
+the way out (reference.mjcf.checks). Constants enter the equations as exact rationals of the
+compiled doubles (short ones where the double is exactly a short fraction), so no digit is lost
+in code generation.
 """
 
 from __future__ import annotations
@@ -33,9 +38,14 @@ import mujoco
 import numpy as np
 import sympy as sp
 
+from reference.dag import Calculus
 from reference.errors import ModelFileError, OffManifoldError
 from reference.forces import ForceElements, combine, joint_damper, joint_spring
-from reference.system import Body, Model, Torque, rate, skew, vec
+from reference.mjcf.actuators import Actuation, actuation, stated_controls
+from reference.mjcf.exact import num
+from reference.mjcf.speeds import qvel_from_rates, rates_from_qvel
+from reference.mjcf.unilateral import Monitor, always_in_contact, present
+from reference.system import Body, Model, Torque, skew, vec
 
 T_SYM = sp.Symbol("t", real=True)
 JNT = mujoco.mjtJoint
@@ -51,15 +61,6 @@ UNIT_CHOP = 1e-14
 # norms by round-off only; 1e-9 (as reference.numeric.model.MANIFOLD_TOL) separates that from a
 # mistake in the file.
 INITIAL_TOL = 1e-9
-
-
-def num(x: float) -> sp.Expr:
-    """A compiled double as an exact sympy number (a short fraction when it is exactly one)."""
-    x = float(x)
-    if x == 0.0:
-        return sp.Integer(0)
-    r = sp.Rational(x).limit_denominator(10**6)
-    return r if float(r) == x else sp.Rational(x)
 
 
 def unit_vec(v) -> sp.Matrix:
@@ -114,13 +115,21 @@ class JointInfo:
 
 @dataclass(frozen=True)
 class MjcfImport:
-    """The reference Model of an MJCF file with what maps it to MuJoCo's state."""
+    """The reference Model of an MJCF file with what maps it to MuJoCo's state.
+
+    ``actuation``: the actuators at their stated controls; ``monitor``: what acts at some
+    states only (contacts, limits, force clamps), None where the file has none;
+    ``projection``: how far the initial state was moved onto the constraint manifold (the
+    violation before, the largest change of qpos and of qvel), None where it was not."""
 
     model: Model
     path: str
     mj: object  # mujoco.MjModel
     joints: tuple[JointInfo, ...]
     notes: tuple[str, ...] = field(default_factory=tuple)
+    actuation: Actuation = field(default_factory=Actuation)
+    monitor: Monitor | None = None
+    projection: dict[str, float] | None = None
 
 
 # ---- file ---------------------------------------------------------------------------------------
@@ -228,6 +237,9 @@ def _central_inertia(m, b: int) -> sp.Matrix:
 
 
 def _bodies(m, pos, rot, omega, coords, kin) -> tuple[Body, ...]:
+    # v_G on the expressions' graph: every body's r_G reuses its parent's frame, which
+    # sympy's tree-walking diff would write out again for each body (Cassie: 166 s against 2)
+    calc = Calculus(coords, kin, T_SYM)
     out = []
     for b in range(1, m.nbody):
         if m.body_mass[b] == 0 and not np.any(m.body_inertia[b]):
@@ -237,7 +249,7 @@ def _bodies(m, pos, rot, omega, coords, kin) -> tuple[Body, ...]:
             Body(
                 _name(m, mujoco.mjtObj.mjOBJ_BODY, b, "body"),
                 num(m.body_mass[b]),
-                v_G=rate(r_G, coords, kin, T_SYM),
+                v_G=calc.rate(r_G),
                 inertia=_central_inertia(m, b),
                 omega=omega[b],
                 r_G=r_G,
@@ -349,63 +361,61 @@ def initial_state(m) -> tuple[np.ndarray, np.ndarray]:
     return np.array(m.qpos0, float), np.zeros(m.nv)
 
 
-def rates_from_qvel(joints, qpos, qvel) -> np.ndarray:
-    """Coordinate rates from MuJoCo's qvel: hinge/slide as they are, quaternion rates
-    q' = q (x) (0, omega) / 2 for ball and free joints (omega local)."""
-    out = np.zeros(len(qpos))
-    for ji in joints:
-        a, d = ji.qposadr, ji.dofadr
-        if ji.type in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
-            out[a] = qvel[d]
-            continue
-        if ji.type == int(JNT.mjJNT_FREE):
-            out[a : a + 3] = qvel[d : d + 3]
-            a, d = a + 3, d + 3
-        qd = np.zeros(4)
-        mujoco.mju_mulQuat(
-            qd, np.asarray(qpos[a : a + 4], float), np.array([0.0, *qvel[d : d + 3]])
+def _initial(m, path, project: bool):
+    """The initial state (keyframe 0 or qpos0) on the constraint manifold, a note and the
+    projection's size where it had to be projected; OffManifoldError where it is off and
+    ``project`` is False."""
+    from reference.mjcf.checks import project_state, violation
+
+    qpos, qvel = initial_state(m)
+    off = violation(m, qpos, qvel)
+    scale = 1 + float(np.max(np.abs(np.concatenate([qpos, qvel])), initial=0.0))
+    if off <= INITIAL_TOL * scale:
+        return qpos, qvel, None, None
+    if not project:
+        raise OffManifoldError(
+            f"{path}: the initial state ({'keyframe 0' if m.nkey else 'qpos0'}) violates "
+            f"the equality constraints (positions or velocities) or quaternion norms by "
+            f"{off:.3e} (tolerance {INITIAL_TOL:.0e}); fix the keyframe, or project it onto "
+            f"the constraint manifold: --project on the command line (import_mjcf(..., "
+            f"project=True) in Python)"
         )
-        out[a : a + 4] = 0.5 * qd
-    return out
+    q, v = project_state(m, qpos, qvel)
+    moved = {
+        "violation": float(off),
+        "position_change": float(np.max(np.abs(q - qpos), initial=0.0)),
+        "velocity_change": float(np.max(np.abs(v - qvel), initial=0.0)),
+    }
+    note = (
+        f"initial state projected onto the constraint manifold (it was off by {off:.3e}; "
+        f"qpos moved by {moved['position_change']:.3e}, qvel by {moved['velocity_change']:.3e})"
+    )
+    return q, v, note, moved
 
 
-def _E(quat) -> np.ndarray:
-    """omega = 2 E(q) q' for a quaternion (w, x, y, z) with local omega."""
-    w, x, y, z = quat
-    return np.array([[-x, w, z, -y], [-y, -z, w, x], [-z, y, -x, w]], float)
+def _refuse_rigid_contacts(m, qpos, path) -> None:
+    """UnsupportedModelError for contacts that act at every consistent state (two geoms
+    touching on bodies the equality constraints hold rigidly together), in one line."""
+    from reference.mjcf.checks import Refusals
+
+    problems = Refusals()
+    for pair, b1, b2 in always_in_contact(m, qpos):
+        problems.add(
+            f"{pair} touch at the initial state on bodies {b1!r} and {b2!r}, which the "
+            "equality constraints hold rigidly together, so the contact acts at every "
+            "consistent state",
+            "{n} geom pairs touch at the initial state on bodies the equality constraints "
+            "hold rigidly together, so the contacts act at every consistent state",
+            f'exclude the bodies (<contact><exclude body1="{b1}" body2="{b2}"/></contact>) or '
+            'give the geoms contype="0" conaffinity="0"',
+            pair,
+        )
+    problems.raise_if_any(str(path))
 
 
-def qvel_from_rates(joints, qpos, rates, nv: int) -> np.ndarray:
-    """MuJoCo's qvel (or qacc from the second derivatives: E(q) q' q' = 0 makes the same map
-    linear in the rates' derivatives) from the reference's coordinate rates."""
-    out = np.zeros(nv)
-    for ji in joints:
-        a, d = ji.qposadr, ji.dofadr
-        if ji.type in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
-            out[d] = rates[a]
-            continue
-        if ji.type == int(JNT.mjJNT_FREE):
-            out[d : d + 3] = rates[a : a + 3]
-            a, d = a + 3, d + 3
-        out[d : d + 3] = 2 * _E(qpos[a : a + 4]) @ np.asarray(rates[a : a + 4], float)
-    return out
-
-
-def import_mjcf(path, name: str | None = None, *, project: bool = False) -> MjcfImport:
-    """The reference Model of an MJCF file (see the module docstring for what is supported).
-
-    project: an initial state (keyframe 0 or qpos0) off the constraint manifold is refused
-    with its size unless this is True; then it is projected (MuJoCo's own equality rows).
-    """
-    from reference.mjcf.checks import check_supported, disabled, project_state, violation
-
-    m = compile_file(path)
-    notes = check_supported(m, str(path))
-    pos, rot, omega, joints = _frames(m)
-    coords = tuple(s for ji in joints for s in ji.coords)
-    rates = tuple(s for ji in joints for s in ji.rates)
-    bodies = _bodies(m, pos, rot, omega, coords, rates)
-    rotors, passive = _passive(m, joints)
+def _constraint_rows(m, pos, rot, joints):
+    """The equality rows, then one unit-norm row per quaternion; the row names and those of
+    the norm rows."""
     rows, names = _equalities(m, pos, rot, joints)
     norm_names = []
     for ji in joints:  # unit-norm rows of the quaternions
@@ -414,24 +424,60 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
             rows.append((sum(c**2 for c in qq) - 1) / 2)
             names.append(f"{ji.name}_norm")
             norm_names.append(names[-1])
+    return rows, names, norm_names
+
+
+def _actuator_loads(act: Actuation, joints) -> ForceElements:
+    rates = {ji.dofadr + k: w for ji in joints for k, w in enumerate(ji.dof_velocity)}
+    coords = {ji.qposadr: ji.coords[0] for ji in joints}
+    return act.loads(rates, coords)
+
+
+def import_mjcf(path, name: str | None = None, *, project: bool = False, ctrl=None) -> MjcfImport:
+    """The reference Model of an MJCF file (see the module docstring for what is supported).
+
+    Parameters
+    ----------
+    path : str or Path
+        The MJCF file.
+    name : str, optional
+        The model's name (default: the file's stem).
+    project : bool
+        An initial state (keyframe 0 or qpos0) off the constraint manifold is refused with its
+        size unless this is True; then it is projected (MuJoCo's own equality rows).
+    ctrl : mapping of str to float, optional
+        Actuator controls by name; the others are keyframe 0's ctrl, or 0.
+
+    Returns
+    -------
+    MjcfImport
+
+    Raises
+    ------
+    ModelFileError
+        A file MuJoCo rejects, or a control for an actuator the file does not have.
+    UnsupportedModelError
+        Elements that act at every state and the reference cannot represent (one line).
+    OffManifoldError
+        An initial state off the manifold, without ``project``.
+    """
+    from reference.mjcf.checks import check_supported, disabled
+
+    m = compile_file(path)
+    act, unexpressed = actuation(m, stated_controls(m, ctrl))
+    notes = check_supported(m, str(path), unexpressed) + act.notes
+    pos, rot, omega, joints = _frames(m)
+    coords = tuple(s for ji in joints for s in ji.coords)
+    rates = tuple(s for ji in joints for s in ji.rates)
+    bodies = _bodies(m, pos, rot, omega, coords, rates)
+    rotors, passive = _passive(m, joints)
+    forces = combine(passive, _actuator_loads(act, joints))
+    rows, names, norm_names = _constraint_rows(m, pos, rot, joints)
     g = np.zeros(3) if disabled(m, "mjDSBL_GRAVITY") else np.array(m.opt.gravity, float)
-    qpos, qvel = initial_state(m)
-    off = violation(m, qpos, qvel)
-    scale = 1 + float(np.max(np.abs(np.concatenate([qpos, qvel])), initial=0.0))
-    if off > INITIAL_TOL * scale:
-        if not project:
-            raise OffManifoldError(
-                f"{path}: the initial state ({'keyframe 0' if m.nkey else 'qpos0'}) violates "
-                f"the equality constraints (positions or velocities) or quaternion norms by "
-                f"{off:.3e} (tolerance "
-                f"{INITIAL_TOL:.0e}); fix the keyframe or load with project=True to project "
-                f"it onto the constraint manifold"
-            )
-        qpos, qvel = project_state(m, qpos, qvel)
-        note = f"initial state projected onto the constraint manifold (it was off by {off:.3e})"
-        notes = (*notes, note)
-    loads = passive.loads
-    conserved = not loads
+    qpos, qvel, note, moved = _initial(m, path, project)
+    notes += (note,) if note else ()
+    _refuse_rigid_contacts(m, qpos, path)
+    found = present(m, act)
     model = Model(
         name=name or _ident(Path(path).stem),
         source=f"MJCF file {Path(path).name}",
@@ -443,28 +489,33 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False) -> Mjcf
         kinematics=rates,
         bodies=bodies + rotors,
         gravity=sp.Matrix([num(c) for c in g]),
-        loads=loads,
-        potential=passive.potential,
+        loads=forces.loads,
+        potential=forces.potential,
         configuration_constraints=tuple(rows),
         constraint_names=tuple(names),
         # d'Alembert with the rates as speeds writes Kane's equations again (Eqs. 7 and 9
         # differ only in the rates they project on), so it would only double the derivation
         formulations=("kane", "lagrange"),
         formulation_dependent_rows=tuple((n, _NORM_REASON) for n in norm_names),
-        multiplier_meaning="MuJoCo's equality rows: connect/weld position rows, the force on "
-        "the first object at its anchor (world components); weld rotation "
-        "rows, torquescale * lambda / 2 is the moment on the first object "
-        "(the second object's frame, on the manifold); joint rows, the "
-        "generalized force on the first joint; quaternion norm rows depend "
-        "on the formulation. With dependent rows, the minimum-norm lambda",
+        multiplier_meaning=_MULTIPLIER_MEANING,
         initial_q=tuple(float(x) for x in qpos),
         initial_u=tuple(float(x) for x in rates_from_qvel(joints, qpos, qvel)),
-        energy_conserved=conserved,
+        energy_conserved=not forces.loads,
         redundant_constraints=True,
         geometry_note="; ".join(notes),
     )
     model.validate()
-    return MjcfImport(model, str(path), m, tuple(joints), notes)
+    monitor = Monitor(m, tuple(joints), act, found) if found else None
+    return MjcfImport(model, str(path), m, tuple(joints), notes, act, monitor, moved)
+
+
+_MULTIPLIER_MEANING = (
+    "MuJoCo's equality rows: connect/weld position rows, the force on the first object at its "
+    "anchor (world components); weld rotation rows, torquescale * lambda / 2 is the moment on "
+    "the first object (the second object's frame, on the manifold); joint rows, the "
+    "generalized force on the first joint; quaternion norm rows depend on the formulation. "
+    "With dependent rows, the minimum-norm lambda"
+)
 
 
 def with_initial_state(imp: MjcfImport, qpos, qvel) -> MjcfImport:
