@@ -40,6 +40,11 @@ NO_CONSTRAINTS = (
     "step), no multipliers to compare"
 )
 NO_FORCES = "the engine model has no constraint forces that map onto the reference's rows"
+MASS_IN_ENGINE_SPEEDS = (
+    "in the engine's own speeds: the engine's M against H^T M H, the reference's M mapped "
+    "through the rate/velocity relation u = H v at the state (quaternion rates against "
+    "angular velocities)"
+)
 SOFT_ANSWER = (
     "raw soft answer against the one predicted from the reference's answer and the "
     "documented regularization: |raw - predicted| over |predicted - reference|"
@@ -54,19 +59,20 @@ def rigid_answer(engine: str) -> str:
 
 @dataclass(frozen=True)
 class ReferenceAnswer:
-    """The reference at one state: u', lambda, M and (K, V)."""
+    """The reference at one state: u', lambda, M and (K, V), and the constraint rows A (for
+    the generalized constraint forces A^T lambda; None: not compared)."""
 
     accelerations: np.ndarray
     multipliers: np.ndarray
     mass_matrix: np.ndarray
     energy: tuple[float, float]
+    constraint_matrix: np.ndarray | None = None
 
 
 def reference_answer(nm, q, u, t: float = 0.0) -> ReferenceAnswer:
     ref = nm.forward(q, u, t)
-    return ReferenceAnswer(
-        ref.accelerations, ref.multipliers, nm.matrices(q, u, t)[0], tuple(nm.energy(q, u, t))
-    )
+    M, _f, A, _b = nm.matrices(q, u, t)
+    return ReferenceAnswer(ref.accelerations, ref.multipliers, M, tuple(nm.energy(q, u, t)), A)
 
 
 def energy_error(engine_kv, reference_kv) -> float:
@@ -121,6 +127,9 @@ class StateComparison:
     iterations: int | None = None
     predicted: list = field(default_factory=list)
     answers: dict = field(default_factory=dict)  # the judged u' and lambda (the agreement matrix)
+    left_out: tuple[int, ...] = ()  # the reference's rows whose multipliers are not compared
+    in_engine_speeds: bool = False  # the mass matrix compared in the engine's own speeds
+    left_out_note: str = ""  # why those rows are left out (the engine's multipliers_note)
 
 
 # engine coordinates of two readings of one configuration, and the bodies' states they encode
@@ -209,6 +218,65 @@ def state_map_error(em: EngineModel, q, u, t: float, q2, u2) -> float:
     return max(C.scaled_error(b, g) for b, g in zip(back, given, strict=True))
 
 
+def _mass_matrix(em: EngineModel, q, ref: ReferenceAnswer, vals: dict, skips: dict) -> bool:
+    """The engine's M against the reference's, in the reference's speeds where they map one to
+    one, else in the engine's own (mass_matrix_in_engine_speeds); True for the latter."""
+    M_e = em.mass_matrix(q)
+    if M_e is not None:
+        vals["mass_matrix"] = C.scaled_error(M_e, ref.mass_matrix)
+        return False
+    own = em.mass_matrix_in_engine_speeds(q)
+    if own is None:
+        skips["mass_matrix"] = em.mass_matrix_note or NO_MASS_MATRIX
+        return False
+    M_e, H = own
+    vals["mass_matrix"] = C.scaled_error(M_e, H.T @ ref.mass_matrix @ H)
+    return True
+
+
+def _pairs(ef, ref: ReferenceAnswer, n_rows: int, skips: dict) -> list:
+    """(quantity, raw, rigid, reference) of the compared answers: u', lambda on the rows the
+    engine answers (EngineForward.multiplier_rows), and A^T lambda of those rows where the
+    engine gives it, in the engine's speeds (EngineForward.speed_map)."""
+    pairs = [("accelerations", ef.accelerations, ef.rigid_accelerations, ref.accelerations)]
+    if n_rows == 0:
+        skips["multipliers"] = NO_CONSTRAINTS
+    elif ef.multipliers is None:
+        skips["multipliers"] = ef.multipliers_note or NO_FORCES
+    if "multipliers" in skips:
+        return pairs
+    rows = list(range(n_rows) if ef.multiplier_rows is None else ef.multiplier_rows)
+
+    def pick(x):
+        return None if x is None else np.asarray(x, float)[rows]
+
+    pairs.append(
+        ("multipliers", pick(ef.multipliers), pick(ef.rigid_multipliers), pick(ref.multipliers))
+    )
+    if ef.constraint_forces is not None and ref.constraint_matrix is not None:
+        A = np.asarray(ref.constraint_matrix, float)[rows]
+        generalized = A.T @ np.asarray(ref.multipliers, float)[rows]
+        if ef.speed_map is not None:  # in the engine's speeds: H^T A^T lambda
+            generalized = np.asarray(ef.speed_map, float).T @ generalized
+        pairs.append(
+            ("constraint_forces", ef.constraint_forces, ef.rigid_constraint_forces, generalized)
+        )
+    return pairs
+
+
+def _agreement_answers(pairs, soft: bool, ref: ReferenceAnswer, left_out) -> dict:
+    """The judged u' and lambda for the agreement matrix, lambda on every row: the rows the
+    engine does not answer take the reference's values, so that every pair compares the
+    answered rows only."""
+    answers = {qty: (rigid if soft else raw) for qty, raw, rigid, _ in pairs[:2]}
+    if left_out and answers.get("multipliers") is not None:
+        full = np.array(ref.multipliers, float)
+        keep = [i for i in range(full.size) if i not in set(left_out)]
+        full[keep] = answers["multipliers"]
+        answers["multipliers"] = full
+    return answers
+
+
 def compare_at_state(
     em: EngineModel, q, u, t: float, ref: ReferenceAnswer, n_rows: int, caps: Capabilities
 ) -> StateComparison:
@@ -220,29 +288,24 @@ def compare_at_state(
     q2, u2 = em.from_engine_state(qe, ve)
     q2 = whole_turns_removed(em, q, u, q2, qe)
     vals["state_map"] = state_map_error(em, q, u, t, q2, u2)
-    M_e = em.mass_matrix(q)
-    if M_e is None:
-        skips["mass_matrix"] = em.mass_matrix_note or NO_MASS_MATRIX
-    else:
-        vals["mass_matrix"] = C.scaled_error(M_e, ref.mass_matrix)
+    in_engine_speeds = _mass_matrix(em, q, ref, vals, skips)
     ef = em.forward(q, u, t)
     vals["energy"] = energy_error(em.energy(q, u), ref.energy)
-    if n_rows == 0:
-        skips["multipliers"] = NO_CONSTRAINTS
-    elif ef.multipliers is None:
-        skips["multipliers"] = ef.multipliers_note or NO_FORCES
-    pairs = [("accelerations", ef.accelerations, ef.rigid_accelerations, ref.accelerations)]
-    if "multipliers" not in skips:
-        pairs.append(("multipliers", ef.multipliers, ef.rigid_multipliers, ref.multipliers))
+    pairs = _pairs(ef, ref, n_rows, skips)
+    rows = ef.multiplier_rows
+    left_out = (
+        () if rows is None or len(pairs) < 2 else tuple(sorted(set(range(n_rows)) - set(rows)))
+    )
     predicted = _soft_predictions(em, q, u, ref, ef.soft, caps, skips)
-    answers = {qty: (rigid if ef.soft else raw) for qty, raw, rigid, _ in pairs}
+    if predicted is not None and rows is not None and predicted[1] is not None:
+        predicted = (predicted[0], np.asarray(predicted[1], float)[list(rows)])
     for k, (qty, raw_value, rigid, reference) in enumerate(pairs):
         if not ef.soft:
             vals[qty] = C.scaled_error(raw_value, reference)
             continue
         vals[qty] = C.scaled_error(rigid, reference)
         vals[f"{qty}_soft_error"] = C.scaled_error(raw_value, reference)
-        if predicted is not None and predicted[k] is not None:
+        if predicted is not None and k < len(predicted) and predicted[k] is not None:
             vals[f"{qty}_soft_vs_predicted"] = C.soft_prediction(
                 raw_value, reference, np.asarray(predicted[k], float) - reference
             )[0]
@@ -252,7 +315,10 @@ def compare_at_state(
         ef.soft,
         ef.iterations,
         _predicted_errors(pairs, predicted),
-        answers,
+        _agreement_answers(pairs, ef.soft, ref, left_out),
+        left_out,
+        in_engine_speeds,
+        (ef.multipliers_note or "") if left_out else "",
     )
 
 
@@ -279,7 +345,7 @@ def _predicted_errors(pairs, predicted) -> list:
         return []
     return [
         C.scaled_error(p, reference)
-        for (_, _, _, reference), p in zip(pairs, predicted, strict=True)
+        for (_, _, _, reference), p in zip(pairs, predicted, strict=False)
         if p is not None
     ]
 
@@ -343,6 +409,7 @@ def engine_records(
         ]
     worst: dict[str, C.WorstCase] = {}
     skipped: dict[str, str] = {}
+    notes: dict[str, dict] = {}
     iterations, predicted, soft = [], [], False
     for i, (q, u) in enumerate(states):
         ref = refs[i] if refs is not None else reference_answer(nm, q, u)
@@ -350,6 +417,7 @@ def engine_records(
         for qty, err in sc.values.items():
             worst.setdefault(qty, C.WorstCase()).add(err, i)
         skipped.update(sc.skips)
+        notes.update(_notes(sc, nm.model.constraint_names))
         soft = soft or sc.soft
         predicted += sc.predicted
         if sc.iterations is not None:
@@ -359,17 +427,35 @@ def engine_records(
             for qty, value in sc.answers.items():
                 tol = tolerance(qty, sc.soft, adapter, name)[0]
                 answers.add(side, i, qty, value, tol)
-    return _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name)
+    return _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name, notes)
 
 
-def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> list[dict]:
+def _notes(sc: StateComparison, row_names) -> dict[str, dict]:
+    """What a record adds where the comparison is not the plain one: the mass matrix in the
+    engine's speeds, the rows left out of the multipliers and of A^T lambda (their names, and
+    why, for the reason)."""
+    out: dict[str, dict] = {}
+    if sc.in_engine_speeds:
+        out["mass_matrix"] = {"answer": MASS_IN_ENGINE_SPEEDS, "why": MASS_IN_ENGINE_SPEEDS}
+    if sc.left_out:
+        names = [row_names[i] if i < len(row_names) else f"row {i}" for i in sc.left_out]
+        why = f"rows left out: {', '.join(names)} ({sc.left_out_note or NO_FORCES})"
+        for qty in ("multipliers", "constraint_forces"):
+            out[qty] = {"rows_left_out": names, "why": why}
+    return out
+
+
+def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name, notes) -> list[dict]:
     """The records of one engine model from its worst cases (run's record order)."""
 
     def judged(qty, **extra):
         tol, metric = tolerance(qty, soft, adapter, name)
         w = worst[qty]
         kw = {} if metric == "scaled_error" else {"metric": metric}
-        return rec("instantaneous", qty, w.error, tol, worst_state=w.state, **kw, **extra)
+        note = dict(notes.get(qty.removesuffix("_soft_vs_predicted"), {}))
+        if "why" in note:
+            kw["reason"] = f"{tol.reason}; {note.pop('why')}"
+        return rec("instantaneous", qty, w.error, tol, worst_state=w.state, **kw, **note, **extra)
 
     out = [judged("state_map")]
     out.append(
@@ -379,11 +465,15 @@ def _fold(rec, worst, skipped, soft, iterations, predicted, adapter, name) -> li
     )
     out.append(judged("energy"))
     it = {"iterations_max": max(iterations)} if iterations else {}
-    for qty in ("accelerations", "multipliers"):
+    for qty in ("accelerations", "multipliers", "constraint_forces"):
+        if qty == "constraint_forces" and qty not in worst:
+            continue  # only where the engine gives its generalized constraint forces
         if qty in skipped:
             out.append(rec("instantaneous", qty, None, None, skipped[qty]))
         elif not soft:
             out.append(judged(qty, **it))
+        elif qty == "constraint_forces":  # judged on the rigid recovery; lambda's prediction
+            out.append(judged(qty, answer=rigid_answer(adapter.name)))
         else:
             raw_errors = [
                 worst[f"{k}_soft_error"].error

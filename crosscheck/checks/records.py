@@ -46,6 +46,14 @@ class Finding(TypedDict):
     finding: str
 
 
+class Projection(TypedDict):
+    """How far a user's MJCF file's initial state was moved onto its constraint manifold."""
+
+    violation: float
+    position_change: float
+    velocity_change: float
+
+
 class Details(TypedDict, total=False):
     """The fields a producer adds to a record beside the common ones (each only where it
     applies; the schema's descriptions say where)."""
@@ -76,6 +84,12 @@ class Details(TypedDict, total=False):
     differences_error: float
     engine_differences_miss: float
     directions: Literal["whole Jacobians", "consistent directions"]
+    contact_pairs: int
+    limits: int
+    states_rejected: dict[str, int]
+    controls: dict[str, float]
+    projection: Projection
+    rows_left_out: list[str]
 
 
 class Record(Details):

@@ -161,6 +161,12 @@ class EngineForward:
     predicted_acceleration_error, predicted_multiplier_error : ndarray, optional
         Soft engines, at a state where the answer is regularized: raw - rigid as the
         regularization predicts it; None where the model has no soft rows (then exact).
+    multiplier_rows : tuple of int, optional
+        The reference's rows ``multipliers`` answers (None: all); ``multipliers_note`` says why
+        the others (a quaternion's unit-norm row) are left out.
+    constraint_forces, rigid_constraint_forces, speed_map : ndarray, optional
+        J^T lambda of those rows in the engine's speeds v (``rigid_``: from a soft engine's
+        recovery) and H with u = H v, to compare with the reference's H^T A^T lambda.
     """
 
     accelerations: np.ndarray
@@ -172,6 +178,10 @@ class EngineForward:
     iterations: int | None = None
     predicted_acceleration_error: np.ndarray | None = None
     predicted_multiplier_error: np.ndarray | None = None
+    multiplier_rows: tuple[int, ...] | None = None
+    constraint_forces: np.ndarray | None = None
+    rigid_constraint_forces: np.ndarray | None = None
+    speed_map: np.ndarray | None = None
 
     @property
     def soft(self) -> bool:
@@ -325,6 +335,11 @@ class EngineModel(ABC):
         ndarray or None
             None where the speeds do not map linearly (``mass_matrix_note`` says why).
         """
+        return None
+
+    def mass_matrix_in_engine_speeds(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(M_e, H): the engine's mass matrix in its own speeds v and u = H v at q, where the
+        speeds do not map one to one (quaternions); compared with H^T M H. None: not given."""
         return None
 
     def forcing(self, q: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray | None:

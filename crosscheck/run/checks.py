@@ -11,7 +11,8 @@ from crosscheck.checks.agreement import reference_answers
 from crosscheck.checks.instantaneous import engine_records, reference_answer
 from crosscheck.checks.perturb import parse_perturb, perturbed
 from crosscheck.checks.records import record, reported
-from crosscheck.checks.sampling import consistent_states
+from crosscheck.checks.sampling import consistent_states, draws
+from crosscheck.checks.user_file import file_record
 from crosscheck.engines.registry import get_engine
 from reference import NumericModel, models
 from reference.backends import select
@@ -170,7 +171,14 @@ def run(
             upcoming = models.get(ahead)
             select.prebuild_model(upcoming, upcoming.formulations[:1])
         nm = NumericModel(model)
-        states = consistent_states(nm, n_states)
+        drawn = draws(nm, n_states)
+        states = drawn.states
+        note = file_record(name, nm.formulation, drawn)  # a user's MJCF file: what it holds
+        records += [note] if note else []
+        if not states:  # no state where its contacts and limits rest: the record says so
+            if progress:
+                progress(name)
+            continue
         records += _formulation_records(name, nm, states)
         refs = [reference_answer(nm, q, u) for q, u in states]  # once for every engine
         answers = reference_answers(name, refs, nm.m)
@@ -192,7 +200,9 @@ def run(
             engine_params = {
                 a.name: perturbed(name, nm.params, perturb.get(a.name, {})) for a in adapters
             }
-            recs, ser = trajectory_records(name, nm, adapters, t_end, engine_params)
+            # the initial state, unless a contact or limit acts there (then checked state 0)
+            start = states[0] if drawn.initial_acts else None
+            recs, ser = trajectory_records(name, nm, adapters, t_end, engine_params, start)
             records += _soft_file_trajectories(name, recs, adapters)
             series += ser
         else:  # skipped on request: visible in the results, not silently absent

@@ -29,10 +29,22 @@ import numpy as np
 from crosscheck.checks import tolerances as C
 from crosscheck.checks.instantaneous import build, energy_drift, work_energy_balance
 from crosscheck.checks.records import record
+from crosscheck.checks.sampling import monitor_of
+from crosscheck.checks.trajectory.grid import (  # noqa: F401 (re-exported: the check's grid)
+    FIXED_STEPS,
+    GRID_SLACK,
+    N_OUT,
+    output_grid,
+    step_ladder,
+)
 from crosscheck.checks.trajectory.horizon import (
+    NoHorizon,
+    activation_reason,
     crossed,
+    first_activation,
     horizon_before,
     horizon_reason,
+    nothing_to_compare,
     singular_time,
 )
 from crosscheck.checks.trajectory.measures import (
@@ -64,42 +76,8 @@ from reference import NumericModel
 from reference.integrate.driver import simulate
 
 T_END = 5.0
-N_OUT = 251  # output grid: 20 ms spacing over 5 s, fine enough for the plots
 REF_RTOL, REF_CHECK_RTOL = 1e-12, 1e-13
 ENGINE_RTOL = 1e-10  # engines' error-controlled integrators (rtol = atol)
-FIXED_STEPS = (1e-3, 5e-4)  # engines' fixed-step integrators: a step and its half
-# how close t_end / h must be to a whole number for t_end to count as a multiple of the step:
-# far above the float error of 5.0 / 1e-3 (~1e-16 relative), far below any step a user means
-GRID_SLACK = 1e-9
-
-
-def step_ladder(t_end: float) -> tuple[float, float]:
-    """The two fixed steps for a horizon: FIXED_STEPS when t_end is a whole number of the
-    coarse step, otherwise the largest h <= FIXED_STEPS[0] that divides t_end (and h / 2).
-
-    Both rungs must end exactly at t_end and share output times, or their trajectories (and the
-    halving estimate between them) would be on different grids; a horizon shorter than the
-    coarse step (1e-9 s) gets a single step of t_end."""
-    h0, h1 = FIXED_STEPS
-    n = round(t_end / h0)
-    if n >= 1 and abs(n * h0 - t_end) <= GRID_SLACK * t_end:
-        return h0, h1
-    n = max(1, math.ceil(t_end / h0 - GRID_SLACK))
-    h = t_end / n
-    return h, h * h1 / h0
-
-
-def output_grid(t_end: float) -> np.ndarray:
-    """The output times, common to the reference and every engine run: at most N_OUT times on
-    the coarse step of step_ladder (so both rungs land on them), plus t_end itself (the last
-    interval may be shorter)."""
-    h0, _ = step_ladder(t_end)
-    n = max(1, round(t_end / h0))
-    if n % (N_OUT - 1) == 0:  # 5 s: the plain 20 ms grid
-        return np.linspace(0.0, t_end, N_OUT)
-    every = math.ceil(n / (N_OUT - 1))
-    steps = sorted(set(range(0, n + 1, every)) | {n})
-    return np.linspace(0.0, t_end, n + 1)[steps]
 
 
 def _failed(rec, engine, what: str, exc: Exception, **details) -> dict:
@@ -317,12 +295,13 @@ def _is_conserved(nm: NumericModel, ref) -> bool:
     )
 
 
-def _reference_run(name: str, nm: NumericModel, t_end: float):
-    """The reference's run, its records and series, and the context the engines need; raises
-    _RunFailed when one of its runs does not finish."""
+def _reference_run(name: str, nm: NumericModel, t_end: float, start=None):
+    """The reference's run from the model's initial state (or ``start``), its records and
+    series, and the context the engines need; raises _RunFailed when one of its runs does not
+    finish."""
     model = nm.model
     grid = output_grid(t_end)
-    q0, u0 = nm.project(model.initial_q, model.initial_u)
+    q0, u0 = nm.project(*(start if start is not None else (model.initial_q, model.initial_u)))
     ref, tight, loose = _reference_runs(nm, q0, u0, t_end, grid)
     conserved = _is_conserved(nm, ref)
     # where energy is not conserved, the work-energy balance: E(t) - E(0) = W(t), the work of
@@ -336,14 +315,15 @@ def _reference_run(name: str, nm: NumericModel, t_end: float):
     return ctx, records, series
 
 
-def _reference_horizon_run(name: str, nm: NumericModel, t_end: float):
+def _reference_horizon_run(name: str, nm: NumericModel, t_end: float, start=None):
     """_reference_run over t_end or, where a reference run reaches a singular pose first,
-    over the horizon before the earliest such pose (trajectory_horizon), with a skipped
-    record saying so. Each retry stops strictly earlier, so this ends."""
+    over the horizon before the earliest such pose (trajectory_horizon), and for a file with
+    contacts or limits before the first one acts, with a skipped record saying so. Each retry
+    stops strictly earlier, so this ends."""
     t_try, earliest = t_end, None
     while True:
         try:
-            ctx, records, series = _reference_run(name, nm, t_try)
+            ctx, records, series = _reference_run(name, nm, t_try, start)
             break
         except _RunFailed as exc:
             t_sing = singular_time(exc.exc)
@@ -353,8 +333,22 @@ def _reference_horizon_run(name: str, nm: NumericModel, t_end: float):
             message = (str(exc.exc).splitlines() or [""])[0]
             earliest = (t_sing, f"{exc.what}: {message}")
             t_try = t_cut
-    if earliest is not None:  # the last failure: each retry ends before the one before
-        reason = horizon_reason(t_try, t_end, *earliest)
+    reason = None if earliest is None else horizon_reason(t_try, t_end, *earliest)
+    monitor = monitor_of(nm.model)
+    hit = None
+    if monitor is not None:
+        try:
+            hit = first_activation(nm, ctx.q0, ctx.u0, t_try, monitor.active, REF_RTOL)
+        except Exception as exc:
+            interrupts.check()
+            raise _RunFailed("the reference's run checked for contacts and limits", exc) from exc
+    if hit is not None:
+        t_cut = horizon_before(hit[0], t_try)
+        reason = activation_reason(t_cut, t_end, *hit)
+        if t_cut is None:
+            raise NoHorizon(reason)
+        ctx, records, series = _reference_run(name, nm, t_cut, start)
+    if reason is not None:  # the last cut: each one ends before the one before
         records.append(ctx.rec("reference", "horizon", None, None, reason, t_requested=t_end))
     return ctx, records, series
 
@@ -520,12 +514,21 @@ def _engine_records(
 
 
 def trajectory_records(
-    name: str, nm: NumericModel, adapters, t_end: float = T_END, engine_params: dict | None = None
+    name: str,
+    nm: NumericModel,
+    adapters,
+    t_end: float = T_END,
+    engine_params: dict | None = None,
+    start=None,
 ):
-    """Records and plot series for one model: the reference, then every engine variant. A run
-    that does not finish is a failed record with its reason; the other runs go on."""
+    """Records and plot series for one model: the reference, then every engine variant, from
+    the model's initial state or ``start`` (a consistent (q, u): a user's file whose initial
+    state has a contact or limit acting). A run that does not finish is a failed record with
+    its reason; the other runs go on."""
     try:
-        ctx, records, series = _reference_horizon_run(name, nm, t_end)
+        ctx, records, series = _reference_horizon_run(name, nm, t_end, start)
+    except NoHorizon as none:
+        return nothing_to_compare(name, nm.formulation, adapters, t_end, str(none)), []
     except _RunFailed as failed:
         rec = lambda engine, qty, err, tol, reason="", **k: record(
             name, nm.formulation, engine, "trajectory", qty, err, tol, reason, t_end=t_end, **k

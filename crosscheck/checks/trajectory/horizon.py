@@ -1,4 +1,5 @@
-"""Where the reference stops at a singular pose: the horizon the trajectories are compared on.
+"""Where the reference stops at a singular pose, or where a contact or limit starts to act: the
+horizon the trajectories are compared on.
 
 At a pose where the constraint rows lose rank (the IFToMM A02 four-bars lying flat, a linkage at
 its dead centre) the motion through it is not unique: the degrees of freedom jump, and which
@@ -6,12 +7,21 @@ branch the mechanism takes is not given by the equations. The reference refuses 
 (SingularSystemError, with the time it reached it) rather than pick a branch. The trajectories
 are then compared on the part of the run the reference vouches for, up to just before that
 time, and a skipped record says how much of the requested horizon was left out and why.
+
+A user's MJCF file may hold contacts, joint and tendon limits and actuator force clamps, which
+the reference does not model and which act only at some states (reference.mjcf.unilateral).
+The trajectories start where none acts, and they are compared up to just before the first one
+does: the reference's motion is checked every millisecond (first_activation), and the horizon
+ends as before a singular pose, with the record naming the contact pair or joint and the time.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from crosscheck.checks.records import Record, record
 from reference.errors import SingularSystemError
 
 # Stop 1 % of the way short of the singular time: the reference refuses a state within about
@@ -59,3 +69,73 @@ def horizon_reason(t_cut: float, t_end: float, t_singular: float, message: str) 
         f"reference reaches a singular pose at t = {t_singular:.6g} s, where the constraint "
         f"rows lose rank and the motion past it is not unique ({message})"
     )
+
+
+def first_activation(nm, q0, u0, t_end: float, active, rtol: float):
+    """(time, what) of the first output of the reference's run, every HORIZON_QUANTUM, at which
+    ``active(q, u)`` names something acting (a contact, a limit, a force clamp), or None.
+
+    The run is the reference's own (DOP853 with projection at ``rtol``) on a millisecond grid:
+    the engines' fixed step, at which MuJoCo itself detects contacts, and the quantum the
+    horizon is cut in; a contact that begins and ends between two milliseconds goes unseen by
+    both."""
+    from reference.integrate.driver import simulate
+
+    n = math.floor(t_end / HORIZON_QUANTUM + 1e-9)
+    grid = np.unique(np.append(np.arange(n + 1) * HORIZON_QUANTUM, t_end))
+    run = simulate(nm, q0, u0, t_end, "projection", rtol=rtol, atol=rtol, t_eval=grid)
+    for t, q, u in zip(run.t, run.q, run.u, strict=True):
+        acts = active(q, u)
+        if acts:
+            more = f" and {len(acts) - 3} more" if len(acts) > 3 else ""
+            return float(t), "; ".join(map(str, acts[:3])) + more
+    return None
+
+
+def activation_reason(t_cut: float | None, t_end: float, t_act: float, what: str) -> str:
+    """Why the trajectories stop at t_cut (None: nothing is left to compare)."""
+    where = (
+        f"trajectories compared on [0, {t_cut:g}] s of the requested {t_end:g} s"
+        if t_cut is not None
+        else f"no trajectory compared of the requested {t_end:g} s"
+    )
+    return (
+        f"{where}: at t = {t_act:.6g} s the reference's motion reaches {what}, which the "
+        f"reference does not model (its constraints are bilateral; the file's contacts and "
+        f"limits act from there on, checked every {HORIZON_QUANTUM * 1e3:g} ms)"
+    )
+
+
+class NoHorizon(Exception):
+    """A contact or limit acts within the first millisecond: nothing to compare (the reason)."""
+
+
+def nothing_to_compare(name, formulation, adapters, t_end, reason) -> list[Record]:
+    """The records of a model whose trajectories cannot be compared at all: the reference's
+    horizon record with the reason, and every engine's skipped."""
+    out = [
+        record(
+            name,
+            formulation,
+            "reference",
+            "trajectory",
+            "horizon",
+            None,
+            None,
+            reason,
+            t_requested=t_end,
+        )
+    ]
+    return out + [
+        record(
+            name,
+            formulation,
+            a.name,
+            "trajectory",
+            "state_error",
+            None,
+            None,
+            f"no reference trajectory to compare with ({reason})",
+        )
+        for a in adapters
+    ]

@@ -156,6 +156,13 @@ class MjEngineModel(EngineModel):
     variant: str | None = None
     # q_engine_velocity = P u_ref exactly (constant P): M and f map as P^T M P, P^T f
     _P: np.ndarray | None = None
+    # solve the rigid recovery's KKT with the rows scaled to unit norm (soft_recovery.kkt_lstsq):
+    # a user's file may have rows of very different sizes; the generated models' are alike
+    equilibrate_rows = False
+    # recover the rigid answer for MuJoCo's aref without its stabilization terms
+    # (soft_recovery._stabilization): a user's file may set a stiff solref that amplifies the
+    # round-off of a consistent state's residuals; the generated models' is mild
+    remove_stabilization = False
 
     def __init__(self, model_name: str, params: dict[str, float], solref=SOLREF, solimp=SOLIMP):
         self.model_name = model_name

@@ -35,8 +35,24 @@ def full_M(m, d) -> np.ndarray:
     return M
 
 
-def kkt_lstsq(M, J, rhs_c):
-    """Least-squares solution (y, delta) of [[M, -J^T], [J, 0]] [y; delta] = [0; rhs_c]."""
+def kkt_lstsq(M, J, rhs_c, equilibrate: bool = False):
+    """Least-squares solution (y, delta) of [[M, -J^T], [J, 0]] [y; delta] = [0; rhs_c].
+
+    equilibrate: solve with every row of J scaled to unit norm (D J, D rhs_c, then delta = D
+    delta'), its zero rows left out (their delta is 0): the same solution, but a weld with a
+    tiny torquescale (rows 1e-3 of the others) leaves singular values of 1e-9 in the plain
+    matrix, where lstsq loses 1e-7 of the answer (MuJoCo's weld.xml), and one with torquescale
+    0 has zero rows."""
+    if equilibrate:
+        rhs_c = np.asarray(rhs_c, float)
+        norms = np.linalg.norm(J, axis=1)
+        keep = norms > 0
+        scale = 1.0 / norms[keep]
+        shape = (-1,) + (1,) * (rhs_c.ndim - 1)
+        y, sub, rank = kkt_lstsq(M, J[keep] * scale[:, None], rhs_c[keep] * scale.reshape(shape))
+        delta = np.zeros((J.shape[0], *rhs_c.shape[1:]))
+        delta[keep] = sub * scale.reshape(shape)
+        return y, delta, rank
     nv, ne = M.shape[0], J.shape[0]
     K = np.zeros((nv + ne, nv + ne))
     K[:nv, :nv] = M
@@ -78,7 +94,7 @@ def _predicted_error(em, qe, ve, qacc, rows: _Rows):
     R_pred = (1 - d)/d diagA: (eps, R_pred, accelerations, multipliers)."""
     eps = (1.0 - rows.imp) / rows.imp
     R_pred = eps * rows.diagA
-    y_p, delta_p, _ = kkt_lstsq(rows.M, rows.J, R_pred * rows.f)
+    y_p, delta_p, _ = kkt_lstsq(rows.M, rows.J, R_pred * rows.f, em.equilibrate_rows)
     acc_p = em._acc_to_reference(qe, ve, qacc + y_p)
     lam_p = em._multipliers(qe, ve, qacc + y_p, rows.f + delta_p)
     return eps, R_pred, acc_p, lam_p
@@ -90,7 +106,7 @@ def _error_bounds(em, qe, ve, qacc, rows: _Rows, eps) -> tuple[float, float, flo
     with M^-1 J^T A^-1 D; G_* are the (affine) maps' linear parts, A^-1 D from the KKT.
     Returns the (relative force, multiplier, acceleration) bounds."""
     f = rows.f
-    Y, X, _ = kkt_lstsq(rows.M, rows.J, np.diag(rows.diagA))
+    Y, X, _ = kkt_lstsq(rows.M, rows.J, np.diag(rows.diagA), em.equilibrate_rows)
     G_lam = em._affine_gain(lambda z: em._multipliers(qe, ve, qacc, z), f)
     G_acc = em._affine_gain(lambda z: em._acc_to_reference(qe, ve, z), qacc)
     f_inf = float(np.max(np.abs(f)))
@@ -114,6 +130,21 @@ def _direct_kkt(em, qe, ve, rows: _Rows, smooth, raw) -> None:
     raw["kkt_multipliers"] = em._multipliers(qe, ve, sol[:nv], sol[nv:])
 
 
+def _stabilization(em, d) -> np.ndarray | float:
+    """-(MuJoCo's stabilization terms of aref), B efc_vel + K imp efc_pos, where the engine
+    model removes them from the rigid target (em.remove_stabilization), else 0.
+
+    At a consistent state efc_pos and efc_vel are round-off (1e-16), but aref multiplies them
+    by solref's stiffness K = 1/(dmax tc dr)^2: MuJoCo's ten_armature_1_equiv.xml (solref
+    0.0001) has K = 1e8, which turns that round-off into 1e-9 of the recovered answer (2.2e-9
+    against the reference, over the 1e-9 bound); the rigid target is aref without them."""
+    if not em.remove_stabilization:
+        return 0.0
+    n = d.nefc
+    K, B, imp = (np.asarray(d.efc_KBIP[:n, k]) for k in (0, 1, 2))
+    return B * d.efc_vel[:n] + K * imp * (d.efc_pos[:n] - d.efc_margin[:n])
+
+
 def soft_recovery(em, qe, ve, qacc, acc, raw) -> np.ndarray:
     """The mapped multipliers of MuJoCo's soft answer at the state in em.d; fills raw with the
     rigid answer recovered from it, the impedance's predicted error and its bounds, and
@@ -123,7 +154,7 @@ def soft_recovery(em, qe, ve, qacc, acc, raw) -> np.ndarray:
     f, J, M, R, aref = rows.f, rows.J, rows.M, rows.R, rows.aref
     lam = em._multipliers(qe, ve, qacc, f)
     # de-regularized answer: f_rigid = f + A^-1 R f, qacc_rigid = qacc + M^-1 J^T (A^-1 R f)
-    y, delta, rank = kkt_lstsq(M, J, R * f)
+    y, delta, rank = kkt_lstsq(M, J, R * f + _stabilization(em, d), em.equilibrate_rows)
     qacc_r, f_r = qacc + y, f + delta
     acc_r = em._acc_to_reference(qe, ve, qacc_r)
     lam_r = em._multipliers(qe, ve, qacc_r, f_r)
@@ -155,8 +186,9 @@ def soft_recovery(em, qe, ve, qacc, acc, raw) -> np.ndarray:
             "efc_vel_max": float(np.max(np.abs(J @ ve))),
             # soft model: J qacc - aref = -R f (MuJoCo's own solve, checked on its output)
             "soft_model_residual": float(np.max(np.abs(J @ qacc - aref + R * f))),
-            # the recovered rigid answer satisfies J qacc_rigid = aref ...
-            "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref))),
+            # the recovered rigid answer satisfies J qacc_rigid = aref (less its stabilization
+            # terms where the model removes them) ...
+            "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref - _stabilization(em, d)))),
             # ... and M qacc_rigid = qfrc_smooth + J^T f_rigid
             "rigid_dynamics_residual": float(
                 np.max(np.abs(M @ qacc_r - d.qfrc_smooth - J.T @ f_r))

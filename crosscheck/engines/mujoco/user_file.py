@@ -11,13 +11,23 @@ gravity, armature, springs); two numerical settings are: the constraint solver's
 (1e-15, 1000 iterations, so the soft solve the recovery starts from is converged, as in the
 built-in files) and the energy flag (d.energy for the energy check).
 
+Actuators: the file's own, at the reference model's stated controls (d.ctrl; activations 0),
+so MuJoCo computes their forces itself (reference.mjcf.actuators gives the same load to the
+reference).
+
 Multipliers: the reference's rows are MuJoCo's equality rows in MuJoCo's order (connect 3,
-weld 6, joint 1). Where the rows are dependent (a planar loop closed by a 3-D connect) only the
-generalized constraint force J^T f is unique; the engine's forces are then reported as the
-minimum-norm multipliers with the same J^T f (pinv(J^T) J^T f, the reference's convention,
-reference.numeric.redundant), so comparing them compares J^T f. A file with ball or free joints has
-quaternion norm rows whose multipliers depend on the formulation and have no MuJoCo
-counterpart: its multipliers are not compared (accelerations are).
+weld 6, joint 1), except a weld with torquescale 0, whose three rotation rows are zero in
+MuJoCo and absent in the reference, and the sign of a weld's rotation rows, which in MuJoCo
+follows the sign its relative quaternion happens to have (UserFileModel._weld_sign). Where
+the rows are dependent (a planar loop closed by a 3-D connect) only the generalized constraint
+force J^T f is unique; the engine's forces are then reported as the minimum-norm multipliers
+with the same J^T f (pinv(J^T) J^T f, the reference's convention,
+reference.numeric.redundant), so comparing them compares J^T f, which is compared too
+(``constraint_forces``, in MuJoCo's speeds: the reference's A^T lambda is mapped there by H^T,
+u = H qvel). A file with ball or free joints also has quaternion norm rows, last in the
+reference, whose multipliers depend on the formulation and have no MuJoCo counterpart: they
+alone are left out (``multiplier_rows``). The mass matrix of such a file is compared in
+MuJoCo's own speeds (``mass_matrix_in_engine_speeds``).
 """
 
 from __future__ import annotations
@@ -27,7 +37,8 @@ import numpy as np
 
 from crosscheck.engines.base import EngineUnsupported
 from crosscheck.engines.mujoco.engine_model import SOLIMP, SOLREF, MjEngineModel
-from crosscheck.engines.mujoco.soft_recovery import dense_efc_J
+from crosscheck.engines.mujoco.soft_recovery import dense_efc_J, full_M
+from reference.mjcf.actuators import actuator_name
 
 JNT = mujoco.mjtJoint
 # MuJoCo's constraint solver on a user's file: the built-in files' setting (machinery.document),
@@ -35,9 +46,28 @@ JNT = mujoco.mjtJoint
 SOLVER_TOLERANCE = 1e-15
 SOLVER_ITERATIONS = 1000
 QUATERNION_NOTE = (
-    "the file has ball or free joints: their quaternion norm rows' multipliers "
-    "depend on the formulation and have no MuJoCo counterpart"
+    "the quaternion norm rows of the file's ball and free joints are left out: their "
+    "multipliers depend on the formulation and have no engine counterpart"
 )
+QUATERNION_MASS = (
+    "in the engine's own speeds (angular velocities, not quaternion rates): H^T M H against "
+    "the engine's M, H the map of its speeds to the reference's at the state"
+)
+
+
+def speed_map(joints, qpos, nv: int) -> np.ndarray:
+    """H with the rates u = H qvel at qpos (reference.mjcf.loader.rates_from_qvel is linear in
+    qvel); G H = I at unit quaternions."""
+    from reference.mjcf.loader import rates_from_qvel
+
+    return np.column_stack([rates_from_qvel(joints, qpos, e) for e in np.eye(nv)])
+
+
+def equality_rows(imp) -> tuple[int, ...]:
+    """The reference's rows that have engine counterparts: all but the quaternion norm rows
+    (last in the reference's rows)."""
+    norms = {name for name, _why in imp.model.formulation_dependent_rows}
+    return tuple(i for i, n in enumerate(imp.model.constraint_names) if n not in norms)
 
 
 def user_import(model_name: str):
@@ -86,6 +116,9 @@ def rate_derivatives(joints, qpos, qvel, qacc) -> np.ndarray:
 class UserFileModel(MjEngineModel):
     """MuJoCo's compiled model of a user's MJCF file, identity state maps (see the module)."""
 
+    equilibrate_rows = True  # a weld with a tiny torquescale, or none (zero rows)
+    remove_stabilization = True  # a stiff solref (1e-4 s) amplifies the residuals' round-off
+
     def __init__(self, model_name: str, params: dict | None = None, solref=SOLREF, solimp=SOLIMP):
         self.model_name = model_name
         self.params = dict(params or {})
@@ -97,21 +130,19 @@ class UserFileModel(MjEngineModel):
         self.path = self.imp.path
         self.soft_constraints = self.m.neq > 0
         self.applied = np.zeros(self.m.nv)
+        controls = self.imp.actuation.controls
+        self.ctrl = np.array(
+            [controls.get(actuator_name(self.m, a), 0.0) for a in range(self.m.nu)], float
+        )
         self._light_ids = []
         ref = self.imp.model
         self.nq_ref, self.n_ref = len(ref.coordinates), len(ref.speeds)
         self._quaternions = any(
             ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
         )
-        self._norm_rows = sum(
-            ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
-        )
+        self._rows = equality_rows(self.imp)
+        self._m_ref = len(ref.constraint_names)
         self._P = None if self._quaternions else np.eye(self.m.nv)
-        if self._quaternions:
-            self.mass_matrix_note = (
-                "quaternion coordinates: MuJoCo's speeds (local angular "
-                "velocities) are not a constant linear map of the rates"
-            )
         self.solver = "MuJoCo (the file's solref/solimp, Newton to 1e-15)"
         self.constrained_solve = self.m.neq > 0
 
@@ -121,6 +152,12 @@ class UserFileModel(MjEngineModel):
         m.opt.iterations = SOLVER_ITERATIONS
         m.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_ENERGY)
         return m
+
+    def _set(self, qe, ve, m=None, d=None):
+        super()._set(qe, ve, m, d)
+        d = d or self.d
+        d.ctrl[:] = self.ctrl  # the stated controls; activations start (and stay) at 0
+        d.act[:] = 0.0
 
     def to_engine_state(self, q, u):
         from reference.mjcf.loader import qvel_from_rates
@@ -137,26 +174,88 @@ class UserFileModel(MjEngineModel):
     def _acc_to_reference(self, qe, ve, ae) -> np.ndarray:
         return rate_derivatives(self.imp.joints, qe, ve, ae)
 
+    def _weld_sign(self, e: int) -> float:
+        """The sign of MuJoCo's rotation rows of weld e at the state in self.d: it takes the
+        vector part of conj(q2) q1 relpose, which at a consistent state is +1 or -1 as a
+        quaternion (q and -q are one rotation), and its Jacobian flips with it; the reference's
+        rows, vee(E - E^T)/4, have no such sign."""
+        m, d = self.m, self.d
+        q1, q2 = np.zeros(4), np.zeros(4)
+        if m.eq_objtype[e] == mujoco.mjtObj.mjOBJ_SITE:
+            for out, site in ((q1, m.eq_obj1id[e]), (q2, m.eq_obj2id[e])):
+                mujoco.mju_mulQuat(out, d.xquat[m.site_bodyid[site]], m.site_quat[site])
+        else:
+            mujoco.mju_mulQuat(q1, d.xquat[m.eq_obj1id[e]], m.eq_data[e, 6:10])
+            q2[:] = d.xquat[m.eq_obj2id[e]]
+        conj, rel = np.zeros(4), np.zeros(4)
+        mujoco.mju_negQuat(conj, q2)
+        mujoco.mju_mulQuat(rel, conj, q1)
+        return -1.0 if rel[0] < 0 else 1.0
+
+    def _reference_efc_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The efc rows (of the state in self.d) answering the reference's equality rows, in
+        order, and the sign of each: every row of each active equality, but only the position
+        rows of a weld with torquescale 0 (its rotation rows are zero), a weld's rotation rows
+        with _weld_sign."""
+        m, d = self.m, self.d
+        kind = np.asarray(d.efc_type[: d.nefc])
+        ids = np.asarray(d.efc_id[: d.nefc])
+        out, signs = [], []
+        for e in range(m.neq):
+            rows = np.flatnonzero((kind == mujoco.mjtConstraint.mjCNSTR_EQUALITY) & (ids == e))
+            sign = np.ones(len(rows))
+            if m.eq_type[e] == mujoco.mjtEq.mjEQ_WELD and rows.size:
+                if float(m.eq_data[e, 10]) == 0.0:
+                    rows, sign = rows[:3], sign[:3]
+                else:
+                    sign[3:] = self._weld_sign(e)
+            out.extend(rows.tolist())
+            signs.extend(sign.tolist())
+        return np.asarray(out, int), np.asarray(signs, float)
+
     def _multipliers(self, qe, ve, ae, f):
         f = np.asarray(f, float)
+        out = np.zeros(self._m_ref)  # the quaternion norm rows: no MuJoCo force (left out)
         if f.size:
             J = dense_efc_J(self.m, self.d)
             # the minimum-norm forces with MuJoCo's J^T f: unique where rows are dependent
             f = np.linalg.pinv(J.T, rcond=1e-12) @ (J.T @ f)
-        # the quaternion norm rows (last in the reference) have no MuJoCo force: zeros here,
-        # and forward() withholds the multipliers of such a model
-        return np.concatenate([f, np.zeros(self._norm_rows)])
+            rows, signs = self._reference_efc_rows()
+            out[list(self._rows)] = signs * f[rows]
+        return out
+
+    def _generalized(self, forces) -> np.ndarray | None:
+        """J^T f in MuJoCo's speeds, from its J at the state in self.d."""
+        if forces is None or not np.size(forces):
+            return None
+        return dense_efc_J(self.m, self.d).T @ np.asarray(forces, float)
 
     def forward(self, q, u, t: float = 0.0):
         ef = super().forward(q, u, t)
+        qe = ef.raw["engine_q"]
+        ef.constraint_forces = self._generalized(ef.raw.get("engine_forces"))
+        ef.rigid_constraint_forces = self._generalized(ef.raw.get("rigid_engine_forces"))
+        ef.speed_map = speed_map(self.imp.joints, qe, self.m.nv)
         if self._quaternions:
-            ef.multipliers = ef.rigid_multipliers = ef.predicted_multiplier_error = None
+            ef.multiplier_rows = self._rows
             ef.multipliers_note = QUATERNION_NOTE
         ef.raw["model_file"] = self.path
         return ef
 
+    def mass_matrix_in_engine_speeds(self, q):
+        """MuJoCo's M (mj_fullM) and H (u = H qvel), for a file with quaternions."""
+        if not self._quaternions:
+            return None
+        qe, ve = self.to_engine_state(q, np.zeros(self.n_ref))
+        self._set(qe, ve)
+        mujoco.mj_forward(self.m, self.d)
+        return full_M(self.m, self.d), speed_map(self.imp.joints, qe, self.m.nv)
+
     def fingerprint(self) -> str:
+        """SHA-256 of the file and the stated controls."""
         import hashlib
         from pathlib import Path
 
-        return hashlib.sha256(Path(self.path).read_bytes()).hexdigest()
+        h = hashlib.sha256(Path(self.path).read_bytes())
+        h.update(self.ctrl.tobytes())
+        return h.hexdigest()

@@ -13,14 +13,20 @@ MuJoCo's compiled numbers instead, element by element, and solved by Pinocchio's
 - inertia: body_mass at body_ipos with body_inertia rotated by body_iquat; gravity from
   opt.gravity; armature in model.armature;
 - passive forces as tau: -dof_damping qvel - stiffness (qpos - springref) on hinges and slides;
+  the actuators at their stated controls as tau (reference.mjcf.actuators: MuJoCo's gain and
+  bias force through the joint or fixed tendon);
 - equality rows from Pinocchio's kinematics: connect p1 - p2 at the compiled anchors (frame
   Jacobians, LOCAL_WORLD_ALIGNED; J-dot v the anchors' classical accelerations at a = 0), weld
   the same plus the rotation rows torquescale/2 R2^T (omega1 - omega2) (the reference's rows on
-  the manifold, reference.mjcf.loader), joint q1 - poly(q2);
+  the manifold, reference.mjcf.loader; none for a weld with torquescale 0, as the reference),
+  joint q1 - poly(q2);
 - the solve: pin.forwardDynamics(model, data, q, v, tau, J, gamma), Pinocchio's exact KKT, on
   an independent subset of the rows (pivoted QR of J^T; a planar loop closed by a 3-D connect
   has a dependent row that makes the Delassus matrix singular), the forces then expressed as
-  the minimum-norm multipliers of all rows with the same J^T lambda (reference.numeric.redundant).
+  the minimum-norm multipliers of all rows with the same J^T lambda (reference.numeric.redundant),
+  and J^T lambda itself in Pinocchio's speeds (``constraint_forces``); a quaternion's
+  unit-norm row has no Pinocchio counterpart and alone is left out (``multiplier_rows``), and
+  the mass matrix of a file with quaternions is compared in Pinocchio's speeds.
 
 State: Pinocchio's q is MuJoCo's qpos with hinge/slide offsets removed (q - qpos0: Pinocchio's
 joints are at zero in the compiled pose) and quaternions as (x, y, z, w); v is qvel (a free
@@ -37,7 +43,12 @@ import pinocchio as pin
 import scipy.linalg
 
 from crosscheck.engines.base import EngineForward, EngineModel, EngineTrajectory
-from crosscheck.engines.mujoco.user_file import QUATERNION_NOTE, rate_derivatives, user_import
+from crosscheck.engines.mujoco.user_file import (
+    QUATERNION_NOTE,
+    equality_rows,
+    rate_derivatives,
+    user_import,
+)
 
 JNT = mujoco.mjtJoint
 EQ = mujoco.mjtEq
@@ -121,14 +132,8 @@ class UserFilePinModel(EngineModel):
         self._quat = any(
             ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
         )
-        self._norm_rows = sum(
-            ji.type in (int(JNT.mjJNT_BALL), int(JNT.mjJNT_FREE)) for ji in self.imp.joints
-        )
-        if self._quat:
-            self.mass_matrix_note = (
-                "quaternion coordinates: Pinocchio's speeds (angular "
-                "velocities) are not a constant linear map of the rates"
-            )
+        self._answered = equality_rows(self.imp)
+        self._m_ref = len(self.imp.model.constraint_names)
         self._eq = self._equalities(place)
         self.constrained_solve = bool(self._eq)
 
@@ -205,6 +210,8 @@ class UserFilePinModel(EngineModel):
             if int(m.jnt_type[j]) in (int(JNT.mjJNT_HINGE), int(JNT.mjJNT_SLIDE)):
                 a = m.jnt_qposadr[j]
                 tau[self.model.idx_vs[jid]] -= m.jnt_stiffness[j] * (qpos[a] - m.qpos_spring[a])
+        # the actuators act on hinges and slides only, whose dofs are the same in both
+        tau += self.imp.actuation.qfrc(qpos, qvel, m.nv)
         # tau is in Pinocchio's v; damping on a free joint's linear dofs is refused by the import
         return tau
 
@@ -272,11 +279,12 @@ class UserFilePinModel(EngineModel):
                 Js.append(row[None])
                 gs.append(np.array([g]))
                 continue
-            J = [pin.getFrameJacobian(model, data, f, LWA) for f in objs]
+            # (6, nv): pin hands a model with one dof its Jacobian as a vector
+            J = [np.reshape(pin.getFrameJacobian(model, data, f, LWA), (6, model.nv)) for f in objs]
             acc = [pin.getFrameClassicalAcceleration(model, data, f, LWA) for f in objs]
             Js.append(J[0][:3] - J[1][:3])
             gs.append(acc[0].linear - acc[1].linear)
-            if kind == "weld":
+            if kind == "weld" and extra != 0.0:  # torquescale 0: no rotation rows
                 R2 = data.oMf[objs[1]].rotation
                 Js.append(0.5 * extra * R2.T @ (J[0][3:] - J[1][3:]))
                 gs.append(0.5 * extra * R2.T @ (acc[0].angular - acc[1].angular))
@@ -286,23 +294,28 @@ class UserFilePinModel(EngineModel):
 
     # ---- answers -----------------------------------------------------------------------------
     def _solve(self, qe, ve):
+        """(a, lambda, rank, J^T lambda in Pinocchio's v) at an engine state."""
         model, data = self.model, self.data
         tau = self._tau(qe, ve)
         J, gamma = self._rows(qe, ve)
         if J.shape[0] == 0:
-            return pin.aba(model, data, qe, ve, tau), np.zeros(0), 0
+            return pin.aba(model, data, qe, ve, tau), np.zeros(0), 0, np.zeros(model.nv)
         _Q, Rq, piv = scipy.linalg.qr(J.T, mode="economic", pivoting=True)
         diag = np.abs(np.diag(Rq))
         rank = int(np.sum(diag > RANK_RTOL * diag[0]))
         keep = np.sort(piv[:rank])
         a = pin.forwardDynamics(model, data, qe, ve, tau, J[keep], gamma[keep])
-        lam_keep = np.array(data.lambda_c, float)
-        lam = np.linalg.pinv(J.T, rcond=1e-12) @ (J[keep].T @ lam_keep)
-        return np.array(a, float), lam, rank
+        generalized = J[keep].T @ np.array(data.lambda_c, float)
+        lam = np.linalg.pinv(J.T, rcond=1e-12) @ generalized
+        return np.array(a, float), lam, rank, generalized
+
+    def _linear_part(self, fun, n: int) -> np.ndarray:
+        """The matrix of a map linear in its argument (the state maps at a fixed q)."""
+        return np.column_stack([np.asarray(fun(e), float) for e in np.eye(n)])
 
     def forward(self, q, u, t: float = 0.0) -> EngineForward:
         qe, ve = self.to_engine_state(q, u)
-        a, lam, rank = self._solve(qe, ve)
+        a, lam, rank, generalized = self._solve(qe, ve)
         qpos, qvel = self._mj_state(qe, ve)
         acc = rate_derivatives(self.imp.joints, qpos, qvel, self._qacc(qe, ve, a))
         raw = {
@@ -311,13 +324,18 @@ class UserFilePinModel(EngineModel):
             "rows": len(lam),
             "model_source": BUILT_FROM,
         }
-        if self._quat:
-            return EngineForward(acc, None, raw, multipliers_note=QUATERNION_NOTE, iterations=1)
+        multipliers = np.zeros(self._m_ref)  # the quaternion norm rows: none in Pinocchio
+        multipliers[list(self._answered)] = lam
+        H = self._linear_part(lambda dv: self.from_engine_state(qe, dv)[1], self.model.nv)
         return EngineForward(
             acc,
-            np.concatenate([lam, np.zeros(self._norm_rows)]),
+            multipliers,
             raw,
+            multipliers_note=QUATERNION_NOTE if self._quat else None,
             iterations=1 if len(lam) else 0,
+            multiplier_rows=self._answered if self._quat else None,
+            constraint_forces=generalized if len(lam) else None,
+            speed_map=H,
         )
 
     def derivatives(self, q, u, t, directions):
@@ -334,11 +352,7 @@ class UserFilePinModel(EngineModel):
         qe, ve = self.to_engine_state(q, u)
         model, data, m = self.model, self.data, self.mj
         K = pin.computeKineticEnergy(model, data, qe, ve)
-        K += (
-            0.5 * float(np.asarray(model.armature) @ (ve * ve))
-            if not self._armature_in_K()
-            else 0.0
-        )
+        K += 0.5 * float(self._armature_not_in_K() @ (ve * ve))
         # pin sums joints 1.., so bodies welded to the world (inertias[0]) are added here:
         # MuJoCo's d.energy and the reference count them (a constant)
         I0 = model.inertias[0]
@@ -352,16 +366,24 @@ class UserFilePinModel(EngineModel):
                 V += 0.5 * m.jnt_stiffness[j] * (qpos[a] - m.qpos_spring[a]) ** 2
         return float(K), float(V)
 
-    def _armature_in_K(self) -> bool:
-        """Whether pin's kinetic energy already counts model.armature (checked once)."""
+    def _armature_not_in_K(self) -> np.ndarray:
+        """The armature pin's kinetic energy leaves out, per dof (checked once, dof by dof:
+        pin 4.1 counts a PrismaticUnaligned joint's armature in computeKineticEnergy and not a
+        RevoluteUnaligned one's, so a file with both needs each dof's own answer)."""
         if not hasattr(self, "_arm_k"):
             model = self.model
             data = model.createData()
-            q, v = pin.neutral(model), np.ones(model.nv)
-            K = pin.computeKineticEnergy(model, data, q, v)
+            q = pin.neutral(model)
             M = pin.crba(model, data, q)
             M = np.triu(M) + np.triu(M, 1).T
-            self._arm_k = abs(K - 0.5 * v @ M @ v) <= 1e-12 * max(1.0, abs(K))
+            missing = np.zeros(model.nv)
+            for k, v in enumerate(np.eye(model.nv)):
+                gap = 0.5 * M[k, k] - pin.computeKineticEnergy(model, data, q, v)
+                armature = float(model.armature[k])
+                missing[k] = (
+                    armature if abs(gap - 0.5 * armature) <= 1e-12 * max(1, M[k, k]) else 0.0
+                )
+            self._arm_k = missing
         return self._arm_k
 
     def violation(self, qe, ve) -> tuple[float, float]:
@@ -391,9 +413,15 @@ class UserFilePinModel(EngineModel):
         rtol: float | None = None,
         timestep: float | None = None,
     ) -> EngineTrajectory:
-        """solve_ivp (method `integrator`, rtol = atol) on Pinocchio's forward dynamics in the
-        reference's coordinates (qpos and coordinate rates: q' = u, u' = forward()), no
-        constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate)."""
+        """solve_ivp (method `integrator`, rtol = atol) on Pinocchio's forward dynamics, no
+        constraint stabilization (as the built-in models, machinery.PinEngineModel.simulate):
+        in the reference's coordinates (qpos and coordinate rates: q' = u, u' = forward())
+        where the file has hinges and slides only, they being Pinocchio's too; with ball or free
+        joints in Pinocchio's own (q_e, v_e), quaternions renormalized (ode.py), as the
+        built-in models are: off the unit sphere the reference's quaternion rates carry a
+        radial part Pinocchio's velocities do not, and integrated in those coordinates its
+        drift, and the energy error with it, grows 15x faster (MuJoCo's connect.xml: position
+        drift 7.1e-9 against the reference's index-1 4.7e-10 over 5 s at rtol 1e-10)."""
         from scipy.integrate import solve_ivp
 
         from crosscheck.engines.pinocchio.engine_model import (
@@ -401,19 +429,27 @@ class UserFilePinModel(EngineModel):
             ivp_method,
             ivp_trajectory,
         )
+        from crosscheck.engines.pinocchio.ode import joint_layout, normalized, right_hand_side
 
         check_integrator(integrator, rtol)
         t_start = time.perf_counter()
         t_eval = np.asarray(t_eval, dtype=float)
-        n = len(q0)
+        if self._quat:
+            layout = joint_layout(self.model)
+            rhs = right_hand_side(layout, lambda qe, ve, t: self._solve(qe, ve)[0])
+            y0 = np.concatenate(self.to_engine_state(q0, u0))
+            n, where = self.model.nq, "Pinocchio's (q, v), quaternions renormalized"
+        else:
+            layout, n, where = None, len(q0), "reference (qpos, rates)"
+            y0 = np.concatenate([q0, u0])
 
-        def rhs(t, y):
-            return np.concatenate([y[n:], self.forward(y[:n], y[n:]).accelerations])
+            def rhs(t, y):
+                return np.concatenate([y[n:], self.forward(y[:n], y[n:]).accelerations])
 
         sol = solve_ivp(
             rhs,
             (0.0, float(t_eval[-1])),
-            np.concatenate([q0, u0]),
+            y0,
             method=ivp_method(integrator),
             rtol=rtol,
             atol=rtol,
@@ -421,28 +457,39 @@ class UserFilePinModel(EngineModel):
         )
         rows = []
         for y in sol.y.T:
-            q, u = y[:n], y[n:]
-            rows.append(
-                (q, u, *self.violation(*self.to_engine_state(q, u)), sum(self.energy(q, u)))
-            )
+            if layout is None:
+                q, u = y[:n], y[n:]
+                qe, ve = self.to_engine_state(q, u)
+            else:
+                qe, ve = normalized(layout, y[:n]), y[n:]
+                q, u = self.from_engine_state(qe, ve)
+            rows.append((q, u, *self.violation(qe, ve), sum(self.energy(q, u))))
         return ivp_trajectory(
-            sol,
-            rows,
-            integrator,
-            rtol,
-            t_start,
-            {"stabilization": "none", "coordinates": "reference (qpos, rates)"},
+            sol, rows, integrator, rtol, t_start, {"stabilization": "none", "coordinates": where}
         )
 
-    def mass_matrix(self, q) -> np.ndarray | None:
-        if self._quat:
-            return None
-        qe, _ = self.to_engine_state(q, np.zeros(len(q)))
+    def _crba(self, qe) -> np.ndarray:
         M = pin.crba(self.model, self.data, qe)
         return np.triu(M) + np.triu(M, 1).T
 
+    def mass_matrix(self, q) -> np.ndarray | None:
+        if self._quat:
+            return None  # mass_matrix_in_engine_speeds
+        return self._crba(self.to_engine_state(q, np.zeros(len(q)))[0])
+
+    def mass_matrix_in_engine_speeds(self, q):
+        """Pinocchio's M (crba) and H (u = H v) for a file with quaternions."""
+        if not self._quat:
+            return None
+        qe, _ = self.to_engine_state(q, np.zeros(len(q)))
+        H = self._linear_part(lambda dv: self.from_engine_state(qe, dv)[1], self.model.nv)
+        return self._crba(qe), H
+
     def fingerprint(self) -> str:
+        """SHA-256 of the file and the stated controls."""
         import hashlib
         from pathlib import Path
 
-        return hashlib.sha256(Path(self.imp.path).read_bytes()).hexdigest()
+        h = hashlib.sha256(Path(self.imp.path).read_bytes())
+        h.update(repr(sorted(self.imp.actuation.controls.items())).encode())
+        return h.hexdigest()
