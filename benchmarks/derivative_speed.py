@@ -22,12 +22,12 @@ def main(names) -> None:
     by: dict = {}
     for r in rows:
         by.setdefault(r["model"], {})[r["path"]] = r
-    print(f"{'model':22s} {'checked':>8s} {'kernel':>8s} {'pinocchio':>10s}  ratio  routine")
+    print(f"{'model':24s} {'checked':>8s} {'kernel':>8s} {'pinocchio':>10s}  ratio  routine")
     for name, d in by.items():
         pin_row = d.get("pinocchio")
         kernel = d.get("reference-kernel", {}).get("us_per_state")
         print(
-            f"{name:22s} {d['reference-checked']['us_per_state']:8.2f} "
+            f"{name:24s} {d['reference-checked']['us_per_state']:8.2f} "
             + (f"{kernel:8.2f} " if kernel is not None else f"{'-':>8s} ")
             + (
                 f"{pin_row['us_per_state']:10.2f}  {d['ratio']['checked_over_pinocchio']:5.2f}"

@@ -300,3 +300,24 @@ def test_warm_ab_in_a_clone(tmp_path, child):
     )
     assert r.returncode == 0, r.stdout + r.stderr
     assert "rep 1: A" in r.stdout and "B median" in r.stdout, r.stdout
+
+
+def test_pinocchio_loop_derivatives_shows_the_defect(child):
+    """Pinocchio's constraint-dynamics derivatives against its own central differences: right
+    on a loop to a world point and on Exercise 6.1's bar, wrong on the slider-crank
+    (docs/engines/pinocchio.md; it will say so when an upgrade fixes it)."""
+    out = _bench(child, "pinocchio_loop_derivatives.py")
+    err = {line[:55].strip(): float(line.split()[-1]) for line in out.splitlines()[1:]}
+    assert err["2R arm tip to a world point"] < 1e-6, out
+    assert err["bar on a slider to a root slider (exercise_6_1)"] < 1e-6, out
+    assert err["2R arm tip to a root slider (slider_crank)"] > 1e-3, out
+
+
+def test_mujoco_transition_fd_on_one_model(child):
+    out = _bench(child, "mujoco_transition_fd.py", "pendulum_xy")
+    assert out.count("pendulum_xy") == 3 and "predicted soft effect" in out, out
+
+
+def test_derivative_speed_on_two_models(child):
+    out = _bench(child, "derivative_speed.py", "pendulum_angle", "slider_crank")
+    assert "computeConstraintDynamicsDerivatives" in out and "computeABADerivatives" in out, out
