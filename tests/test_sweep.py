@@ -508,6 +508,23 @@ def test_cli_clean_campaign_exits_0_and_writes_the_contract(tmp_path, capsys):
     assert sum(h["counts"]) + h["zero"] + h["below"] + h["above"] + h["nonfinite"] == 4
 
 
+def test_derivatives_campaign_finds_the_loop_defect_and_nothing_else(tmp_path, capsys):
+    """--derivatives: each sample's derivative blocks as error over the tolerance derived
+    there (judged against 1). Over random parameter sets and states of the slider-crank,
+    Pinocchio's du'/dq and dlambda/dq (its loop-closure defect, docs/engines/pinocchio.md) are
+    outside at every sample, every other block of every engine inside."""
+    argv = ["sweep", "slider_crank", "--samples", "3", "--seed", "1", "--workers", "1"]
+    code = main([*argv, "--derivatives", "--engines", "pinocchio,opensim", "--out", str(tmp_path)])
+    assert code == 1, capsys.readouterr().out
+    res = json.loads((tmp_path / "sweep.json").read_text())
+    rows = [r for r in res["results"] if r["quantity"].startswith("d") and not r.get("skipped")]
+    outside = {(r["engine"], r["quantity"]) for r in rows if r["outside_tolerance"]}
+    assert outside == {("pinocchio", "daccelerations_dq"), ("pinocchio", "dmultipliers_dq")}
+    assert {r["engine"] for r in rows} == {"pinocchio", "opensim"}
+    assert all(r["tolerance"] == 1.0 and r["count"] == 3 for r in rows)
+    assert all(r["metric"] == "error_over_derived_tolerance" for r in rows)
+
+
 @pytest.mark.parametrize(
     "argv,needle",
     [

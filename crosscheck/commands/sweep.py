@@ -97,6 +97,7 @@ def cmd_sweep(args) -> int:
             args.formulation,
             given["worst"],
             str(out),
+            bool(args.derivatives),
         )
     bar = None
     if sys.stderr.isatty():
@@ -138,7 +139,7 @@ def cmd_sweep(args) -> int:
 # default, is compared with the stored campaign and refused where it differs
 _CAMPAIGN_DEFAULTS = {"samples": 100, "seed": 0, "index": 0, "worst": WORST_CASES}
 _CAMPAIGN_OPTIONS = ("models", "samples", "seed", "index", "engines", "perturb", "formulation")
-_CAMPAIGN_OPTIONS += ("worst",)
+_CAMPAIGN_OPTIONS += ("worst", "derivatives")
 
 
 def _campaign_values(args) -> dict:
@@ -167,10 +168,11 @@ def _resumed_campaign(args):
         value = getattr(args, key)
         if value is None or value == []:  # not given
             continue
-        if given.get(key, value) != st[key]:
+        stored = st.get(key, False)  # a campaign stored before --derivatives existed: off
+        if given.get(key, value) != stored:
             raise ModelInputError(
                 f"--resume {args.resume!r} continues the campaign stored there ({key} "
-                f"{st[key]!r}); drop --{key} {value!r} or start a new campaign with --out"
+                f"{stored!r}); drop --{key} {value!r} or start a new campaign with --out"
             )
     cfg = Campaign(
         list(st["models"]),
@@ -182,6 +184,7 @@ def _resumed_campaign(args):
         st["formulation"],
         st["worst"],
         str(out),
+        bool(st.get("derivatives", False)),
     )
     return cfg, out
 
@@ -282,6 +285,13 @@ def register(sub):
         type=nonnegative_int,
         default=None,
         help=f"worst cases kept per quantity (default {WORST_CASES})",
+    )
+    s.add_argument(
+        "--derivatives",
+        action="store_const",
+        const=True,
+        default=None,
+        help="also the derivatives comparison at each sample (error over its derived tolerance)",
     )
     s.add_argument(
         "--bench",

@@ -26,6 +26,15 @@ from crosscheck.sweep.config import (
 )
 from crosscheck.sweep.worker import base_model, cached_adapter
 
+# the derivatives quantities (--derivatives) are stored as error over the tolerance derived at
+# each sample (crosscheck.checks.derivatives.tolerances): judged against 1
+DERIVATIVE_QUANTITIES = frozenset(q for q in QUANTITY_ORDER if q.startswith("d"))
+DERIVED = C.Tolerance(
+    1.0,
+    "derivatives: each sample's error over the tolerance derived at that sample from what "
+    "limits the comparison (crosscheck.checks.derivatives.tolerances, docs/tolerances.md)",
+)
+
 
 # ---- the campaign (runs in the parent) ------------------------------------------------------
 @dataclass
@@ -201,7 +210,10 @@ def _quantity_record(
 ) -> tuple[dict, int | None]:
     """The results row of one model x engine x variant x quantity, and how many samples are
     outside its tolerance (None: no tolerance)."""
-    tol, metric = tolerance(qn, soft, cached_adapter(e), name)
+    if qn in DERIVATIVE_QUANTITIES:
+        tol, metric = DERIVED, "error_over_derived_tolerance"
+    else:
+        tol, metric = tolerance(qn, soft, cached_adapter(e), name)
     row = {"model": name, "formulation": agg.formulation, "engine": e, "variant": v, "quantity": qn}
     if (e, v, qn) not in agg.values:
         return {**row, "skipped": agg.skips[(e, v, qn)], "count": 0}, None

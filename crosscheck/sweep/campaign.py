@@ -74,6 +74,7 @@ def _specs(cfg: Campaign, aggs, chunk: int, deadline) -> list[ChunkSpec]:
                         tuple(agg.series),
                         perturb,
                         deadline,
+                        derivatives=cfg.derivatives,
                     )
                 )
     return specs

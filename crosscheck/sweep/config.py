@@ -43,6 +43,14 @@ QUANTITY_ORDER = (
     "state_map",
     "mass_matrix",
     "energy",
+    # --derivatives: error over the tolerance derived at the sample
+    *(f"d{of}_{b}" for b in ("dq", "du", "dtau") for of in ("accelerations", "multipliers")),
+    *(f"dconstraint_forces_{b}" for b in ("dq", "du", "dtau")),
+    *(
+        f"d{of}_{b}_soft_vs_predicted"
+        for b in ("dq", "du")
+        for of in ("accelerations", "multipliers", "constraint_forces")
+    ),
 )
 SOFT_ERROR_REASON = (
     "MuJoCo's raw (soft) answer against the rigid reference: the error its impedance "
@@ -64,6 +72,8 @@ class Campaign:
     formulation: str | None = None
     worst: int = WORST_CASES
     out: str | None = None
+    # the derivatives comparison per sample (crosscheck.checks.derivatives)
+    derivatives: bool = False
 
     def validate(self) -> None:
         from crosscheck.commands.arguments import resolve_engines, resolve_models

@@ -21,6 +21,7 @@ STORE = "sweep.chunks"
 FORMAT = 1
 # the campaign settings a resume must share; the executor, chunking and budget may differ
 SETTINGS = ("models", "samples", "seed", "index", "engines", "perturb", "formulation", "worst")
+SETTINGS += ("derivatives",)
 
 
 def settings(cfg) -> dict:

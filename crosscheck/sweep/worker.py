@@ -31,6 +31,7 @@ class ChunkSpec:
     series: tuple  # ((engine, variant), ...) to evaluate
     perturb: tuple = ()  # ((engine, ((param, rel), ...)), ...)
     deadline: float | None = None  # time.time() after which no further sample is started
+    derivatives: bool = False  # also the derivatives comparison (error / derived tolerance)
 
 
 _CACHE: dict = {}
@@ -135,6 +136,17 @@ def _reference_chunk(base, drawn: list, timing: dict) -> dict:
     return ref
 
 
+def _derivative_values(base, em, engine, name, nm, t, q, u) -> tuple[dict, dict]:
+    """The derivatives comparison at one sample: {quantity: error / the tolerance derived at
+    the sample} and the skips (crosscheck.checks.derivatives.engine)."""
+    from crosscheck.checks.derivatives.engine import compare_at_state
+    from reference.derivatives import DerivativeModel
+
+    dm = _cached(("derivatives", name, base.formulation), lambda: DerivativeModel(base))
+    sd = compare_at_state(em, cached_adapter(engine), dm.for_model(nm), name, q, u, t)
+    return {k: float(j.ratio) for k, j in sd.judged.items()}, dict(sd.skips)
+
+
 def _evaluate_chunk(
     spec: ChunkSpec, base, drawn: list, ref: dict, perturb: dict, n: int, past, fault
 ) -> tuple:
@@ -195,6 +207,13 @@ def _evaluate_chunk(
             if vals is None:
                 continue
             acc_t[3] += 1
+            if spec.derivatives:
+                try:
+                    dv, dsk = _derivative_values(base, em, engine, name, nm, t, q, u)
+                    vals = {**vals, **dv}
+                    sk = {**sk, **dsk}
+                except Exception as exc:
+                    fault(i, s, engine, variant, "derivatives", exc)
             soft[(engine, variant)] = sf
             for qn, reason in sk.items():
                 skips.setdefault((engine, variant, qn), reason)

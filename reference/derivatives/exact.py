@@ -30,6 +30,7 @@ only along directions tangent to the manifold (reference.derivatives.directions)
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -186,6 +187,25 @@ class DerivativeModel:
         ]
         self._nlam = self.n + self.m
         self._shape = (self.n + self.m, self.nq + 2 * self.n)
+
+    def for_model(self, nm: NumericModel) -> DerivativeModel:
+        """The same generated code and kernels for another parameter set of the same model and
+        formulation (NumericModel.with_params): nothing is read or built again.
+
+        Parameters
+        ----------
+        nm : NumericModel
+            The model at other parameter values.
+
+        Returns
+        -------
+        DerivativeModel
+        """
+        if nm.cache_path != self.nm.cache_path:
+            raise ValueError(f"{nm.model.name}: another model or formulation's code")
+        other = copy.copy(self)
+        other.nm = nm
+        return other
 
     @property
     def backend(self) -> str:
