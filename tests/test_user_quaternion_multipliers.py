@@ -157,3 +157,26 @@ def test_a_quaternion_and_its_negative_give_the_same_weld_multipliers():
         ref = nm.forward(q, u).multipliers[:6]
         mj = get_engine("mujoco").build(um.name, {}).forward(q, u).rigid_multipliers[:6]
         assert scaled_error(mj, ref) <= RIGID_RECOVERY.value, sign
+
+
+def test_a_file_whose_only_rows_are_norm_rows_compares_no_multipliers(tmp_path):
+    """A free body and a ball pendulum, no equality: every row is a quaternion's norm row, so
+    the multipliers record is skipped (saying why), not judged on nothing."""
+    from crosscheck.checks.instantaneous import engine_records
+    from crosscheck.checks.sampling import consistent_states
+    from reference import NumericModel, models
+
+    path = tmp_path / "tumbling.xml"
+    path.write_text("""<mujoco model="tumbling"><option><flag contact="disable"/></option>
+      <worldbody><body name="b" pos="0 0 1"><freejoint/><geom type="box" size=".1 .2 .3"/></body>
+      <body name="p" pos="1 0 1"><joint type="ball"/>
+        <geom type="capsule" fromto="0 0 0 .3 0 -.3" size=".03"/></body></worldbody></mujoco>""")
+    (um,) = load_all([path], entry_points=False)
+    register_all([um])
+    nm = NumericModel(models.get(um.name))
+    states = consistent_states(nm, 2)
+    for engine in ("mujoco", "pinocchio"):
+        records = engine_records(um.name, nm, states, get_engine(engine), {})
+        (lam,) = [r for r in records if r["quantity"] == "multipliers"]
+        assert lam["skipped"] and lam["reason"].endswith("no other constraint rows")
+        assert all(r["passed"] is not False for r in records)

@@ -246,6 +246,9 @@ def _pairs(ef, ref: ReferenceAnswer, n_rows: int, skips: dict) -> list:
     if "multipliers" in skips:
         return pairs
     rows = list(range(n_rows) if ef.multiplier_rows is None else ef.multiplier_rows)
+    if not rows:  # every row left out (a free body's norm row alone): nothing to compare
+        skips["multipliers"] = f"{ef.multipliers_note or NO_FORCES}; no other constraint rows"
+        return pairs
 
     def pick(x):
         return None if x is None else np.asarray(x, float)[rows]

@@ -239,10 +239,24 @@ def consistent_states(nm: NumericModel, count: int):
 
 
 def draws(nm: NumericModel, count: int) -> Draws:
-    """consistent_states with how they were found (Draws). Where the model has a monitor
-    (monitor_of), every limited hinge and slide is drawn inside its range, and a state where a
-    contact, limit or force clamp acts (the initial one included) is rejected and counted; at
-    most MAX_DRAWS_PER_STATE draws per state are made, so fewer states (none) may come back."""
+    """consistent_states with how they were found.
+
+    Where the model has a monitor (monitor_of), every limited hinge and slide is drawn inside
+    its range, the projection alternates with the ranges, and a state where a contact, limit or
+    force clamp acts (the initial one included) is rejected and counted; at most
+    MAX_DRAWS_PER_STATE draws per state are made, so fewer states (none) may come back.
+
+    Parameters
+    ----------
+    nm : NumericModel
+        The model at its parameters.
+    count : int
+        States asked for.
+
+    Returns
+    -------
+    Draws
+    """
     monitor = monitor_of(nm.model)
     if monitor is not None:
         return _admissible(nm, count, monitor)

@@ -54,7 +54,21 @@ def _states(draws: Draws, present) -> str:
 
 
 def file_record(name: str, formulation: str, draws: Draws) -> Record | None:
-    """The model_file record of a user's MJCF model (None for any other model)."""
+    """The model_file record of a user's MJCF model.
+
+    Parameters
+    ----------
+    name, formulation : str
+        The registered model and the formulation its records are about.
+    draws : crosscheck.checks.sampling.Draws
+        Its checked states and how they were found.
+
+    Returns
+    -------
+    Record or None
+        Skipped (nothing is judged), with the figures as fields; None for a model that is not
+        from an MJCF file.
+    """
     from reference.mjcf.loader import MjcfImport  # MuJoCo loads only for a user's MJCF file
 
     src = models.user_source(name)

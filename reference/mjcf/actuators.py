@@ -140,6 +140,18 @@ class Actuation:
 def stated_controls(m, given: Mapping[str, float] | None = None) -> dict[str, float]:
     """Every actuator's control: ``given`` by name, else keyframe 0's ctrl, else 0.
 
+    Parameters
+    ----------
+    m : mujoco.MjModel
+        The compiled file.
+    given : mapping of str to float, optional
+        Controls by actuator name (--ctrl).
+
+    Returns
+    -------
+    dict
+        Actuator name -> control, every actuator of the file.
+
     Raises
     ------
     ModelFileError
@@ -238,8 +250,23 @@ def _terms(m, a: int) -> tuple[tuple[int, int, float], ...] | None:
 
 
 def actuation(m, controls: Mapping[str, float]) -> tuple[Actuation, list[tuple[str, str]]]:
-    """The actuators at their controls, and the ones the reference cannot express as
-    (name, why) pairs (none when actuation is disabled)."""
+    """The actuators at their controls.
+
+    Parameters
+    ----------
+    m : mujoco.MjModel
+        The compiled file.
+    controls : mapping of str to float
+        Every actuator's control (stated_controls).
+
+    Returns
+    -------
+    Actuation
+        The actuators that apply a force, as loads, and notes on those left out.
+    list of (str, str)
+        The actuators the reference cannot express, (name, why); empty when actuation is
+        disabled.
+    """
     if m.nu == 0 or disabled(m, "mjDSBL_ACTUATION"):
         note = () if m.nu == 0 else ("actuation is disabled: the actuators apply no force",)
         return Actuation(dict(controls), (), note), []

@@ -122,8 +122,19 @@ class Present:
 
 
 def present(m, actuation) -> Present:
-    """The contact pairs, limits and force clamps of a compiled model (actuation: the
-    actuators that apply a force at their control, reference.mjcf.actuators)."""
+    """The contact pairs, limits and force clamps of a compiled model.
+
+    Parameters
+    ----------
+    m : mujoco.MjModel
+        The compiled file.
+    actuation : reference.mjcf.actuators.Actuation
+        The actuators that apply a force at their control (their clamps).
+
+    Returns
+    -------
+    Present
+    """
     limits = _limits_on(m)
     joints = [element(m, OBJ.mjOBJ_JOINT, j) for j in range(m.njnt) if limits and m.jnt_limited[j]]
     tendons = [
@@ -240,8 +251,21 @@ def _null_space(J: np.ndarray, nv: int) -> np.ndarray:
 
 
 def always_in_contact(m, qpos) -> list[tuple[str, str, str]]:
-    """Contacts at a consistent state between bodies the equality constraints hold rigidly
-    together, as (geom pair, body 1, body 2): they touch at every consistent state."""
+    """Contacts that act at every consistent state.
+
+    Parameters
+    ----------
+    m : mujoco.MjModel
+        The compiled file.
+    qpos : array_like
+        A consistent configuration (the initial state).
+
+    Returns
+    -------
+    list of (str, str, str)
+        (geom pair, body 1, body 2) of each contact there between bodies that no motion the
+        equality constraints allow moves relative to each other (RIGID_TOL), once per pair.
+    """
     if not contact_pairs(m):
         return []
     d = mujoco.MjData(m)

@@ -72,9 +72,29 @@ def horizon_reason(t_cut: float, t_end: float, t_singular: float, message: str) 
 
 
 def first_activation(nm, q0, u0, t_end: float, active, rtol: float):
-    """(time, what) of the first output of the reference's run, every HORIZON_QUANTUM, at which
-    ``active(q, u)`` names something acting (a contact, a limit, a force clamp), or None.
+    """Where the reference's run first reaches a contact, limit or force clamp.
 
+    Parameters
+    ----------
+    nm : NumericModel
+        The model.
+    q0, u0 : array_like
+        The consistent initial state.
+    t_end : float
+        The horizon, s.
+    active : callable
+        (q, u) -> what acts there (reference.mjcf.unilateral.Monitor.active).
+    rtol : float
+        The run's rtol = atol.
+
+    Returns
+    -------
+    tuple of (float, str), or None
+        The first output time, every HORIZON_QUANTUM, at which something acts, and what; None
+        where nothing does.
+
+    Notes
+    -----
     The run is the reference's own (DOP853 with projection at ``rtol``) on a millisecond grid:
     the engines' fixed step, at which MuJoCo itself detects contacts, and the quantum the
     horizon is cut in; a contact that begins and ends between two milliseconds goes unseen by
