@@ -3,6 +3,8 @@ in report_md)."""
 
 from __future__ import annotations
 
+import math
+
 from crosscheck.report.content import (
     SWEEP_HEADERS,
     fmt,
@@ -11,8 +13,10 @@ from crosscheck.report.content import (
     sweep_models,
     sweep_rows,
     sweep_verdict,
+    to_float,
 )
 from crosscheck.report.html_parts import anchor, e, img, table
+from crosscheck.report.plots import axes_style, engine_color, svg_text
 
 
 def html(c) -> str:
@@ -36,7 +40,6 @@ def html(c) -> str:
 
 def _model(sw: dict, m: str) -> list[str]:
     """One model's quantile table, histogram and the worst samples' commands."""
-    from crosscheck.report import plots
 
     out = []
     out.append(f'<h3 id="sweep-{anchor(m)}">{e(m)}</h3>')
@@ -75,7 +78,7 @@ def _model(sw: dict, m: str) -> list[str]:
     recs = [r for r in sw.get("results", []) if r.get("model") == m]
     out.append(
         img(
-            plots.sweep_histogram_svg(recs),
+            histogram_svg(recs),
             f"sweep error histograms for {m}",
             "Distribution of each quantity's error over the sweep's samples "
             "(log-spaced bins, one line per engine; dashed: that engine's "
@@ -151,3 +154,84 @@ def _faults(sw: dict) -> list[str]:
                 + "</pre></details>"
             )
     return out
+
+
+def histogram_svg(rows: list[dict], title: str = "") -> str | None:
+    """Error histograms of one model's sweep, one panel per quantity, one step line per engine
+    (and variant), from the log10 histograms in sweep.json; each engine's tolerance is a dashed
+    line in its colour.
+    Exact zeros, values outside the binned range and non-finite values are counted in the
+    legend (a log axis cannot place them)."""
+    rows = [r for r in rows if isinstance(r.get("histogram"), dict) and r.get("count")]
+    if not rows:
+        return None
+    quantities = list(dict.fromkeys(r.get("quantity", "?") for r in rows))
+    engines = list(dict.fromkeys(r.get("engine", "?") for r in rows))
+    ncols = 2 if len(quantities) > 1 else 1
+    nrows = math.ceil(len(quantities) / ncols)
+    height = 0.6 + 2.1 * nrows
+    from matplotlib.backends.backend_svg import FigureCanvasSVG
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8.6, height))  # fixed margins: constrained layout doubles the cost
+    FigureCanvasSVG(fig)
+    top = 0.35 + (0.25 if title else 0.0)
+    fig.subplots_adjust(
+        left=0.075, right=0.985, top=1 - top / height, bottom=0.45 / height, hspace=0.5, wspace=0.2
+    )
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    styles = ["-", "--", ":", "-."]
+    for ax in axes.flat[len(quantities) :]:
+        ax.set_visible(False)
+    for ax, qn in zip(axes.flat[: len(quantities)], quantities, strict=True):
+        axes_style(ax)
+        ax.set_xscale("log")
+        ax.set_title(qn, fontsize=8.5, loc="left")
+        tols = set()
+        span: list[float] = []  # edges of the non-empty bins, to zoom on them
+        variants: dict[str, list] = {}
+        for r in (r for r in rows if r.get("quantity") == qn):
+            h = r["histogram"]
+            lo, step = to_float(h.get("log10_lo")), to_float(h.get("log10_step"))
+            counts = [int(c) for c in h.get("counts", [])]
+            eng = r.get("engine", "?")
+            var = r.get("variant")
+            vlist = variants.setdefault(eng, [])
+            if var not in vlist:
+                vlist.append(var)
+            top = lo + len(counts) * step
+            if not (math.isfinite(lo) and math.isfinite(step) and -300 < lo and top < 300):
+                continue  # bins off any log axis: the table has the counts
+            edges = [10 ** (lo + k * step) for k in range(len(counts) + 1)]
+            span += [edges[k] for k, c in enumerate(counts) if c]
+            span += [edges[k + 1] for k, c in enumerate(counts) if c]
+            extra = [f"{h[k]} {k}" for k in ("zero", "below", "above", "nonfinite") if h.get(k)]
+            label = eng + (f"/{var}" if var else "") + f" (n={r.get('count')}"
+            label += (", " + ", ".join(extra) if extra else "") + ")"
+            ax.stairs(
+                counts,
+                edges,
+                color=engine_color(eng, engines),
+                linewidth=1.4,
+                linestyle=styles[vlist.index(var) % len(styles)],
+                label=label,
+            )
+            tol = to_float(r.get("tolerance"))
+            if math.isfinite(tol) and tol > 0:
+                tols.add((tol, eng))
+        for tol, eng in sorted(tols):  # in the engine's colour: engines may differ (rigid recovery)
+            ax.axvline(tol, color=engine_color(eng, engines), linestyle="--", linewidth=1.0)
+        span += sorted(t for t, _ in tols)
+        if span:
+            ax.set_xlim(min(span) / 10, max(span) * 10)
+        from matplotlib.ticker import LogLocator, NullLocator
+
+        ax.xaxis.set_major_locator(LogLocator(numticks=6))  # few labels: text is the cost here
+        ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_ylabel("samples", fontsize=7.5)
+        ax.legend(fontsize=6.5, loc="upper left", frameon=False)
+    for ax in axes[-1]:
+        ax.set_xlabel("error (log; dashed: the engine's tolerance)", fontsize=7.5)
+    if title:
+        fig.suptitle(title, fontsize=10, x=0.01, y=1 - 0.05 / height, ha="left", va="top")
+    return svg_text(fig)
