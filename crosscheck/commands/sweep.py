@@ -225,7 +225,6 @@ def register(sub):
         add_models,
         nonnegative_int,
         positive_int,
-        positive_seconds,
     )
 
     s = sub.add_parser(
@@ -256,30 +255,7 @@ def register(sub):
         metavar="ENGINE:PARAM=REL",
         help="fault injection, as in crosscheck run",
     )
-    s.add_argument(
-        "--workers",
-        type=positive_int,
-        default=None,
-        help="local worker processes (default: all cores; 1 runs in this process)",
-    )
-    s.add_argument(
-        "--dask",
-        default=None,
-        metavar="ADDRESS",
-        help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]",
-    )
-    s.add_argument(
-        "--chunk",
-        type=positive_int,
-        default=None,
-        help="samples per task (default: sized per executor)",
-    )
-    s.add_argument(
-        "--max-seconds",
-        type=positive_seconds,
-        default=None,
-        help="time budget: stop and report what is done",
-    )
+    _add_execution(s)
     s.add_argument(
         "--worst",
         type=nonnegative_int,
@@ -308,3 +284,33 @@ def register(sub):
         "chunks (DIR/sweep.chunks) are kept, only the rest is computed",
     )
     s.set_defaults(func=cmd_sweep)
+
+
+def _add_execution(s) -> None:
+    """Where and for how long a campaign runs: none of it changes the results."""
+    from crosscheck.commands.arguments import positive_int, positive_seconds
+
+    s.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="local worker processes (default: all cores; 1 runs in this process)",
+    )
+    s.add_argument(
+        "--dask",
+        default=None,
+        metavar="ADDRESS",
+        help="run on a Dask distributed scheduler (tcp://host:8786), or local[:K]",
+    )
+    s.add_argument(
+        "--chunk",
+        type=positive_int,
+        default=None,
+        help="samples per task (default: sized per executor)",
+    )
+    s.add_argument(
+        "--max-seconds",
+        type=positive_seconds,
+        default=None,
+        help="time budget: stop and report what is done",
+    )
