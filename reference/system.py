@@ -14,7 +14,6 @@ body's rotation matrix ``R`` when its velocity is in body components).
 
 from __future__ import annotations
 
-import hashlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -22,6 +21,7 @@ from typing import Any, Literal
 
 import sympy as sp
 
+from reference.dag import digest, free_symbols
 from reference.errors import ModelDefinitionError
 
 Frame = Literal["inertial", "body"]
@@ -280,21 +280,20 @@ class Model:
         return self.__dict__["_content_hash"]
 
     def _hash_content(self) -> str:
-        parts = [repr(self.formulations)]
-        parts += [sp.srepr(x) for x in self.coordinates + self.speeds + self.kinematics]
+        # reference.dag.digest writes each distinct subexpression once: a robot's expressions
+        # share their parents' (srepr wrote Cassie's out as trees, 70 s)
+        parts: list = [repr(self.formulations)]
+        parts += [*self.coordinates, *self.speeds, *self.kinematics]
         for b in self.bodies:
-            parts += [b.name, b.v_frame] + [
-                sp.srepr(x) for x in (b.mass, b.v_G, b.inertia, b.omega, b.r_G, b.R)
-            ]
+            parts += [b.name, b.v_frame, b.mass, b.v_G, b.inertia, b.omega, b.r_G, b.R]
         for ld in self.loads:
-            parts += [type(ld).__name__, ld.name] + [
-                sp.srepr(x) for x in vars(ld).values() if not isinstance(x, str)
-            ]
-        parts += [sp.srepr(self.gravity), sp.srepr(self.potential)]
-        parts += [sp.srepr(x) for x in self.configuration_constraints + self.motion_constraints]
+            parts += [type(ld).__name__, ld.name]
+            parts += [x for x in vars(ld).values() if not isinstance(x, str)]
+        parts += [self.gravity, self.potential]
+        parts += [*self.configuration_constraints, *self.motion_constraints]
         parts += [p.name for p in self.parameters]
         parts.append(f"redundant={self.redundant_constraints}")  # the code differs (codegen)
-        return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:20]
+        return digest(parts)[:20]
 
     def validate(self) -> None:
         """Check the declaration.
@@ -345,7 +344,7 @@ class Model:
         for ld in self.loads:
             exprs += [*(ld.velocity if isinstance(ld, Force) else ld.omega)]
             exprs += [*(ld.force if isinstance(ld, Force) else ld.torque)]
-        unknown = set().union(*(sp.sympify(e).free_symbols for e in exprs)) - known
+        unknown = free_symbols(sp.sympify(e) for e in exprs) - known
         if unknown:
             problems.append(
                 f"undeclared symbols {sorted(map(str, unknown))}: add them as parameters"
