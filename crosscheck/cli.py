@@ -29,7 +29,8 @@ EXIT_TERMINATED = 143  # 128 + SIGTERM
 
 # Every command, in the order `crosscheck --help` lists them: crosscheck.commands.<name> has
 # register(subparsers), which adds the command's parser and the function it runs.
-COMMANDS = ("models", "eval", "run", "bench", "report", "gate", "sweep", "engines", "sensitivity")
+COMMANDS = ("models", "eval", "simulate", "run", "bench", "report", "gate", "sweep", "engines")
+COMMANDS += ("sensitivity",)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -278,3 +278,15 @@ def test_sweep_bench_measures_throughput_in_process(tmp_path, capsys):
     bench = json.loads((tmp_path / "sweep_bench.json").read_text())
     assert {"per_model_engine", "scaling", "machine_scaling"} <= set(bench)
     assert bench["per_model_engine"] and "sweep_bench.json" in out
+
+
+def test_eval_without_a_name_evaluates_every_model_of_the_files(capsys):
+    from tests.support import ROOT
+
+    fourbar = str(ROOT / "tests" / "data" / "fourbar_connect.xml")
+    code, out, err = _run(capsys, "eval", "--model-file", fourbar, "--json")
+    assert code == 0, err
+    (one,) = json.loads(out)
+    assert one["model"] == "fourbar_connect" and len(one["accelerations"]) == 3
+    code, _, err = _run(capsys, "eval")
+    assert code == 2 and "give a model name" in err and err.count("\n") == 1

@@ -326,3 +326,34 @@ def assignments(pairs: list[str]) -> dict[str, float]:
         except ValueError:
             raise _refuse(f"--set {pair!r}: {value!r} is not a number") from None
     return out
+
+
+def add_state(parser: argparse.ArgumentParser, what: str) -> None:
+    """--q, --u, --t and --project: the state a command starts from (`what` it is for)."""
+    parser.add_argument(
+        "--q", help=f"coordinates {what}, comma-separated (default: the model's initial state)"
+    )
+    parser.add_argument(
+        "--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)"
+    )
+    parser.add_argument("--t", type=finite_float, default=0.0, help="time (rheonomic constraints)")
+    parser.add_argument(
+        "--project",
+        action="store_true",
+        help="project the state onto the constraint manifold instead of refusing it (and a "
+        "--model-file's initial state, as the other commands' --project)",
+    )
+
+
+def given_state(nm, args: argparse.Namespace) -> tuple[list, list]:
+    """The state --q/--u/--t name (the model's initial state where they are left out), on the
+    constraint manifold: projected with --project, else refused where it is off it."""
+    model = nm.model
+    q = float_list(args.q, "--q")
+    u = float_list(args.u, "--u")
+    q = list(model.initial_q) if q is None else q
+    u = list(model.initial_u) if u is None else u
+    if args.project:
+        return nm.project(q, u, args.t)
+    nm.check_consistent(q, u, args.t)
+    return q, u

@@ -1,37 +1,42 @@
-"""`crosscheck eval NAME`: the reference's accelerations, multipliers, residuals and energy of a
-model at one state."""
+"""`crosscheck eval [NAME]`: the reference's accelerations, multipliers, residuals and energy of
+a model at one state (every model of the --model-file files where no name is given)."""
 
 from __future__ import annotations
 
-import math
-
-from crosscheck.commands.arguments import (
-    add_model_files,
-    assignments,
-    finite_float,
-    float_list,
-)
+from crosscheck.commands.arguments import add_model_files, add_state, assignments, given_state
 from crosscheck.runtime import jsonio
 from reference.errors import ModelInputError
 
 
 def cmd_eval(args) -> int:
+    from reference import models
+
+    if args.name is not None:
+        names = [args.name]
+    elif getattr(args, "user_models", None):
+        names = list(args.user_models)
+    else:
+        raise ModelInputError(
+            "give a model name (see `crosscheck models`) or --model-file FILE (its models)"
+        )
+    if (args.q is not None or args.u is not None) and len(names) > 1:
+        raise ModelInputError(
+            f"--q and --u name one model's state; the files hold {len(names)} models: "
+            "give one model name"
+        )
+    outs = [_evaluate(models.get(name), args) for name in names]
+    if args.json:
+        print(jsonio.dumps(outs[0] if args.name is not None else outs, allow_nan=False))
+    return 0
+
+
+def _evaluate(model, args) -> dict:
     import numpy as np
 
-    from reference import NumericModel, models
+    from reference import NumericModel
 
-    model = models.get(args.name)
     nm = NumericModel(model, args.formulation, assignments(args.set))
-    q = float_list(args.q, "--q")
-    u = float_list(args.u, "--u")
-    q = list(model.initial_q) if q is None else q
-    u = list(model.initial_u) if u is None else u
-    if not math.isfinite(args.t):
-        raise ModelInputError("--t must be finite")
-    if args.project:
-        q, u = nm.project(q, u, args.t)
-    else:
-        nm.check_consistent(q, u, args.t)
+    q, u = given_state(nm, args)
     res = nm.forward(q, u, args.t)
     pos, vel = nm.residuals(q, u, args.t)
     K, V = nm.energy(q, u, args.t)
@@ -54,9 +59,7 @@ def cmd_eval(args) -> int:
         "energy": {"kinetic": K, "potential": V, "total": K + V},
         "pivot_ratio": res.pivot_ratio,
     }
-    if args.json:
-        print(jsonio.dumps(out, allow_nan=False))
-    else:
+    if not args.json:
         print(f"{model.name} ({model.source}), {nm.formulation}, t = {args.t}")
         for s, a in zip(out["speeds"], res.accelerations, strict=True):
             print(f"  d({s})/dt = {a:.12g}")
@@ -66,12 +69,17 @@ def cmd_eval(args) -> int:
             f"  residuals: position {np.abs(pos).max() if pos.size else 0:.2e}, "
             f"velocity {np.abs(vel).max() if vel.size else 0:.2e}"
         )
-    return 0
+    return out
 
 
 def register(sub) -> None:
     e = sub.add_parser("eval", help="accelerations and multipliers of a model at a state")
-    e.add_argument("name", help="model name (see `crosscheck models`)")
+    e.add_argument(
+        "name",
+        nargs="?",
+        help="model name (see `crosscheck models`); left out with --model-file: every model "
+        "of the files (--json: a list)",
+    )
     e.add_argument("--formulation", default=None, help="lagrange | dalembert | kane")
     e.add_argument(
         "--set",
@@ -80,15 +88,7 @@ def register(sub) -> None:
         metavar="NAME=VALUE",
         help="override a parameter (repeatable)",
     )
-    e.add_argument("--q", help="coordinates, comma-separated (default: the model's initial state)")
-    e.add_argument("--u", help="speeds, comma-separated (q-dots for Lagrange/d'Alembert models)")
-    e.add_argument("--t", type=finite_float, default=0.0, help="time (rheonomic constraints)")
-    e.add_argument(
-        "--project",
-        action="store_true",
-        help="project the state onto the constraint manifold instead of refusing it (and a "
-        "--model-file's initial state, as the other commands' --project)",
-    )
+    add_state(e, "at which to evaluate")
     e.add_argument("--json", action="store_true")
     add_model_files(e, project=False)
     e.set_defaults(func=cmd_eval)
