@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from reference.dag import Calculus
 from reference.errors import RedundantConstraintError
 from reference.system import Model
 
@@ -35,38 +36,49 @@ class ConstraintSet:
         return self.A.shape[0]
 
 
-def configuration_coefficients(f: sp.Matrix, q, t) -> tuple[sp.Matrix, sp.Matrix]:
-    """Eq. 4: a_jk = df_j/dq_k, a_j0 = df_j/dt."""
+def configuration_coefficients(
+    f: sp.Matrix, q, t, calculus: Calculus | None = None
+) -> tuple[sp.Matrix, sp.Matrix]:
+    """Eq. 4: a_jk = df_j/dq_k, a_j0 = df_j/dt (with `calculus`: on the expressions' graph)."""
     if f.shape[0] == 0:
         return sp.zeros(0, len(q)), sp.zeros(0, 1)
+    if calculus is not None:
+        return calculus.jacobian(f, q), calculus.diff(f, t)
     return f.jacobian(list(q)), f.diff(t)
 
 
-def motion_coefficients(g: sp.Matrix, u) -> tuple[sp.Matrix, sp.Matrix]:
+def motion_coefficients(
+    g: sp.Matrix, u, calculus: Calculus | None = None
+) -> tuple[sp.Matrix, sp.Matrix]:
     """Eq. 8: rows linear in the speeds, split into A (coefficients) and a0 (the rest)."""
     if g.shape[0] == 0:
         return sp.zeros(0, len(u)), sp.zeros(0, 1)
+    if calculus is not None:
+        return calculus.jacobian(g, u), calculus.replace(g, {s: 0 for s in u})
     A = g.jacobian(list(u))
     a0 = g.subs({s: 0 for s in u})
     return A, a0
 
 
-def constraint_set(model: Model) -> ConstraintSet:
-    """All constraints of a model in its speeds, with the acceleration-level right side b."""
+def constraint_set(model: Model, calculus: Calculus | None = None) -> ConstraintSet:
+    """All constraints of a model in its speeds, with the acceleration-level right side b.
+
+    `calculus` (reference.dag.Calculus) takes the derivatives on the expressions' graph, for a
+    model too large for sympy's tree walks; None takes sympy's own (the textbook's models)."""
     q, u, t = model.coordinates, model.speeds, model.t
     f = (
         sp.Matrix(model.configuration_constraints)
         if model.configuration_constraints
         else sp.zeros(0, 1)
     )
-    A_q, a0_q = configuration_coefficients(f, q, t)
+    A_q, a0_q = configuration_coefficients(f, q, t, calculus)
     # q' = N u + n0 (the kinematics are affine in u in every model of the unit)
     qdot = sp.Matrix(model.kinematics)
-    N, n0 = motion_coefficients(qdot, u)
+    N, n0 = motion_coefficients(qdot, u, calculus)
     rows_A = [A_q * N] if f.shape[0] else []
     rows_a0 = [a0_q + A_q * n0] if f.shape[0] else []
     if model.motion_constraints:
-        A_m, a0_m = motion_coefficients(sp.Matrix(model.motion_constraints), u)
+        A_m, a0_m = motion_coefficients(sp.Matrix(model.motion_constraints), u, calculus)
         rows_A.append(A_m)
         rows_a0.append(a0_m)
     if rows_A:
@@ -75,7 +87,10 @@ def constraint_set(model: Model) -> ConstraintSet:
     else:
         A, a0 = sp.zeros(0, len(u)), sp.zeros(0, 1)
     velocity_rows = A * sp.Matrix(u) + a0
-    b = -model.time_derivative(velocity_rows, accelerations=None)
+    if calculus is not None:
+        b = -calculus.rate(velocity_rows)
+    else:
+        b = -model.time_derivative(velocity_rows, accelerations=None)
     names = model.constraint_names or tuple(f"c{j + 1}" for j in range(A.shape[0]))
     return ConstraintSet(A=A, a0=a0, b=b, f=f, A_q=A_q, a0_q=a0_q, names=names)
 

@@ -31,9 +31,14 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
-from sympy.printing.lambdarepr import LambdaPrinter
 
-from reference.eom import EquationsOfMotion
+from reference.backends import body_sums
+from reference.backends.summed_source import summed_functions
+from reference.backends.writer import Writer as _Writer
+from reference.backends.writer import header as _header
+from reference.backends.writer import safe_symbols as _safe_symbols
+from reference.eom import EquationsOfMotion, SummedEquations
+from reference.formulations import derivation_path
 from reference.formulations.lagrange import kinetic_energy, potential_energy
 
 # The derivation cache must miss whenever any source that shapes the derived equations or the
@@ -45,7 +50,10 @@ DERIVATION_SOURCES = (
     "system.py",
     "constraints.py",
     "eom.py",
+    "dag.py",
     "backends/codegen.py",
+    "backends/writer.py",
+    "backends/summed_source.py",
     "formulations/*.py",
 )
 
@@ -75,12 +83,13 @@ def cache_dir() -> Path:
 
 def cache_key(model, formulation: str) -> str:
     """File stem of a cache entry: the formulation (a readable prefix) and a hash of the
-    model's content, the formulation, the derivation's sources and sympy. The model's name is
-    not in it: a renamed or re-imported model reuses its derivation; the
-    generated file's first line names the model it was first derived for."""
+    model's content, the formulation, its derivation path (reference.formulations), the
+    derivation's sources and sympy. The model's name is not in it: a renamed or re-imported
+    model reuses its derivation; the generated file's first line names the model it was
+    first derived for."""
     h = hashlib.sha256(
-        f"{model.content_hash()}|{formulation}|{derivation_sources_hash()}|"
-        f"{sp.__version__}".encode()
+        f"{model.content_hash()}|{formulation}|{derivation_path(model)}|"
+        f"{derivation_sources_hash()}|{sp.__version__}".encode()
     )
     return f"{formulation}-{h.hexdigest()[:16]}"
 
@@ -126,39 +135,6 @@ def _tidy_uncached(e):
     if sp.count_ops(ex) <= TIDY_MAX_OPS:
         options.append(sp.trigsimp(ex))
     return min(reversed(options), key=sp.count_ops)  # ties: the simplified form
-
-
-def _is_zero(e) -> bool:
-    e = sp.sympify(e)
-    return e == 0 or sp.expand(e) == 0
-
-
-class _Writer:
-    """Accumulates straight-line code; names are '_'-prefixed so no model symbol can collide."""
-
-    def __init__(self):
-        self.lines: list[str] = []
-        self.printer = LambdaPrinter({"fully_qualified_modules": False})
-        self.n = 0
-
-    def expr(self, e) -> str:
-        return self.printer.doprint(e)
-
-    def assign(self, code: str) -> str:
-        name = f"_v{self.n}"
-        self.n += 1
-        self.lines.append(f"    {name} = {code}")
-        return name
-
-    def cse_block(self, exprs: list) -> list[str]:
-        """Common subexpressions of all `exprs`; returns their code strings (name, '0' or
-        literal)."""
-        exprs = [sp.sympify(e) for e in exprs]
-        repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(f"_s{self.n}_"))
-        self.n += 1
-        for sym, sub in repl:
-            self.lines.append(f"    {sym} = {self.expr(sub)}")
-        return ["0" if _is_zero(r) else self.expr(r) for r in reduced]
 
 
 def _mul(a: str, b: str) -> str | None:
@@ -222,39 +198,28 @@ def _chol_solve(w: _Writer, chol: tuple[list[list[str]], list[str]], rhs: list[s
     return x
 
 
-def _safe_symbols(eom: EquationsOfMotion) -> dict:
-    m = eom.model
-    rename = {s: sp.Symbol(f"_q{i}", real=True) for i, s in enumerate(m.coordinates)}
-    rename.update({s: sp.Symbol(f"_u{i}", real=True) for i, s in enumerate(m.speeds)})
-    rename.update({s: sp.Symbol(f"_p{i}", real=True) for i, s in enumerate(m.parameter_symbols)})
-    rename[m.t] = sp.Symbol("_t", real=True)
-    return rename
-
-
-def _header(name: str, eom: EquationsOfMotion) -> list[str]:
-    m = eom.model
-    lines = [f"def {name}(_q, _u, _t, _p):"]
-    if m.coordinates:
-        lines.append("    " + ", ".join(f"_q{i}" for i in range(len(m.coordinates))) + ", = _q")
-    if m.speeds:
-        lines.append("    " + ", ".join(f"_u{i}" for i in range(len(m.speeds))) + ", = _u")
-    if m.parameters:
-        lines.append("    " + ", ".join(f"_p{i}" for i in range(len(m.parameters))) + ", = _p")
-    return lines
+def generic_state(model, params: dict) -> dict:
+    """A generic configuration near the initial one: q, u, t and the parameters' values by
+    symbol (the state at which M's singularity is judged)."""
+    rng = np.random.default_rng(12345)
+    subs = {
+        s: float(v) + 0.1 * rng.standard_normal()
+        for s, v in zip(model.coordinates, model.initial_q, strict=True)
+    }
+    subs.update({s: float(v) for s, v in zip(model.speeds, model.initial_u, strict=True)})
+    subs.update({p.symbol: params[p.name] for p in model.parameters})
+    subs[model.t] = 0.3
+    return subs
 
 
 def needs_augmentation(eom: EquationsOfMotion, params: dict) -> bool:
     """True when M is singular on its own (checked numerically at a generic configuration)."""
-    m = eom.model
-    rng = np.random.default_rng(12345)
-    subs = {
-        s: float(v) + 0.1 * rng.standard_normal()
-        for s, v in zip(m.coordinates, m.initial_q, strict=True)
-    }
-    subs.update({s: float(v) for s, v in zip(m.speeds, m.initial_u, strict=True)})
-    subs.update({p.symbol: params[p.name] for p in m.parameters})
-    subs[m.t] = 0.3
-    M = np.array(eom.M.xreplace(subs).evalf(), dtype=float)
+    M = np.array(eom.M.xreplace(generic_state(eom.model, params)).evalf(), dtype=float)
+    return singular_alone(M)
+
+
+def singular_alone(M: np.ndarray) -> bool:
+    """True when the numeric M (at a generic configuration) has a null space of its own."""
     ev = np.linalg.eigvalsh(0.5 * (M + M.T))
     # A generic M of the unit's models has a condition number below 1e8 (point masses carry no
     # inertia, but they get no rotational speed either); an exact null space shows up at 1e-16.
@@ -402,6 +367,27 @@ def generate_source(eom: EquationsOfMotion, augment: bool) -> str:
     return "\n".join(src) + "\n"
 
 
+def summed_module(eom: SummedEquations, params: dict) -> str:
+    """The module of a model on the sums path (reference.backends.summed_source's functions)
+    with its META: the KKT solve numeric, and augmented where the generated M is singular
+    alone at the generic configuration (as needs_augmentation judges a symbolic M)."""
+    m = eom.model
+    code = summed_functions(eom)
+    ns = _namespace(False)
+    exec(compile(code, "<summed module>", "exec"), ns)
+    at = generic_state(m, params)
+    state = [[at[s] for s in group] for group in (m.coordinates, m.speeds, m.parameter_symbols)]
+    M = np.array(ns["matrices"](state[0], state[1], at[m.t], state[2])[0], float)
+    n = len(m.speeds)
+    augmented = bool(singular_alone(M.reshape(n, n)))
+    meta = {"n": n, "m": eom.A.shape[0], "augmented": augmented, "kkt": "numeric", "sums": True}
+    return (
+        f"# generated by reference.backends.codegen ({derivation_sources_hash()[:12]}), first "
+        f"for {m.name} / {eom.formulation}, as sums over the bodies "
+        f"(reference.backends.summed_source)\nMETA = {meta!r}\n\n{code}"
+    )
+
+
 class _Zeros:
     """Default offset of b in forward: zero for every row."""
 
@@ -425,6 +411,7 @@ def _namespace(batched: bool) -> dict:
             "abs": np.abs,
             "_min": lambda *a: reduce(np.minimum, a),
             "_ZEROS": _Zeros(),
+            **body_sums.namespace(True),
         }
     return {
         "sin": math.sin,
@@ -438,6 +425,7 @@ def _namespace(batched: bool) -> dict:
         "abs": abs,
         "_min": min,
         "_ZEROS": _Zeros(),
+        **body_sums.namespace(False),
     }
 
 
@@ -476,7 +464,10 @@ def load_compiled(eom_factory, model, formulation: str, params: dict):
         src = path.read_text()
     else:
         eom = eom_factory()
-        src = generate_source(eom, needs_augmentation(eom, params))
+        if isinstance(eom, SummedEquations):
+            src = summed_module(eom, params)
+        else:
+            src = generate_source(eom, needs_augmentation(eom, params))
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(src)

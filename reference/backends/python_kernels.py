@@ -102,6 +102,11 @@ class PythonKernels(Kernels):
         self._made: dict[str, Callable[..., int]] = {}
         self._split: tuple = (None, (), ())  # the last `pa` and its parameters, references
 
+    @property
+    def summed(self) -> bool:
+        """True for a module on the sums path (reference.backends.summed_source)."""
+        return bool(self._scalar["META"].get("sums"))
+
     def function(self, fname: str) -> Callable[..., int]:
         f = self._made.get(fname)
         if f is None:

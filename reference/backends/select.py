@@ -93,9 +93,10 @@ def kernels(python: PythonKernels, src: str, stem: str, want: str | None = None)
     why. A model past codegen.UNROLL_KKT_MAX stays on Python: compiling its long straight-line
     M and A costs more than it saves on a model evaluated a few thousand times per run
     (benchmarks/scaling.md; measured with numba, not yet with C), and its forward is the
-    numeric solve either way."""
+    numeric solve either way. So does a module on the sums path, whose M and f are summed by
+    numpy (reference.backends.body_sums), which the C printer does not take."""
     _nq, n, _npar, m = python.dims
-    if (want or backend()) == "python" or codegen.numeric_kkt(n, m):
+    if (want or backend()) == "python" or codegen.numeric_kkt(n, m) or python.summed:
         return python
     try:
         return c_build.load_kernels(src, stem, codegen.cache_dir(), python.dims, PIVOT_RATIO_MIN)
@@ -122,7 +123,7 @@ def prebuild_model(model: Model, formulations: Sequence[str] | None = None) -> N
             lambda f=f: derive(model, f), model, f, defaults
         )
         n, m = len(model.speeds), scalar["META"]["m"]
-        if codegen.numeric_kkt(n, m):
+        if codegen.numeric_kkt(n, m) or scalar["META"].get("sums"):
             continue
         try:
             text, _sizes = c_source(
