@@ -28,6 +28,7 @@ from crosscheck.commands.arguments import (
     positive_int,
 )
 from reference.errors import ModelInputError
+from reference.integrate import METHODS
 
 # Outputs written: the sampled grid is capped so a file stays readable and the run's cost is
 # the integrator's, not the output's.
@@ -196,8 +197,6 @@ def _info(args, nm, tr, rtol, atol, tight_rtol, estimate) -> dict:
 
 
 def register(sub) -> None:
-    from reference.integrate.driver import METHODS
-
     s = sub.add_parser(
         "simulate",
         help="write a model's reference trajectory (CSV, NPZ, JSON) with an error estimate",

@@ -13,10 +13,10 @@ import numpy as np
 import scipy.integrate as si
 
 from reference.errors import ModelInputError, OffManifoldError, SingularSystemError
+from reference.integrate import METHODS  # noqa: F401 - re-exported
 from reference.integrate.rk import LeanDOP853
 from reference.numeric.model import MANIFOLD_TOL, NumericModel
 
-METHODS = ("index1", "baumgarte", "projection", "nullspace")
 INTEGRATORS = {
     # scipy's DOP853 with a leaner step (integrate_rk: same tableau, control and steps)
     "DOP853": LeanDOP853,
