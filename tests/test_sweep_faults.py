@@ -8,6 +8,7 @@ import json
 import os
 import signal
 import time
+from pathlib import Path
 
 import pytest
 
@@ -15,7 +16,7 @@ from crosscheck.cli import main
 from crosscheck.runtime.output import TMP_PREFIX
 from crosscheck.sweep.campaign import campaign
 from crosscheck.sweep.config import Campaign
-from crosscheck.sweep.store import STORE, ChunkStore
+from crosscheck.sweep.store import STORE, ChunkStore, chunk_files
 
 from .test_sweep import _same
 
@@ -216,7 +217,7 @@ def test_a_campaign_too_large_to_hold_is_refused_before_any_work(tmp_path, capsy
     assert not list(tmp_path.iterdir())
 
 
-REAL = ["sweep", "pendulum_xy", "--engines", "pinocchio", "--samples", "4000", "--seed", "3"]
+REAL = ["sweep", "pendulum_xy", "--engines", "pinocchio", "--samples", "20000", "--seed", "3"]
 REAL += ["--workers", "1", "--chunk", "50"]
 
 
@@ -229,15 +230,26 @@ def whole_sweep(session_child, tmp_path_factory) -> dict:
     return json.loads((out / "sweep.json").read_text())
 
 
-@pytest.mark.parametrize("delay", [2.0, 4.0])
+def _first_chunk(proc, out: Path, timeout: float = 60.0) -> None:
+    """Wait until the sweep has stored its first chunk (the campaign is under way)."""
+    t_end = time.monotonic() + timeout
+    while not (out / STORE).is_dir() or not chunk_files(out / STORE):
+        assert proc.poll() is None, "the sweep ended before storing a chunk"
+        assert time.monotonic() < t_end, "no chunk stored within the timeout"
+        time.sleep(0.02)
+
+
+@pytest.mark.parametrize("after", [0.0, 1.0])
 def test_a_real_ctrl_c_then_resume_equals_the_undisturbed_sweep(
-    tmp_path, child, delay, whole_sweep
+    tmp_path, child, after, whole_sweep
 ):
-    """SIGINT to a `crosscheck sweep --workers 1` process at two moments, then --resume: the
-    resumed sweep.json is the undisturbed campaign's (meta and timing aside), the interrupted
-    one claimed no more than its stored chunks, and Ctrl-C acted within 2 s."""
+    """SIGINT to a `crosscheck sweep --workers 1` process at two moments (as its first chunk
+    is stored, and a second later), then --resume: the resumed sweep.json is the undisturbed
+    campaign's (meta and timing aside), the interrupted one claimed no more than its stored
+    chunks, and Ctrl-C acted within 2 s."""
     with child.start("-m", "crosscheck", *REAL, "--out", tmp_path) as proc:
-        time.sleep(delay)
+        _first_chunk(proc, tmp_path)
+        time.sleep(after)
         assert proc.poll() is None, "the sweep ended before it could be interrupted"
         t0 = time.perf_counter()
         proc.send_signal(signal.SIGINT)
@@ -254,5 +266,5 @@ def test_a_real_ctrl_c_then_resume_equals_the_undisturbed_sweep(
 
 
 def _stored(out) -> list[dict]:
-    cfg = Campaign(["pendulum_xy"], samples=4000, seed=3, engines=("pinocchio",), out=str(out))
+    cfg = Campaign(["pendulum_xy"], samples=20000, seed=3, engines=("pinocchio",), out=str(out))
     return ChunkStore(out, cfg).load()
