@@ -13,11 +13,11 @@ import pytest
 
 import crosscheck.report.write as report
 from crosscheck.cli import main
-from crosscheck.runtime.output import TMP_PREFIX
+from crosscheck.runtime.output import LEDGER, TMP_PREFIX
 from crosscheck.sweep.store import chunk_files
 
 ROOT = Path(__file__).resolve().parents[1]
-RUN_FILES = ["index.html", "junit.xml", "report.md", "results.json"]
+RUN_FILES = [LEDGER, "index.html", "junit.xml", "report.md", "results.json"]
 
 
 def _snapshot(d: Path) -> dict[str, bytes]:
@@ -56,13 +56,28 @@ def test_interrupt_during_report_keeps_the_previous_run(previous_run, monkeypatc
 
 
 def test_no_report_removes_the_stale_report(previous_run, capsys):
+    """The report the suite wrote beside the old results is stale once new results land."""
     assert (
         main(["run", "slider_crank", "--instantaneous", "--no-report", "--out", str(previous_run)])
         == 0
     )
     capsys.readouterr()
-    assert sorted(p.name for p in previous_run.iterdir()) == ["results.json"]
+    assert sorted(p.name for p in previous_run.iterdir()) == [LEDGER, "results.json"]
     assert _models_in(previous_run) == {"slider_crank"}
+
+
+def test_no_report_never_removes_a_users_own_files(previous_run, capsys):
+    """--out holds what the suite wrote and what the user put there: a report.md the user
+    wrote (or edited) beside the results is not the suite's to remove."""
+    (previous_run / "report.md").write_text("# my notes on this run\n")
+    (previous_run / "index.html").unlink()
+    (previous_run / "index.html").write_text("<p>my own page</p>")
+    args = ["run", "slider_crank", "--instantaneous", "--no-report", "--out", str(previous_run)]
+    assert main(args) == 0
+    capsys.readouterr()
+    assert (previous_run / "report.md").read_text() == "# my notes on this run\n"
+    assert (previous_run / "index.html").read_text() == "<p>my own page</p>"
+    assert not (previous_run / "junit.xml").exists()  # the suite's own stale file goes
 
 
 @pytest.mark.parametrize("delay", [1.0, 3.0, 5.0, 8.0])

@@ -337,12 +337,13 @@ def test_junit_has_one_case_per_record_with_reasons(full_report):
 
 def test_report_is_deterministic(full_report):
     from crosscheck.report.write import generate
+    from crosscheck.runtime.output import LEDGER
 
     site, root = full_report["dir"], full_report["root"]
     before = {p.name: p.read_bytes() for p in site.iterdir()}
     generate(str(root / "results.json"), str(root / "bench.json"), str(site))
     after = {p.name: p.read_bytes() for p in site.iterdir()}
-    assert before.keys() == after.keys() == {"index.html", "report.md", "junit.xml"}
+    assert before.keys() == after.keys() == {"index.html", "report.md", "junit.xml", LEDGER}
     for name in before:
         assert before[name] == after[name], name
 

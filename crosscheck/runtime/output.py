@@ -7,10 +7,18 @@ removes its temporary files and leaves the directory as it was: the previous run
 complete and consistent with each other, or nothing. A command killed outright (SIGKILL) cannot
 remove its temporary files; the next command writing into the directory removes them (their
 name carries the pid of a process that no longer runs).
+
+A directory holds only what the suite wrote and what its user put there: a command that
+replaces a set of files (run, report) enters each file it commits, with a digest of its
+content, in the directory's ledger (LEDGER), and removes a stale file (an old report beside new
+results) only where the ledger says the suite wrote it and its content is still what the suite
+wrote. A user's own report.md is never removed.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import signal
 import threading
@@ -19,6 +27,7 @@ from pathlib import Path
 from crosscheck.runtime import interrupts
 
 TMP_PREFIX = ".crosscheck-tmp-"
+LEDGER = ".crosscheck-written.json"  # {file name: sha256 of what the suite wrote}
 
 
 class Outputs:
@@ -60,12 +69,24 @@ class Outputs:
         finished chunks) are committed."""
         if not after_interrupt:
             interrupts.check()  # an interrupt an engine swallowed: this command's files never land
+        gone: list[str] = []
+        ledger_tmp = None
+        if stale:  # only a command that replaces a set of files keeps the ledger
+            ledger = _read_ledger(self.dir)
+            for name, tmp in self._staged.items():
+                ledger[name] = _digest(tmp)
+            gone = [n for n in stale if n not in self._staged and _ours(self.dir, n, ledger)]
+            for name in gone:
+                ledger.pop(name, None)
+            ledger_tmp = self.dir / f"{TMP_PREFIX}{os.getpid()}-{LEDGER}"
+            ledger_tmp.write_text(json.dumps(ledger, indent=1, sort_keys=True))
         with _sigint_held():
-            for name in stale:
-                if name not in self._staged:
-                    (self.dir / name).unlink(missing_ok=True)
+            for name in gone:
+                (self.dir / name).unlink(missing_ok=True)
             for name, tmp in self._staged.items():
                 os.replace(tmp, self.dir / name)
+            if ledger_tmp is not None:
+                os.replace(ledger_tmp, self.dir / LEDGER)
         done = {name: self.dir / name for name in self._staged}
         self._staged.clear()
         return done
@@ -80,6 +101,28 @@ class Outputs:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.discard()  # after a commit there is nothing left to discard
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _read_ledger(directory: Path) -> dict[str, str]:
+    """The directory's ledger; an unreadable one counts as empty (nothing is then removed)."""
+    try:
+        data = json.loads((directory / LEDGER).read_text())
+    except (OSError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in data.items()} if isinstance(data, dict) else {}
+
+
+def _ours(directory: Path, name: str, ledger: dict[str, str]) -> bool:
+    """Whether `name` in `directory` is a file the suite wrote and nobody changed since."""
+    path = directory / name
+    try:
+        return path.is_file() and ledger.get(name) == _digest(path)
+    except OSError:
+        return False
 
 
 def remove_orphans(directory: Path) -> list[Path]:
