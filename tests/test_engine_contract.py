@@ -91,6 +91,8 @@ def _nonholonomic(model) -> bool:
 
 
 def test_the_built_in_engines_are_registered_and_import():
+    """The built-in engines import here, each adapter under its own name with the package
+    its results' versions are read from."""
     assert {"pinocchio", "mujoco"} <= set(ENGINES)
     for e in ENGINES:
         adapter = get_engine(e)
@@ -99,6 +101,8 @@ def test_the_built_in_engines_are_registered_and_import():
 
 @pytest.mark.parametrize("engine,name", CASES)
 def test_every_model_is_claimed_or_refused_with_a_reason(engine, name):
+    """Each engine claims each built-in model or refuses it with a sentence, and a
+    nonholonomic model only where its Capabilities say so."""
     adapter = get_engine(engine)
     claimed, refused = set(adapter.models()), adapter.unsupported()
     assert (name in claimed) != (name in refused), "a model is either claimed or refused"
@@ -114,6 +118,8 @@ def test_every_model_is_claimed_or_refused_with_a_reason(engine, name):
     "engine,name", [(e, m) for e, m in CASES if m in get_engine(e).unsupported()]
 )
 def test_a_refused_model_raises_and_becomes_a_skip_record(engine, name):
+    """build() of a refused model raises EngineUnsupported with the refusal itself, and the
+    run records it as skips that carry it."""
     adapter = get_engine(engine)
     with pytest.raises(EngineUnsupported) as exc:
         adapter.build(name, None)
@@ -671,6 +677,8 @@ def test_registry_order_labels_and_unknown_names():
 
 
 def test_perturbation_is_parsed_checked_and_applied_in_one_place():
+    """--perturb ENGINE:PARAM=REL is parsed, its engines and parameters checked and applied
+    to the one parameter named, in crosscheck.checks.perturb."""
     from crosscheck.checks.perturb import check_parameters, parse_perturb, perturbed
     from reference.errors import ModelInputError
 

@@ -236,6 +236,9 @@ def test_solver_output_is_silenced_and_failures_keep_their_reason(capfd, monkeyp
 
 
 def test_angles_read_with_atan2_are_continuous_along_a_trajectory():
+    """Exudyn's angles come back from rotations through atan2, in (-pi, pi]; along a
+    trajectory they are unwrapped onto the initial state's branch (a turn through pi is a
+    step of 2 pi - 6.1 rad, not -6.1), whichever branch that is."""
     from crosscheck.engines.exudyn.trajectory import _continuous_angles
 
     wrapped = np.array([[3.0, 0.1], [-3.1, 0.2], [-2.9, 0.3]])  # angle 0 crosses +pi

@@ -664,6 +664,9 @@ def test_mjcf_files_are_current_and_load(tmp_path):
 
 
 def test_mjcf_gravity_follows_the_reference_axes():
+    """Each MJCF file's gravity is the reference model's, on its own axes (Example 1 Y down,
+    the planar and spatial models Y up, the top Z up), and the files hold numbers generated
+    from the parameters, not parameter names."""
     assert tuple(engine("pendulum_xy", None).m.opt.gravity) == (0.0, 9.81, 0.0)  # Y down
     assert tuple(engine("slider_crank", None).m.opt.gravity) == (0.0, -9.81, 0.0)
     assert tuple(engine("double_pendulum_3d", "free").m.opt.gravity) == (0.0, -9.81, 0.0)

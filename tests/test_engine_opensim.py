@@ -206,6 +206,8 @@ def test_moving_support_rod_multiplier():
 
 
 def test_slider_crank_multiplier_is_the_guide_force_on_C():
+    """The guide's force on the slider (calcConstraintForces) is lambda along Y and nothing
+    along X: Simbody's point-on-line row is the textbook's row with its sign."""
     em, _q, _u, f = _forward("slider_crank")
     (_, _on_ground), (_, on_slider) = em.constraint_forces()[0]
     assert math.isclose(on_slider[1], f.multipliers[0], rel_tol=1e-13)
@@ -213,6 +215,8 @@ def test_slider_crank_multiplier_is_the_guide_force_on_C():
 
 
 def test_slider_crank_split_multipliers_are_the_force_on_the_crank():
+    """Note 2's multipliers are the force of the rod on the crank at B (calcConstraintForces,
+    the crank's side), and the rod gets its opposite."""
     em, _q, _u, f = _forward("slider_crank_split")
     (_, on_crank), (_, on_rod) = em.constraint_forces()[0]
     assert np.allclose(on_crank[:2], f.multipliers, rtol=1e-13)
@@ -231,6 +235,8 @@ def test_exercise_6_1_end_forces():
 
 
 def test_top_normalization_values_in_raw():
+    """The normalization row has no engine force; raw carries Lagrange's value of its
+    multiplier, 2V - 4K from OpenSim's own energies (Exercise 6.6), equal to the reference's."""
     em, q, u, f = _forward("top_euler")
     K, V = em.energy(q, u)
     lam_lagrange = reference("top_euler", "lagrange").forward(q, u).multipliers[0]
@@ -267,6 +273,9 @@ SIM_TOL = 1e-7
     "model_name", ["pendulum_xy", "slider_crank", "exercise_6_1", "pendulum_moving_support"]
 )
 def test_simulate_matches_reference_trajectory(model_name):
+    """OpenSim's Manager (RungeKuttaMerson at accuracy 1e-10) against the reference's forward
+    dynamics under scipy's DOP853 at 1e-12, 0.5 s: within SIM_TOL, on the constraint
+    manifold (Simbody projects every step)."""
     em, nm = engine(model_name), reference(model_name, "lagrange")
     mod = get(model_name)
     q0, u0 = nm.project(np.array(mod.initial_q, float), np.array(mod.initial_u, float))
@@ -288,6 +297,8 @@ def test_simulate_matches_reference_trajectory(model_name):
 
 
 def test_simulate_arguments():
+    """An integrator the Manager does not have is refused, a fixed-step one needs its
+    timestep, and the trajectory records the setting it ran with."""
     em = engine("pendulum_angle")
     with pytest.raises(ValueError, match="unknown opensim integrator"):
         em.simulate([0.3], [1.0], [0.0, 0.1], integrator="RK45")
@@ -306,6 +317,8 @@ ENERGY_DRIFT_ATOL = 1e-9
 
 @pytest.mark.parametrize("model_name", ["double_pendulum_3d", "top_cartesian"])
 def test_simulate_3d_conserves_energy(model_name):
+    """The 3-D models (no q' = u to hand to solve_ivp) conserve energy under the Manager to
+    ENERGY_DRIFT_ATOL, and the mapped states carry the same energy in the reference."""
     em, nm = engine(model_name), reference(model_name, get(model_name).formulations[0])
     mod = get(model_name)
     q0, u0 = nm.project(np.array(mod.initial_q, float), np.array(mod.initial_u, float))

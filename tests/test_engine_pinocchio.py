@@ -566,6 +566,9 @@ def _reference_trajectory(model_name, q0, u0, t_eval):
     ],
 )
 def test_simulate_matches_reference_trajectory(model_name):
+    """The adapter's right-hand side in the engine's coordinates under the reference's DOP853
+    at SIM_RTOL for 1 s against the reference's forward dynamics under scipy's: within
+    SIM_TOL, on the rows, and (planar models) the work-energy balance of the crank torque."""
     em = engine(model_name)
     mod = get(model_name)
     q0, u0 = np.array(mod.initial_q), np.array(mod.initial_u)
