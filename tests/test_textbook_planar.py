@@ -60,30 +60,14 @@ def test_example_1b_eliminated_form_has_plus_gx():
     assert sp.simplify(eliminated - (y * xdd - x * ydd + g * x)) == 0
 
 
+# the symbols Example 2 and Exercise 6.3 print (two links on a slider or a crank)
+TWO_LINKS = ["m1", "m2", "m3", "l1", "l2", "r1", "r2", "I_G1", "I_G2", "g", "T"]
+TWO_LINKS += ["theta1", "theta2", "theta1_dot", "theta2_dot"]
+
+
 def _ex2_printed(constrained: bool):
-    s = {
-        n: _sym(n)
-        for n in [
-            "m1",
-            "m2",
-            "m3",
-            "l1",
-            "l2",
-            "r1",
-            "r2",
-            "I_G1",
-            "I_G2",
-            "g",
-            "T",
-            "theta1",
-            "theta2",
-            "theta1_dot",
-            "theta2_dot",
-            "theta1_dot_dot",
-            "theta2_dot_dot",
-            "lambda1",
-        ]
-    }
+    names = [*TWO_LINKS, "theta1_dot_dot", "theta2_dot_dot", "lambda1"]
+    s = {n: _sym(n) for n in names}
     th1, th2 = s["theta1"], s["theta2"]
     w1, w2, a1, a2 = s["theta1_dot"], s["theta2_dot"], s["theta1_dot_dot"], s["theta2_dot_dot"]
     m1, m2, m3, l1, l2, r1, r2 = (s[k] for k in ["m1", "m2", "m3", "l1", "l2", "r1", "r2"])
@@ -128,32 +112,8 @@ def test_example_2b(formulation):
 
 @pytest.mark.parametrize("formulation", FORMS)
 def test_exercise_6_3(formulation):
-    s = {
-        n: _sym(n)
-        for n in [
-            "m1",
-            "m2",
-            "m3",
-            "l1",
-            "l2",
-            "r1",
-            "r2",
-            "I_G1",
-            "I_G2",
-            "g",
-            "T",
-            "theta1",
-            "theta2",
-            "theta1_dot",
-            "theta2_dot",
-            "x_dot",
-            "theta1_dot_dot",
-            "theta2_dot_dot",
-            "x_dot_dot",
-            "lambda1",
-            "lambda2",
-        ]
-    }
+    names = [*TWO_LINKS, "x_dot", "theta1_dot_dot", "theta2_dot_dot", "x_dot_dot"]
+    s = {n: _sym(n) for n in [*names, "lambda1", "lambda2"]}
     C1, S1 = sp.cos(s["theta1"]), sp.sin(s["theta1"])
     C2, S2 = sp.cos(s["theta2"]), sp.sin(s["theta2"])
     m1, m2, m3, l1, l2, r1, r2, g = (s[k] for k in ["m1", "m2", "m3", "l1", "l2", "r1", "r2", "g"])
