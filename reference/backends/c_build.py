@@ -27,6 +27,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from functools import cache
 from pathlib import Path
 
+from reference.backends import cache as derivation_cache
 from reference.backends.c_source import (
     HEADERS,
     MODULE_NAME,
@@ -181,8 +182,12 @@ def _compile(text: str, stem: str, target: Path, modname: str, flags: list[str])
     # at once must not truncate the file this compiler is reading
     kept = target.with_name(target.name.split(".", 1)[0] + ".c")  # <stem>_c_<digest>.c
     src = kept.with_suffix(f".{os.getpid()}.c")
-    src.write_text(text.replace(MODULE_NAME, modname))
     tmp = target.with_name(f"{target.name}.{os.getpid()}.tmp")
+    try:
+        src.write_text(text.replace(MODULE_NAME, modname))
+    except OSError as exc:  # a full disk: the module runs on Python, and stderr says why
+        src.unlink(missing_ok=True)
+        raise BuildError(f"{stem}: cannot write its C source ({exc.strerror or exc})") from None
     t0 = time.perf_counter()
     try:
         r = subprocess.run(
@@ -201,6 +206,7 @@ def _compile(text: str, stem: str, target: Path, modname: str, flags: list[str])
         first = next((ln for ln in lines if "error" in ln), lines[0])
         raise BuildError(f"{stem}: the C compiler rejected the module ({first}; source {kept})")
     os.replace(tmp, target)
+    derivation_cache.record_built(target)  # what load_kernels verifies before it loads the file
     return time.perf_counter() - t0
 
 
@@ -215,7 +221,7 @@ def prebuild(text: str, stem: str, directory: Path) -> None:
     """Start building module `text` in the background unless it is built or building."""
     target, modname, flags = _target(text, stem, directory)
     with _LOCK:
-        if target.exists() or target in _IN_FLIGHT:
+        if target in _IN_FLIGHT or derivation_cache.built_intact(target):
             return
         if not _POOL:
             _POOL.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="cbuild"))
@@ -230,7 +236,7 @@ def build(text: str, stem: str, directory: Path) -> tuple[Path, str, float]:
         pending = _IN_FLIGHT.pop(target, None)
     if pending is not None:
         return target, modname, pending.result()  # its BuildError, if any, raised here
-    if target.exists():
+    if derivation_cache.built_intact(target):  # a damaged file (a truncated .so) is never loaded
         return target, modname, 0.0
     return target, modname, _compile(text, stem, target, modname, flags)
 

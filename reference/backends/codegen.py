@@ -21,18 +21,14 @@ refuse a (nearly) singular M or S, that is, a kinematic singularity or redundant
 from __future__ import annotations
 
 import hashlib
-import importlib.util
-import marshal
 import math
-import os
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import sympy as sp
 
-from reference.backends import body_sums
+from reference.backends import body_sums, cache
 from reference.backends.summed_source import summed_functions
 from reference.backends.writer import Writer as _Writer
 from reference.backends.writer import header as _header
@@ -75,10 +71,9 @@ _SOURCES_HASH: str | None = None
 
 
 def cache_dir() -> Path:
-    root = os.environ.get("CROSSCHECK_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "multibody-crosscheck"
-    )
-    return Path(root)
+    """The derivation cache's directory (reference.backends.cache: a private temporary one
+    where the configured one cannot be written)."""
+    return cache.directory()
 
 
 def cache_key(model, formulation: str) -> str:
@@ -429,50 +424,24 @@ def _namespace(batched: bool) -> dict:
     }
 
 
-def _code_object(src: str, path: Path):
-    """compile() of a cache entry's source, itself cached beside it as Python caches a
-    module's bytecode: marshal's form, valid for this interpreter's bytecode version and this
-    exact source (its sha256). A warm run compiled about 300 entries, 1 s of the run."""
-    stamp = importlib.util.MAGIC_NUMBER + hashlib.sha256(src.encode()).digest()
-    code_path = path.with_suffix(f".{sys.implementation.cache_tag}.code")
-    try:
-        blob = code_path.read_bytes()
-    except OSError:
-        blob = b""
-    if blob.startswith(stamp):
-        try:
-            return marshal.loads(blob[len(stamp) :])
-        except (EOFError, ValueError, TypeError):
-            pass  # a damaged file: compiled again and replaced below
-    code = compile(src, str(path), "exec")
-    tmp = code_path.with_suffix(f".{os.getpid()}.tmp")
-    try:
-        tmp.write_bytes(stamp + marshal.dumps(code))
-        os.replace(tmp, code_path)  # atomic, as the source's own entry
-    except OSError:  # a read-only cache still runs; it compiles every time
-        tmp.unlink(missing_ok=True)
-    return code
+_code_object = cache.code_object  # the name reference.derivatives.codegen reads
 
 
 def load_compiled(eom_factory, model, formulation: str, params: dict):
     """Return (scalar namespace, batched namespace, source), deriving only on a cache miss.
 
-    `eom_factory()` is called only when the cache has no entry for this model content.
+    `eom_factory()` is called only when the cache has no whole entry for this model content.
     """
     path = cache_dir() / f"{cache_key(model, formulation)}.py"
-    if path.exists():
-        src = path.read_text()
-    else:
+
+    def generate() -> str:
         eom = eom_factory()
         if isinstance(eom, SummedEquations):
-            src = summed_module(eom, params)
-        else:
-            src = generate_source(eom, needs_augmentation(eom, params))
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(src)
-        os.replace(tmp, path)  # atomic: concurrent processes never read half a file
-    code = _code_object(src, path)
+            return summed_module(eom, params)
+        return generate_source(eom, needs_augmentation(eom, params))
+
+    src = cache.entry(path, generate)
+    code = cache.code_object(src, path)
     scalar, batched = _namespace(False), _namespace(True)
     exec(code, scalar)
     exec(code, batched)

@@ -43,13 +43,12 @@ entries and a run without derivatives are unchanged. The cache key is the forwar
 from __future__ import annotations
 
 import hashlib
-import os
 from pathlib import Path
 from typing import Any
 
 import sympy as sp
 
-from reference.backends import codegen
+from reference.backends import cache, codegen
 from reference.backends.codegen import (
     _augment,
     _chol_solve,
@@ -80,15 +79,9 @@ def load(eom_factory, model: Any, formulation: str, kind: str, augmented: bool) 
     only on a cache miss (eom_factory() derives the equations then). `augmented` is the forward
     module's choice (META['augmented']), so both factor the same matrix."""
     path = codegen.cache_dir() / f"{cache_stem(model, formulation, kind)}.py"
-    if path.exists():
-        src = path.read_text()
-    else:
-        src = generate(eom_factory(), kind, augmented)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(src)
-        os.replace(tmp, path)  # atomic, as the forward entries
-    code = codegen._code_object(src, path)
+    # read only when whole, as the forward entries (reference.backends.cache)
+    src = cache.entry(path, lambda: generate(eom_factory(), kind, augmented))
+    code = cache.code_object(src, path)
     scalar, batched = codegen._namespace(False), codegen._namespace(True)
     exec(code, scalar)
     exec(code, batched)
