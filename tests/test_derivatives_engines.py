@@ -73,15 +73,51 @@ def test_pinocchio_loop_closure_dq_derivatives_are_wrong(name):
         assert recs[qty]["passed"] and recs[qty]["error"] <= 1e-10
 
 
+def _file_records(file: str, engine: str = "pinocchio") -> dict:
+    (name,) = register_all(load_model_file(DATA / file))
+    return _records(name, engine)
+
+
 def test_user_file_weld_six_d_constraint_derivatives_agree():
     """A user's file with a weld (Pinocchio's CONTACT_6D constraint model; five of six rows
     dependent): u' and the generalized constraint force A^T lambda, every block."""
-    (name,) = register_all(load_model_file(DATA / "weld_sites.xml"))
-    recs = _records(name, "pinocchio")
+    recs = _file_records("weld_sites.xml")
     judged = [r for r in recs.values() if not r["skipped"]]
     assert {r["quantity"] for r in judged} >= {"daccelerations_dq", "dconstraint_forces_dtau"}
     assert all(r["passed"] for r in judged), [(r["quantity"], r["error"]) for r in judged]
     assert all("constraint models" in r["derivative_method"] for r in judged)
+
+
+def test_user_file_weld_on_a_free_body_agrees_along_the_quaternions_tangent():
+    """A free body (quaternion coordinates) welded to a hinged arm: u''s derivatives along the
+    unit quaternion's tangent space; A^T lambda is not compared (the quaternion's norm row
+    has a multiplier no engine has), which its records say."""
+    recs = _file_records("free_weld.xml")
+    judged = {q: r for q, r in recs.items() if not r["skipped"]}
+    assert set(judged) == {f"daccelerations_{b}" for b in ("dq", "du", "dtau")}
+    assert all(r["passed"] and r["directions"] == "consistent directions" for r in judged.values())
+    assert "quaternion" in recs["dconstraint_forces_dq"]["reason"]
+
+
+@pytest.mark.parametrize("file", ["double_pendulum.xml", "pendulum_hinge.xml"])
+def test_user_file_without_equalities_gets_pinocchio_derivatives(file):
+    """No equality: no constraint models (constraintDynamics is ABA then), every u' block;
+    one degree of freedom too (Pinocchio's empty constraint Jacobian is then a vector)."""
+    recs = _file_records(file)
+    judged = [r for r in recs.values() if not r["skipped"]]
+    assert len(judged) == 3 and all(r["passed"] for r in judged), judged
+    assert all(r["derivative_method"].startswith("computeConstraintDynamics") for r in judged)
+
+
+def test_user_file_connect_loop_shows_the_defect():
+    """A user's four-bar closed by a `connect` (CONTACT_3D between two moving bodies): the
+    same defect as the slider-cranks, in du'/dq and d(A^T lambda)/dq only."""
+    recs = _file_records("fourbar_connect.xml")
+    for qty in ("daccelerations_dq", "dconstraint_forces_dq"):
+        assert recs[qty]["passed"] is False and recs[qty]["error"] > 1e-2, recs[qty]
+        assert recs[qty]["differences_error"] < 1e-6, recs[qty]
+    for qty in ("daccelerations_du", "dconstraint_forces_du", "daccelerations_dtau"):
+        assert recs[qty]["passed"] and recs[qty]["error"] <= 1e-10, recs[qty]
 
 
 def test_a_planted_error_fails_its_block_alone():

@@ -88,8 +88,10 @@ class UserFileDerivatives:
                 "constraintDynamics does not give forwardDynamics' accelerations on this file "
                 f"(they differ by {np.max(np.abs(a - plain)):.1e}): no derivatives claimed"
             )
+        # a file without equalities has no constraint models: constraintDynamics is then ABA
         forces = np.concatenate(
-            [
+            [np.zeros(0)]
+            + [
                 cd.contact_force.vector if cm.type == SIX else cd.contact_force.linear
                 for cm, cd in zip(self.cms, self.cds, strict=True)
             ]
@@ -113,7 +115,8 @@ class UserFileDerivatives:
         pin.framesForwardKinematics(m, d, qe)
         for cm, cd in zip(self.cms, self.cds, strict=True):
             cm.calc(m, d, cd)  # the contact frames' placements at qe (the Jacobian's frames)
-        return np.array(pin.getConstraintsJacobian(m, d, self.cms, self.cds), float)
+        J = np.array(pin.getConstraintsJacobian(m, d, self.cms, self.cds), float)
+        return J.reshape(-1, m.nv)  # no rows on one degree of freedom: (0,), not (0, 1)
 
     def back(self, qe, ve, ae, fe):
         """(u', the generalized constraint force in the reference's speeds)."""
