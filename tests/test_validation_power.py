@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,35 @@ def test_run_checks_the_generic_parameter_set_as_records_of_their_own():
     assert generic and all(r["passed"] is not False for r in generic)
     defaults = {p.name: p.default for p in models.get("pendulum_xy").parameters}
     assert all(v != defaults[k] for k, v in generic_model("pendulum_xy").params.items())
+
+
+def test_a_model_without_parameters_has_one_generic_record_that_says_why(tmp_path):
+    """An MJCF file's model has no parameters: its generic set would be its nominal one, so
+    instead of records repeating the nominal ones (which could not fail on their own) one
+    skipped record says so."""
+    from crosscheck.run.checks import run
+    from crosscheck.user_models import load_model_file, register_all
+
+    um = load_model_file(Path(__file__).with_name("data") / "fourbar_connect.xml")[0]
+    register_all([um])
+    records, _ = run([um.name], ["pinocchio"], n_states=2, trajectories=False)
+    generic = [r for r in records if r["check"].endswith("_generic")]
+    assert [(r["check"], r["quantity"], r["skipped"]) for r in generic] == [
+        ("instantaneous_generic", "parameter_set", True)
+    ]
+    assert "no parameters" in generic[0]["reason"]
+
+
+def test_the_formulations_bar_is_round_off_or_the_solves_conditioning():
+    """Two exact KKT solves differ by round-off up to eps x cond(K): the bar is the round-off
+    one (1e-11) on every textbook model (cond(K) <= 1.8e4) and eps x cond(K) above 4.5e4,
+    with the figure in its reason."""
+    from crosscheck.checks.tolerances import FORMULATIONS, formulations_tolerance
+
+    assert formulations_tolerance(1.8e4) is FORMULATIONS
+    loose = formulations_tolerance(2.4e6)  # Cassie's
+    assert loose.value == pytest.approx(np.finfo(float).eps * 2.4e6)
+    assert "cond(K) = 2.4e+06" in loose.reason
 
 
 @pytest.mark.parametrize(

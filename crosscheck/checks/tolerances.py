@@ -48,6 +48,28 @@ ENERGY = Tolerance(
     "kinetic plus potential energy from the engine's own routines against the "
     "reference's, same datum: round-off only",
 )
+FORMULATIONS = Tolerance(
+    1e-11,
+    "two derivations of the same equations evaluated in different arithmetic order: round-off only",
+)
+
+
+def formulations_tolerance(kappa: float) -> Tolerance:
+    """The bar between two formulations' exact KKT solves where cond(K) = `kappa`: each solve
+    is backward stable, so each answer may err by ~eps x kappa relative; FORMULATIONS where
+    that bound is below it (every textbook model)."""
+    bound = float(np.finfo(float).eps) * kappa
+    if bound <= FORMULATIONS.value:
+        return FORMULATIONS
+    return Tolerance(
+        bound,
+        f"two derivations of the same equations, each solved exactly: a backward-stable "
+        f"solve errs by up to eps x cond(K) relative, {bound:.1e} here (cond(K) = "
+        f"{kappa:.2g} of the KKT matrix, the largest at the compared states), above the "
+        f"round-off bar {FORMULATIONS.value:.0e}",
+    )
+
+
 SOFT_PREDICTION = Tolerance(
     1e-4,
     "MuJoCo's raw (soft) answer against the one predicted from the reference's "
