@@ -204,3 +204,17 @@ def test_directions_follow_the_reference_state():
     ref = ReferenceAtState(DerivativeModel(nm), q, u, 0.0)
     assert ref.dirs.dq.shape == (2, 1) and ref.dirs.du.shape == (2, 1)
     assert ref.kappa > 1
+
+
+def test_pinocchio_derivatives_drift_with_the_world_as_first_joint():
+    """MuJoCo's own test file of a slide held by a `connect` whose body1 is a static body
+    (Pinocchio's constraint model with the universe as joint1): its du'/dtau and
+    d(A^T lambda)/dtau grow from call to call on the same Data (0, -3, -8, ...: the first call
+    is right), while du'/dq and du'/du stay exact (python
+    benchmarks/pinocchio_loop_derivatives.py, "the world first"). When an upgrade fixes it,
+    this test says so."""
+    recs = _file_records("real/mujoco_force_slide_rotated.xml")
+    for qty in ("daccelerations_dtau", "dconstraint_forces_dtau"):
+        assert recs[qty]["passed"] is False and recs[qty]["error"] > 1.0, recs[qty]
+    for qty in ("daccelerations_dq", "daccelerations_du", "dconstraint_forces_du"):
+        assert recs[qty]["passed"] and recs[qty]["error"] <= 1e-10, recs[qty]

@@ -62,7 +62,8 @@ def jacobians(em, qe: np.ndarray, ve: np.ndarray, t: float) -> EngineJacobians:
     a = pin.constraintDynamics(m, d, qe, ve, tau, em.cms, em.cds, em.prox).copy()
     forces = np.concatenate([cd.contact_force.linear for cd in em.cds])
     out = pin.computeConstraintDynamicsDerivatives(m, d, em.cms, em.cds, em.prox)
-    aq, av, at, lq, lv, lt = (np.array(x, float) for x in out)
+    # one degree of freedom: Pinocchio hands an n x 1 matrix over as a vector
+    aq, av, at, lq, lv, lt = (np.array(x, float).reshape(-1, m.nv) for x in out)
     J = np.array(pin.getConstraintsJacobian(m, d, em.cms, em.cds), float)
     return EngineJacobians(
         a,

@@ -97,7 +97,8 @@ class UserFileDerivatives:
             ]
         )
         out = pin.computeConstraintDynamicsDerivatives(m, d, self.cms, self.cds, self.prox)
-        aq, av, at, lq, lv, lt = (np.array(x, float) for x in out)
+        # one degree of freedom: Pinocchio hands an n x 1 matrix over as a vector
+        aq, av, at, lq, lv, lt = (np.array(x, float).reshape(-1, m.nv) for x in out)
         J = self.constraint_jacobian(qe)
         return EngineJacobians(
             a,
