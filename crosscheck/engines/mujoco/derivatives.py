@@ -24,6 +24,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from crosscheck.engines.base import EngineUnsupported
 from crosscheck.engines.linearization import EngineJacobians, EngineMaps
 
 # mjd_transitionFD's step: its centred differences err by EPS^2 (truncation) and by about
@@ -47,6 +48,10 @@ def transition_jacobians(em, qe: np.ndarray, ve: np.ndarray) -> EngineJacobians:
         qacc = d.qacc.copy()
         A = np.zeros((2 * nv + m.na, 2 * nv + m.na))
         mujoco.mjd_transitionFD(m, d, EPS, True, A, None, None, None)
+    except mujoco.FatalError as exc:  # e.g. a model with sleeping enabled
+        raise EngineUnsupported(
+            f"MuJoCo's mjd_transitionFD refuses this model ({exc}): its answer is differenced"
+        ) from exc
     finally:
         m.opt.timestep, m.opt.integrator, m.opt.disableflags = saved
     aq = A[nv : 2 * nv, :nv].copy()
