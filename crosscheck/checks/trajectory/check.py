@@ -44,6 +44,7 @@ from crosscheck.checks.trajectory.horizon import (
     first_activation,
     horizon_before,
     horizon_reason,
+    name_the_horizon,
     nothing_to_compare,
     singular_time,
 )
@@ -413,7 +414,7 @@ def _reference_records(ctx: _Reference, tight):
         E_ref,
         None if ctx.conserved else ctx.work,
     )
-    return records, [series]
+    return name_the_horizon(records, ctx.t_end), [series]
 
 
 def _check_on_grid(ctx: _Reference, engine: str, label: str, t) -> None:
