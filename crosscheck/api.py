@@ -16,6 +16,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+# the largest `states` the API takes: the CLI's --states bound
+from crosscheck.commands.arguments import MAX_STATES
+
 API_ORIGIN = "Python API (crosscheck.check)"
 
 
@@ -89,18 +92,23 @@ def check(
     return records
 
 
-# the largest `states` the API takes: the CLI's --states has no use for more (each state is one
-# comparison per engine; a sweep is the tool for many states)
-MAX_STATES = 10_000
-
-
 def _engine_names(engines: Iterable[str] | str | None) -> list[str] | None:
     """Engine names from an iterable, or a string read as comma-separated names."""
     if engines is None:
         return None
-    if isinstance(engines, str):
-        return [n.strip() for n in engines.split(",") if n.strip()]
-    return [str(e) for e in engines]
+    names = (
+        [n.strip() for n in engines.split(",")]
+        if isinstance(engines, str)
+        else [str(e).strip() for e in engines]
+    )
+    if not names or "" in names:
+        from reference.errors import ModelInputError
+
+        raise ModelInputError(
+            f"check(): engines={engines!r} names no engine or an empty one; give engine "
+            f"names (a list, or one comma-separated string), or None for every engine"
+        )
+    return names
 
 
 def _check_numbers(states: object, t_end: Any) -> None:

@@ -64,6 +64,11 @@ def _as_models(result, where: str) -> list[Model]:
             f"{where}: {HOOK}() returned {', '.join(bad)}, expected reference.system.Model objects"
         )
     for mdl in items:
+        if not mdl.coordinates:  # every check would compare empty arrays
+            raise ModelFileError(
+                f"{where}: model {mdl.name!r} has no coordinates (no moving body), so it has "
+                "no equations of motion to check; give it a coordinate and its speed"
+            )
         try:
             mdl.validate()
         except ModelInputError as exc:
@@ -81,6 +86,13 @@ def _load_python(path: Path) -> list[UserModel]:
     sys.modules[mod_name] = module  # dataclasses and pickling need the module registered
     try:
         spec.loader.exec_module(module)
+    except SystemExit as exc:  # sys.exit() at import would end the command with its code
+        sys.modules.pop(mod_name, None)
+        raise ModelFileError(
+            f"{path}: called sys.exit({exc.code!r}) while loading, so it defines no models; "
+            f"keep a model file free of code that exits (put it under "
+            f'`if __name__ == "__main__":`)'
+        ) from None
     except Exception as exc:  # the user's code: report it in one line, whatever it raised
         sys.modules.pop(mod_name, None)
         raise ModelFileError(f"{path}: raised {type(exc).__name__} while loading: {exc}") from exc
@@ -92,6 +104,10 @@ def _load_python(path: Path) -> list[UserModel]:
         )
     try:
         result = hook()
+    except SystemExit as exc:
+        raise ModelFileError(
+            f"{path}: {HOOK}() called sys.exit({exc.code!r}); it must return the file's models"
+        ) from None
     except Exception as exc:
         raise ModelFileError(f"{path}: {HOOK}() raised {type(exc).__name__}: {exc}") from exc
     return [
@@ -170,6 +186,8 @@ def entry_point_models(group: str = ENTRY_POINT_GROUP) -> list[UserModel]:
         try:
             hook = ep.load()
             result = hook() if callable(hook) else hook
+        except SystemExit as exc:  # a package's sys.exit() would end the command unsaid
+            raise ModelFileError(f"{where}: called sys.exit({exc.code!r})") from None
         except Exception as exc:
             raise ModelFileError(f"{where}: raised {type(exc).__name__}: {exc}") from exc
         out += [

@@ -20,11 +20,16 @@ def parse_perturb(specs: list[str]) -> dict[str, dict[str, float]]:
         try:
             engine, rest = spec.split(":", 1)
             param, rel = rest.split("=", 1)
-            out.setdefault(engine.strip(), {})[param.strip()] = float(rel)
+            out.setdefault(engine.strip(), {})[param.strip()] = value = float(rel)
         except ValueError:
             raise ModelInputError(
                 f"--perturb {spec!r}: expected ENGINE:PARAM=REL, e.g. mujoco:m2=1e-6"
             ) from None
+        if value == 0.0:  # REL is relative: PARAM times 1 + 0 is PARAM itself
+            raise ModelInputError(
+                f"--perturb {spec!r}: REL is a relative change (PARAM times 1 + REL), and "
+                f"0 changes nothing; give a non-zero REL, e.g. {spec.split('=')[0]}=1e-6"
+            )
         if engine.strip() not in engine_names():
             raise ModelInputError(
                 f"--perturb {spec!r}: unknown engine {engine!r}; valid: {', '.join(engine_names())}"

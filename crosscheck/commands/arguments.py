@@ -22,6 +22,45 @@ from pathlib import Path
 MAX_T_END = 1000.0
 
 
+# Upper bounds of the counts: past them a command would run for days, exhaust memory or
+# overflow a C integer (--workers 1e20) long before it said anything useful.
+# states per model: each is one comparison per engine; many states are `crosscheck sweep`'s
+MAX_STATES = 10_000
+# worker processes: each holds every engine's models; more than this is no machine's core count
+MAX_PROCESSES = 1024
+# a sweep's sample index: indices are written to sweep.json, and JSON readers keep whole
+# numbers exactly only below 2**53 (9.007e15)
+MAX_INDEX = 10**15
+# a sweep's samples: the parent keeps every error value of a campaign for exact quantiles
+# (~1.6 GB at this many samples of one model; crosscheck.sweep.config)
+MAX_SAMPLES = 10**7
+
+
+def at_most(kind, upper: int, why: str):
+    """`kind` (positive_int, nonnegative_int) refusing values above `upper`, saying `why`."""
+
+    def parse(text: str) -> int:
+        value = kind(text)
+        if value > upper:
+            raise argparse.ArgumentTypeError(f"{value} is more than {upper:,}: {why}")
+        return value
+
+    parse.__name__ = kind.__name__
+    return parse
+
+
+def states_count(text: str) -> int:
+    """--states: consistent states per model, 1 to MAX_STATES."""
+    return at_most(positive_int, MAX_STATES, "a campaign of many states is `crosscheck sweep`'s")(
+        text
+    )
+
+
+def processes(text: str) -> int:
+    """--jobs, --workers: worker processes, 1 to MAX_PROCESSES."""
+    return at_most(positive_int, MAX_PROCESSES, "the worker processes this command starts")(text)
+
+
 def positive_int(text: str) -> int:
     """An integer >= 1 (a count of states, samples, workers)."""
     try:

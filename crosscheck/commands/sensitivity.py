@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from pathlib import Path
 
 from crosscheck.checks.sensitivity import DECADES, STATES, Threshold, engine_thresholds
 
@@ -23,14 +22,13 @@ DEFAULT_MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d")
 
 
 def cmd_sensitivity(args) -> int:
-    from crosscheck.commands.arguments import name_list, resolve_models
-    from crosscheck.engines.registry import available_engines
+    from crosscheck.commands.arguments import output_dir, resolve_engines, resolve_models
+    from crosscheck.runtime.output import write_atomic
 
     files = getattr(args, "user_models", None)
     names = resolve_models(args.models, files) if args.models or files else list(DEFAULT_MODELS)
-    engines = name_list(args.engines) if args.engines else list(available_engines())
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    engines = resolve_engines(args.engines)  # unknown or unimportable: exit 2, before any work
+    out = output_dir(args.out)  # an unusable --out fails now, not after the search
     t0 = time.perf_counter()
     rows: list[Threshold] = []
     for name in names:
@@ -46,7 +44,7 @@ def cmd_sensitivity(args) -> int:
     }
     if args.derivatives:
         doc["derivative_thresholds"] = [r.to_json() for r in blocks]
-    (out / "sensitivity.json").write_text(json.dumps(doc, indent=2))
+    write_atomic(out / "sensitivity.json", json.dumps(doc, indent=2))
     for r in rows:
         at = f"{r.caught_at:.0e}" if r.caught_at is not None else "NOT CAUGHT"
         print(
@@ -77,7 +75,7 @@ def register(sub) -> None:
     s = sub.add_parser(
         "sensitivity", help="smallest relative parameter error in each engine the suite catches"
     )
-    from crosscheck.commands.arguments import add_model_files
+    from crosscheck.commands.arguments import add_engines, add_model_files, states_count
 
     s.add_argument(
         "models",
@@ -85,8 +83,10 @@ def register(sub) -> None:
         help=f"models (default: the --model-file models, else {', '.join(DEFAULT_MODELS)})",
     )
     add_model_files(s)
-    s.add_argument("--engines", default=None, help="comma-separated (default: every engine)")
-    s.add_argument("--states", type=int, default=STATES, help="consistent states per model")
+    add_engines(s)
+    s.add_argument(
+        "--states", type=states_count, default=STATES, help="consistent states per model"
+    )
     s.add_argument("--out", default="out", help="directory for sensitivity.json")
     s.add_argument(
         "--derivatives",

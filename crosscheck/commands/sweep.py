@@ -221,11 +221,16 @@ def exit_code(status: dict) -> int:
 
 def register(sub):
     from crosscheck.commands.arguments import (
+        MAX_INDEX,
+        MAX_SAMPLES,
         add_engines,
         add_models,
+        at_most,
         nonnegative_int,
         positive_int,
     )
+
+    samples = at_most(positive_int, MAX_SAMPLES, "the samples a campaign keeps in memory")
 
     s = sub.add_parser(
         "sweep",
@@ -234,13 +239,11 @@ def register(sub):
         "the instantaneous cross-checks on each, write DIR/sweep.json.",
     )
     add_models(s)
-    s.add_argument(
-        "--samples", type=positive_int, default=None, help="samples per model (default 100)"
-    )
+    s.add_argument("--samples", type=samples, default=None, help="samples per model (default 100)")
     s.add_argument("--seed", type=nonnegative_int, default=None, help="campaign seed (default 0)")
     s.add_argument(
         "--index",
-        type=nonnegative_int,
+        type=at_most(nonnegative_int, MAX_INDEX, "sweep.json keeps indices below 2**53"),
         default=None,
         help="first sample index (default 0): --index I --samples 1 reruns sample I",
     )
@@ -258,7 +261,7 @@ def register(sub):
     _add_execution(s)
     s.add_argument(
         "--worst",
-        type=nonnegative_int,
+        type=at_most(nonnegative_int, MAX_SAMPLES, "the samples a campaign keeps"),
         default=None,
         help=f"worst cases kept per quantity (default {WORST_CASES})",
     )
@@ -288,11 +291,17 @@ def register(sub):
 
 def _add_execution(s) -> None:
     """Where and for how long a campaign runs: none of it changes the results."""
-    from crosscheck.commands.arguments import positive_int, positive_seconds
+    from crosscheck.commands.arguments import (
+        MAX_SAMPLES,
+        at_most,
+        positive_int,
+        positive_seconds,
+        processes,
+    )
 
     s.add_argument(
         "--workers",
-        type=positive_int,
+        type=processes,
         default=None,
         help="local worker processes (default: all cores; 1 runs in this process)",
     )
@@ -304,7 +313,7 @@ def _add_execution(s) -> None:
     )
     s.add_argument(
         "--chunk",
-        type=positive_int,
+        type=at_most(positive_int, MAX_SAMPLES, "the samples a campaign keeps in memory"),
         default=None,
         help="samples per task (default: sized per executor)",
     )

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from crosscheck.checks.perturb import check_parameters, check_perturb
+from crosscheck.commands.arguments import MAX_SAMPLES
 from crosscheck.engines.registry import available_engines
 from reference import models
 from reference.errors import ModelInputError
@@ -27,8 +28,8 @@ DASK_MIN_CHUNK = 100
 DASK_MAX_CHUNK = 2000
 # The parent keeps every error value of a campaign (8 bytes per sample per quantity, ~20
 # quantities per model) to give exact quantiles: 10^7 samples of one model hold ~1.6 GB. More is
-# refused before any work (run several campaigns with --index instead).
-MAX_SAMPLES = 10**7
+# refused before any work (run several campaigns with --index instead): MAX_SAMPLES, which the
+# command line's --samples, --chunk and --worst share (crosscheck.commands.arguments).
 # log10 histogram of each quantity's errors (report figures): 0.25-decade bins from 1e-18 to 1e2;
 # exact zeros, values below/above the range and non-finite values are counted apart
 HIST_LO, HIST_HI, HIST_STEP = -18.0, 2.0, 0.25

@@ -464,6 +464,11 @@ def import_mjcf(path, name: str | None = None, *, project: bool = False, ctrl=No
     from reference.mjcf.checks import check_supported, disabled
 
     m = compile_file(path)
+    if m.nv == 0:  # nothing to derive: every check would compare empty arrays
+        raise ModelFileError(
+            f"{path}: the file has no moving body (no joint: only the world body, or bodies "
+            "welded to it), so it has no equations of motion to check; give a body a joint"
+        )
     act, unexpressed = actuation(m, stated_controls(m, ctrl))
     notes = check_supported(m, str(path), unexpressed) + act.notes
     pos, rot, omega, joints = _frames(m)

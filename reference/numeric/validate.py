@@ -24,6 +24,10 @@ from reference.system import Model
 
 _ND = np.ndarray
 
+# a parameter this large overflows as soon as it is squared or multiplied by a few others
+# (1e100 squared is 1e200; the equations' terms are products of several parameters)
+HUGE = 1e100
+
 
 def resolve_parameters(model: Model, overrides: dict | None = None) -> dict[str, float]:
     """The model's parameter values with `overrides`, checked.
@@ -128,8 +132,33 @@ class StateValidation:
         if status == SINGULAR:
             raise SingularSystemError(self.singular_message(q, float(out[-1])))
         if status == NOT_DEFINED:
-            raise self._undefined(q)
+            raise self._overflow(q, u) or self._undefined(q)
         raise RuntimeError(f"{self.model.name}: kernel returned status {status}")
+
+    def _overflow(self, q: ArrayLike, u: ArrayLike) -> SingularSystemError | None:
+        """The error when the outputs are not finite because the numbers overflow (a
+        parameter of 1e308), not because of a division by zero; None otherwise. Told apart on
+        the generated Python code, where a division by zero raises and an overflow gives inf."""
+        big = max(self.params.items(), key=lambda kv: abs(kv[1]), default=("", 0.0))
+        overflow = abs(big[1]) >= HUGE
+        if not overflow:
+            try:
+                ql, ul = (np.asarray(x, float).ravel().tolist() for x in (q, u))  # floats
+                with np.errstate(all="ignore"):
+                    groups = self._py._scalar["matrices"](ql, ul, 0.0, [*map(float, self.p)])
+                overflow = not all(math.isfinite(x) for g in groups for x in g)
+            except (ZeroDivisionError, ValueError):
+                pass  # a division by zero, or sqrt or log outside its domain
+            except OverflowError:
+                overflow = True
+        if not overflow:
+            return None
+        return SingularSystemError(
+            f"{self.model.name}: the numbers overflow at q = "
+            f"{np.round(np.asarray(q, float), 6).tolist()}: the equations' terms exceed the "
+            f"largest double (1.8e308) and are not finite (largest parameter: {big[0]} = "
+            f"{big[1]:g}); give the state and the parameters values of a physical size"
+        )
 
     def _undefined(self, q: ArrayLike) -> SingularSystemError:
         return SingularSystemError(
