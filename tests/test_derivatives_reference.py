@@ -160,3 +160,23 @@ def test_derivative_modules_are_cached_apart_from_the_forward_code(tmp_path, mon
     mtime = dm.cache_path.stat().st_mtime_ns
     again = DerivativeModel(NumericModel(models.get("pendulum_xy")), backend="python")
     assert again.cache_path == dm.cache_path and dm.cache_path.stat().st_mtime_ns == mtime
+
+
+def test_quaternion_coordinates_with_a_weld_agree_with_the_slow_path():
+    """A free body's quaternion welded to a hinged arm (dependent rows, a unit-norm row): the
+    q-directions are tangent to the unit sphere, and the exact u' derivatives agree with the
+    slow path along them, the speeds' directions and tau within the derived tolerances
+    (crosscheck's reference records; A^T lambda is not compared: the norm row's multiplier is
+    the formulation's)."""
+    from crosscheck.checks.derivatives.records import reference_records
+
+    (name,) = register_all(load_model_file(DATA / "free_weld.xml"))
+    nm = NumericModel(models.get(name))
+    dm = DerivativeModel(nm)
+    dirs = consistent_directions(dm, *consistent_states(nm, 2)[1])
+    q = consistent_states(nm, 2)[1][0]
+    assert np.max(np.abs(nm._position_jacobian(q, 0.0) @ dirs.dq)) <= 1e-14
+    recs = {r["quantity"]: r for r in reference_records(name, nm, dm, consistent_states(nm, 2))}
+    judged = {k for k, r in recs.items() if not r["skipped"]}
+    assert judged == {f"daccelerations_{b}" for b in ("dq", "du", "dtau")}, recs
+    assert all(recs[k]["passed"] for k in judged)
