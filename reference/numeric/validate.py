@@ -18,7 +18,7 @@ from reference.backends.kernels import (
     PIVOT_RATIO_MIN,
     SINGULAR,
 )
-from reference.backends.python_kernels import as_floats
+from reference.backends.python_kernels import PythonKernels, as_floats
 from reference.errors import ModelInputError, SingularSystemError
 from reference.system import Model
 
@@ -84,6 +84,9 @@ class StateValidation:
     n: int
     nq: int
     _nf: int
+    params: dict[str, float]
+    p: tuple[float, ...]
+    _py: PythonKernels
 
     def _state(self, q: ArrayLike, u: ArrayLike, t: float) -> tuple[list, list, float]:
         """Validated state as Python float lists."""
