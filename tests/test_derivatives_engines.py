@@ -228,3 +228,22 @@ def test_mujoco_transition_fd_refusing_a_model_leaves_its_answer_differenced():
     assert judged and all(r["passed"] for r in judged), judged
     rigid = [r for r in judged if not r["quantity"].endswith("_soft_vs_predicted")]
     assert all("mjd_transitionFD refuses" in r["derivative_method"] for r in rigid), rigid
+
+
+def test_a_stencil_reaching_a_limit_leaves_its_state_out_and_says_so():
+    """A user's arm drawn where no limit acts, some states near the wrist's limit: a
+    differenced engine's stencil there reaches it (other equations), so that state is not
+    compared and the records say which and why; Pinocchio's own derivatives, at the states
+    themselves, are judged at every state."""
+    (name,) = register_all(load_model_file(DATA / "robot_arm.xml"))
+    nm = NumericModel(models.get(name))
+    states, dm = consistent_states(nm, 6), DerivativeModel(nm)
+    for engine in ("mujoco", "pinocchio"):
+        recs = engine_records(name, nm, dm, states, get_engine(engine), nm.params)
+        judged = [r for r in recs if not r["skipped"]]
+        assert judged and all(r["passed"] for r in judged), judged
+        left = ["not compared at" in r["reason"] for r in judged]
+        if engine == "mujoco":
+            assert all(left) and "at its limit within the difference stencil" in judged[0]["reason"]
+        else:
+            assert not any(left)

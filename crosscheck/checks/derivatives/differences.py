@@ -31,6 +31,12 @@ from reference.numeric.redundant import RANK_RTOL
 KINDS = ("engine", "raw", "predicted", "reference")
 
 
+class StencilLeaves(Exception):
+    """A stencil state where something an MJCF file's monitor watches acts (a contact, a
+    limit): the equations the engine answers are other ones there, so the state's differences
+    are not compared."""
+
+
 def project(nm, q, u, t: float, iterations: int = 50) -> tuple[np.ndarray, np.ndarray]:
     """The consistent state nearest (q, u): Gauss-Newton on the position rows, then the least
     velocity correction, both with the reference's rank cut (RANK_RTOL) on dependent rows. The
@@ -107,16 +113,29 @@ def _answers(em: EngineModel, nm, qq, uu, t: float, soft: bool) -> dict:
     return out
 
 
+def _clear(monitor, states: list, h: float) -> None:
+    """Raise StencilLeaves where the monitor (sampling.monitor_of) sees something act."""
+    for qq, uu in states if monitor is not None else ():
+        acts = monitor.active(qq, uu)
+        if acts:
+            raise StencilLeaves(
+                f"{'; '.join(map(str, acts))} within the difference stencil (step {h:.1e})"
+            )
+
+
 def engine_differences(
-    em: EngineModel, nm, dirs, q, u, t: float, h: float, soft_prediction: bool
+    em: EngineModel, nm, dirs, q, u, t: float, h: float, soft_prediction: bool, monitor=None
 ) -> Differenced:
-    """The stencils of every kind along every q- and u-direction (module docstring)."""
+    """The stencils of every kind along every q- and u-direction (module docstring); raises
+    StencilLeaves where a stencil state leaves the region where nothing `monitor` watches
+    acts."""
     q, u = np.asarray(q, float), np.asarray(u, float)
     out = Differenced(h)
     for block in ("dq", "du"):
         DQ, DU = dirs.state_directions(block)
         for k in range(DQ.shape[1]):
             states = stencil_states(nm, q, u, t, DQ[:, k], DU[:, k], h, not dirs.whole)
+            _clear(monitor, states, h)
             answers = [_answers(em, nm, qq, uu, t, soft_prediction) for qq, uu in states]
             for j, quantity in enumerate(("accelerations", "multipliers", "constraint_forces")):
                 for kind in KINDS:

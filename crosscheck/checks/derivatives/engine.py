@@ -24,8 +24,9 @@ import numpy as np
 
 from crosscheck.checks import tolerances as C
 from crosscheck.checks.derivatives import tolerances as D
-from crosscheck.checks.derivatives.differences import engine_differences
+from crosscheck.checks.derivatives.differences import StencilLeaves, engine_differences
 from crosscheck.checks.derivatives.faults import ENGINE_BLOCKS, Fault
+from crosscheck.checks.sampling import monitor_of
 from crosscheck.engines.base import EngineAdapter, EngineModel, EngineUnsupported
 from reference.derivatives import DerivativeModel
 from reference.derivatives.directions import Directions, along, consistent_directions
@@ -237,12 +238,20 @@ def compare_at_state(
     own_soft = ed if ed is not None and ed.answer == "soft" else None
     if own_exact is not None:
         _judge_analytic(out, own_exact, ref)
-    diff = engine_differences(
-        em, dm.nm, ref.dirs, ref.q, ref.u, t, D.step(delta), adapter.capabilities.soft_prediction
-    )
-    planted = fault if own_exact is None else None  # where the judged blocks come from
-    _judge_differences(out, diff, ref, delta, planted, own_exact is None)
-    _judge_soft(out, diff, ref, own_soft)
+    step, soft_prediction = D.step(delta), adapter.capabilities.soft_prediction
+    monitor = monitor_of(dm.nm.model)
+    try:
+        diff = engine_differences(
+            em, dm.nm, ref.dirs, ref.q, ref.u, t, step, soft_prediction, monitor
+        )
+    except StencilLeaves:
+        if own_exact is None:
+            raise
+        diff = None  # the engine's own derivatives are judged; only differences_error is lost
+    if diff is not None:
+        planted = fault if own_exact is None else None  # where the judged blocks come from
+        _judge_differences(out, diff, ref, delta, planted, own_exact is None)
+        _judge_soft(out, diff, ref, own_soft)
     mode = "whole Jacobians" if ref.dirs.whole else "consistent directions"
     for qty in out.judged:
         out.reported.setdefault(qty, {})["directions"] = mode

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from crosscheck.checks.derivatives import tolerances as D
-from crosscheck.checks.derivatives.differences import stencil, stencil_states
+from crosscheck.checks.derivatives.differences import StencilLeaves, stencil, stencil_states
 from crosscheck.checks.derivatives.engine import (
     BLOCKS,
     OF,
@@ -56,25 +56,27 @@ class _Worst:
         if worse:
             self.judged, self.state, self.extra = judged, state, dict(extra)
 
-    def record(self, rec, qty: str, metric: str) -> Record:
+    def record(self, rec, qty: str, metric: str, note: str = "") -> Record:
         j = self.judged
         assert j is not None
         details = {_FIGURES[k]: v for k, v in j.figures.items() if k in _FIGURES}
         details.update(self.extra)
         kw = {} if metric == "scaled_error" else {"metric": metric}
+        if note:
+            kw["reason"] = f"{j.reason}; {note}"
         return rec(CHECK, qty, j.error, j.named(), worst_state=self.state, **kw, **details)
 
 
-def _fold(rec, worst: dict[str, _Worst], skips: dict[str, str]) -> list[Record]:
+def _fold(rec, worst: dict[str, _Worst], skips: dict[str, str], note: str = "") -> list[Record]:
     """The records in a fixed order: every block's accelerations and multipliers, then the
-    soft ones."""
+    soft ones (`note`: what the judged ones leave out)."""
     out = []
     order = [quantity(of, b) for b in BLOCKS for of in OF]
     order += [f"{quantity(of, b)}_soft_vs_predicted" for b in ("dq", "du") for of in OF]
     for qty in order:
         if qty in worst:
             metric = "relative_miss" if qty.endswith("_soft_vs_predicted") else "scaled_error"
-            out.append(worst[qty].record(rec, qty, metric))
+            out.append(worst[qty].record(rec, qty, metric, note))
         elif qty in skips:
             out.append(rec(CHECK, qty, None, None, skips[qty]))
     return out
@@ -103,17 +105,25 @@ def engine_records(
         return [rec(CHECK, quantity(of, "dq"), None, None, reason) for of in compared(nm)]
     worst: dict[str, _Worst] = {}
     skips: dict[str, str] = {}
+    left: list[str] = []  # states whose stencil leaves the region the equations hold in
     for i, (q, u) in enumerate(states):
         try:
             sd = compare_at_state(em, adapter, dm, name, q, u, 0.0, fault)
         except EngineUnsupported as exc:
             reason = f"the engine cannot answer at the states: {exc}"
             return [rec(CHECK, quantity(of, "dq"), None, None, reason) for of in compared(nm)]
+        except StencilLeaves as exc:
+            left.append(f"state {i}: {exc}")
+            continue
         for qty, judged in sd.judged.items():
             worst.setdefault(qty, _Worst()).add(judged, i, sd.reported.get(qty, {}))
         for qty, why in sd.skips.items():
             skips.setdefault(qty, why)
-    return _fold(rec, worst, skips)
+    note = f"not compared at {len(left)} of {len(states)} states ({'; '.join(left)})"
+    note = note if left else ""
+    if left and not worst:
+        return [rec(CHECK, quantity(of, "dq"), None, None, note) for of in compared(nm)]
+    return _fold(rec, worst, skips, note)
 
 
 def _slow_blocks(nm, dm: DerivativeModel, q, u) -> list[tuple]:
