@@ -8,13 +8,15 @@ wall time (a derivation past it is reported as not finished). Models:
 
     textbook:NAME   a built-in model (reference.models)
     a02:N           the IFToMM A02 N-four-bar (examples/a02/nfourbar.py)
-    cassie          Cassie with contacts, limits and actuators off (examples/cassie/rigid.py)
+    cassie          Cassie, Pinocchio's closed-chain model (tests/data/real/pinocchio_cassie.xml)
     file:PATH       an MJCF file
 
     python benchmarks/derivation_paths.py cassie a02:10 a02:20 a02:40 --paths sums
     python benchmarks/derivation_paths.py textbook:double_pendulum_3d a02:5 --paths symbolic,sums
     python benchmarks/derivation_paths.py --size textbook:top_cartesian a02:5 cassie
     python benchmarks/derivation_paths.py --agreement
+    python benchmarks/derivation_paths.py a02:10 file:tests/data/spatial_mix.xml --profile \
+        --paths symbolic,sums --no-pinocchio
 
 Per row: the model's size (reference.formulations.model_size), the cold time (the file's
 import, the derivation, the generated code, loaded: a NumericModel of the model's first
@@ -23,6 +25,7 @@ the cache), and on MJCF files the per-state cost of the reference's checked forw
 Pinocchio through the suite's adapter (crosscheck.engines.pinocchio.user_file) and of
 Pinocchio's own constraintDynamics on the same model and states, with the largest differences
 from the reference (u' scaled by max(1, |u'|), the loop multipliers by max(1, |lambda|)).
+--profile: the cold derivation's stages under cProfile (cumulative seconds, profiled).
 --agreement: the two paths' M, f, A, b, u' and lambda on every built-in model and formulation
 at the run's consistent states (path_agreement). Figures: benchmarks/scaling.md, "Two
 derivation paths".
@@ -43,24 +46,58 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the checkout: reference, crosscheck and benchmarks
+# one BLAS thread, before numpy loads (as examples/a02/scaling.py: on the shared 2-core
+# machine two threads made the small solves many times slower)
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 STATES = 4  # states per MJCF file: the initial one and seeded consistent ones
 TIMING_S = 1.0  # wall time over which a per-state cost is averaged
 
 CHILD = r"""
-import json, os, sys, time
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+import cProfile, json, os, sys, time
 t0 = time.perf_counter()
 sys.path.insert(0, {root!r})
-from benchmarks.derivation_paths import load_model
+from benchmarks.derivation_paths import load_model, profiled
 model = load_model({spec!r})
 t1 = time.perf_counter()
 from reference.numeric.model import NumericModel
+profile = cProfile.Profile() if {profile!r} else None
+if profile:
+    profile.enable()
 nm = NumericModel(model)
 t2 = time.perf_counter()
 print(json.dumps({{"import_s": t1 - t0, "numeric_model_s": t2 - t1, "total_s": t2 - t0,
     "n": nm.n, "m": nm.m, "rank": nm.rank, "backend": nm.backend,
-    "lines": len(nm.source.splitlines())}}))
+    "lines": len(nm.source.splitlines()), "profile": profiled(profile)}}))
 """
+
+# the stages a profile reports: (function, file it is defined in)
+STAGES = (
+    ("derive", "formulations/__init__.py"),
+    ("split_linear", "eom.py"),
+    ("generalized_inertia_minus_active", "projection.py"),
+    ("constraint_set", "constraints.py"),
+    ("generate_source", "codegen.py"),
+    ("summed_module", "codegen.py"),
+    ("cse", "cse_main.py"),
+    ("doprint", "codeprinter.py"),
+)
+
+
+def profiled(profile) -> dict | None:
+    """Cumulative seconds (profiled) of each of STAGES, and in all."""
+    if profile is None:
+        return None
+    import pstats
+
+    profile.disable()
+    stats = pstats.Stats(profile)
+    out = {"total": stats.total_tt}
+    for (path, _line, name), (_cc, _nc, _tt, cumulative, _callers) in stats.stats.items():
+        for stage, where in STAGES:
+            if name == stage and path.endswith(where):
+                out[stage] = max(out.get(stage, 0.0), cumulative)
+    return out
 
 
 def load_model(spec: str):
@@ -73,7 +110,7 @@ def load_model(spec: str):
     from crosscheck.user_models import load_model_file, register_all
 
     path = _mjcf_path(spec)
-    um = load_model_file(path, project=True)[0]
+    um = load_model_file(path)[0]
     register_all([um])
     return um.model
 
@@ -91,10 +128,7 @@ def _mjcf_path(spec: str) -> Path:
         n = int(spec.split(":", 1)[1])
         text, name = mjcf(n), f"a02_nfourbar_{n}.xml"
     elif spec == "cassie":
-        sys.path.insert(0, str(ROOT / "examples" / "cassie"))
-        from rigid import SOURCE, rigid_copy
-
-        text, name = rigid_copy(SOURCE.read_text()), "cassie_rigid.xml"
+        return ROOT / "tests" / "data" / "real" / "pinocchio_cassie.xml"
     else:
         raise SystemExit(f"unknown model {spec!r}: textbook:NAME, a02:N, cassie or file:PATH")
     path = work / name
@@ -102,10 +136,11 @@ def _mjcf_path(spec: str) -> Path:
     return path
 
 
-def _child(spec: str, path: str, cache: Path, budget: float) -> dict:
-    """One NumericModel built in a child process on `path` with cache `cache`."""
+def _child(spec: str, path: str, cache: Path, budget: float, profile: bool = False) -> dict:
+    """One NumericModel built in a child process on `path` with cache `cache` (under cProfile:
+    `profile`)."""
     env = dict(os.environ, CROSSCHECK_CACHE_DIR=str(cache), CROSSCHECK_DERIVATION=path)
-    code = CHILD.format(root=str(ROOT), spec=spec)
+    code = CHILD.format(root=str(ROOT), spec=spec, profile=profile)
     try:
         out = subprocess.run(
             [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=budget
@@ -133,12 +168,13 @@ def _cache(spec: str, path: str) -> Path:
     return Path(tempfile.gettempdir()) / "derivation_paths" / f"cache-{slug}-{path}"
 
 
-def derivation(spec: str, path: str, budget: float) -> dict:
-    """Cold (an empty cache), then warm (the same cache), on one path."""
+def derivation(spec: str, path: str, budget: float, profile: bool = False) -> dict:
+    """Cold (an empty cache; under cProfile: `profile`), then warm (the same cache), on one
+    path."""
     cache = _cache(spec, path)
     shutil.rmtree(cache, ignore_errors=True)
     cache.mkdir(parents=True)
-    cold = _child(spec, path, cache, budget)
+    cold = _child(spec, path, cache, budget, profile)
     warm = _child(spec, path, cache, budget) if cold["finished"] else None
     return {"model": spec, "path": path, "cold": cold, "warm": warm}
 
@@ -258,6 +294,7 @@ def main(argv=None) -> None:
     ap.add_argument("--paths", default="sums", help="symbolic, sums or both (comma-separated)")
     ap.add_argument("--budget", type=float, default=600.0, help="wall seconds per derivation")
     ap.add_argument("--size", action="store_true", help="only the models' sizes")
+    ap.add_argument("--profile", action="store_true", help="the cold derivation under cProfile")
     ap.add_argument("--no-pinocchio", action="store_true", help="no per-state comparison")
     ap.add_argument("--out", type=Path, help="append the rows to this JSON file")
     args = ap.parse_args(argv)
@@ -271,7 +308,7 @@ def main(argv=None) -> None:
             print(json.dumps(rows[-1]), flush=True)
             continue
         for path in args.paths.split(","):
-            rows.append(derivation(spec, path, args.budget))
+            rows.append(derivation(spec, path, args.budget, args.profile))
             print(json.dumps(rows[-1]), flush=True)
             if rows[-1]["cold"]["finished"] and not spec.startswith("textbook:"):
                 if not args.no_pinocchio:

@@ -2,14 +2,14 @@
 content digest that visit each distinct subexpression once.
 
 A robot's kinematics written body after body (a child's rotation is its parent's times its
-joint's) is a graph in which every body's expressions reuse its parent's: the 26 bodies of
-Cassie hold about 3000 distinct subexpressions in their velocities, but more than 10^5
-operations per velocity component once written out as trees (tests/data/cassie.xml). sympy's
-diff, xreplace, srepr, count_ops and free_symbols walk the written-out tree, so they cost what
-the tree costs; the functions here remember what they computed for each subexpression, so they
-cost what the graph costs. The results are sympy expressions (each built from its arguments'
-results, so they share as the inputs do), equal to sympy's own as functions of the symbols,
-though not always of the same form.
+joint's) is a graph in which every body's expressions reuse its parent's: the bodies of the
+Cassie robot hold about 3000 distinct subexpressions in their velocities, but more than 10^5
+operations per velocity component once written out as trees. sympy's diff, xreplace, srepr,
+count_ops and free_symbols walk the written-out tree, so they cost what the tree costs; the
+functions here remember what they computed for each subexpression, so they cost what the graph
+costs. The results are sympy expressions (each built from its arguments' results, so they
+share as the inputs do), equal to sympy's own as functions of the symbols, though not always
+of the same form.
 """
 
 from __future__ import annotations

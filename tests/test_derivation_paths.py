@@ -38,11 +38,10 @@ from tests.support import representative
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "examples" / "a02"))
-sys.path.insert(0, str(ROOT / "examples" / "cassie"))
 from nfourbar import mjcf  # noqa: E402
-from rigid import SOURCE, rigid_copy  # noqa: E402
 from scaling import parallelogram_states  # noqa: E402
 
+CASSIE = ROOT / "tests" / "data" / "real" / "pinocchio_cassie.xml"
 MATRICES = 1e-14
 SOLVE = EXACT_KKT.value
 TOL_MJCF = 1e-9
@@ -165,15 +164,9 @@ def _pinocchio_and_mujoco(um, nm, states) -> dict:
 def _load(path: Path):
     from crosscheck.user_models import load_model_file, register_all
 
-    um = load_model_file(path, project=True)[0]
+    um = load_model_file(path)[0]
     register_all([um])
     return um
-
-
-def _cassie_file(tmp: Path) -> Path:
-    path = tmp / "cassie_rigid.xml"
-    path.write_text(rigid_copy(SOURCE.read_text()))
-    return path
 
 
 def test_a02_chain_on_the_sums_path_agrees_with_pinocchio_and_mujoco(tmp_path):
@@ -199,19 +192,17 @@ def test_long_a02_chains_take_the_sums_path_and_agree(cells, tmp_path):
     assert max(worst.values()) < TOL_MJCF, worst
 
 
-def test_cassie_derives_cold_and_starts_warm_within_the_bounds(fresh_cache, tmp_path):
-    """Cassie (32 dof, free base, four loops; contacts, limits and actuators off) cold in an
+def test_cassie_derives_cold_and_starts_warm_within_the_bounds(fresh_cache):
+    """Cassie (Pinocchio's closed-chain model: 32 dof, a free base, four loops) cold in an
     empty cache within COLD_S, then its import and model read back within WARM_S, and its
     accelerations and loop multipliers within the bar of Pinocchio's and MuJoCo's rigid ones."""
-    path = _cassie_file(tmp_path)
     t0 = time.perf_counter()
-    um = _load(path)
+    um = _load(CASSIE)
     assert derivation_path(um.model) == "sums"
     nm = NumericModel(um.model)
     cold = time.perf_counter() - t0
     t0 = time.perf_counter()
-    warm_model = import_mjcf(path, project=True).model
-    NumericModel(warm_model)
+    NumericModel(import_mjcf(CASSIE).model)
     warm = time.perf_counter() - t0
     assert cold < COLD_S and warm < WARM_S, (cold, warm)
     assert (nm.n, nm.m, nm.rank) == (35, 15, 13)  # a dependent row per planar loop
