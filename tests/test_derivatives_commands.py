@@ -5,12 +5,14 @@ report), `crosscheck sweep --derivatives` (a resumed campaign keeps the setting)
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from crosscheck.cli import main
 from crosscheck.sweep.campaign import campaign
 from crosscheck.sweep.config import Campaign
 from crosscheck.sweep.store import ChunkStore
 
+DATA = Path(__file__).parent / "data"
 # Pinocchio's analytical derivatives are judged at most at the 1e-8 bar
 # (crosscheck.checks.derivatives.tolerances.ANALYTIC_BAR): a relative error of that size in
 # any of its blocks must fail that block's record
@@ -83,3 +85,18 @@ def test_sensitivity_sizes_every_block_of_an_analytical_engine(tmp_path, capsys)
         assert r["caught_at"] is not None and r["caught_at"] <= ANALYTIC_CAUGHT_BY, r
         assert r["failing_check"] == r["quantity"], r
     assert "6 derivative blocks" in out
+
+
+def test_sweep_leaves_out_a_sample_whose_stencil_reaches_a_limit(tmp_path, capsys):
+    """A user's arm with joint limits: a differenced engine's sample whose stencil reaches the
+    wrist's limit is not counted in its derivatives (no fault); Pinocchio's own derivatives
+    are judged at every sample."""
+    argv = ["sweep", "--model-file", str(DATA / "robot_arm.xml"), "--samples", "6"]
+    argv += ["--engines", "mujoco,pinocchio", "--workers", "1", "--derivatives"]
+    code = main([*argv, "--out", str(tmp_path)])
+    assert code == 0, capsys.readouterr().out
+    res = json.loads((tmp_path / "sweep.json").read_text())
+    rows = [r for r in res["results"] if r["quantity"] == "daccelerations_dq"]
+    counts = {r["engine"]: r["count"] for r in rows}
+    assert counts["pinocchio"] == 6 and 0 < counts["mujoco"] < 6, counts
+    assert not res["faults"]["records"]

@@ -138,12 +138,17 @@ def _reference_chunk(base, drawn: list, timing: dict) -> dict:
 
 def _derivative_values(base, em, engine, name, nm, t, q, u) -> tuple[dict, dict]:
     """The derivatives comparison at one sample: {quantity: error / the tolerance derived at
-    the sample} and the skips (crosscheck.checks.derivatives.engine)."""
+    the sample} and the skips (crosscheck.checks.derivatives.engine); nothing where the
+    difference stencil reaches a contact or limit (the sample is not counted there)."""
+    from crosscheck.checks.derivatives.differences import StencilLeaves
     from crosscheck.checks.derivatives.engine import compare_at_state
     from reference.derivatives import DerivativeModel
 
     dm = _cached(("derivatives", name, base.formulation), lambda: DerivativeModel(base))
-    sd = compare_at_state(em, cached_adapter(engine), dm.for_model(nm), name, q, u, t)
+    try:
+        sd = compare_at_state(em, cached_adapter(engine), dm.for_model(nm), name, q, u, t)
+    except StencilLeaves:
+        return {}, {}
     return {k: float(j.ratio) for k, j in sd.judged.items()}, dict(sd.skips)
 
 
