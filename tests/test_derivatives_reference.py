@@ -180,3 +180,20 @@ def test_quaternion_coordinates_with_a_weld_agree_with_the_slow_path():
     judged = {k for k, r in recs.items() if not r["skipped"]}
     assert judged == {f"daccelerations_{b}" for b in ("dq", "du", "dtau")}, recs
     assert all(recs[k]["passed"] for k in judged)
+
+
+@pytest.mark.slow  # MuJoCo's weld.xml: five free beams, about 50 s to derive cold
+def test_a_tolerance_that_judges_nothing_is_reported_not_judged():
+    """MuJoCo's weld.xml (welds with torquescale 0.002: cond(K) 8.5e11, multipliers of 3e6):
+    the slow path's derived tolerance is above 1, which no scaled error could fail; the
+    records say so, with the measured agreement, instead of passing."""
+    from crosscheck.checks.derivatives.records import VACUOUS, reference_records
+
+    path = DATA / "real" / "mujoco_weld.xml"
+    (name,) = register_all(load_model_file(path, project=True))
+    nm = NumericModel(models.get(name))
+    states = consistent_states(nm, 3)
+    recs = {r["quantity"]: r for r in reference_records(name, nm, DerivativeModel(nm), states)}
+    r = recs["daccelerations_dtau"]
+    assert r["skipped"] and r["reason"].startswith("not judged: the derived tolerance"), r
+    assert f"at least {VACUOUS:g}" in r["reason"]
