@@ -96,8 +96,10 @@ def partials(eom: EquationsOfMotion, ud: list, lam: list) -> dict[str, sp.Matrix
     forward code's (tidied), so the two modules differentiate the same expressions."""
     m = eom.model
     n, mc = len(m.speeds), eom.A.shape[0]
-    M = sp.Matrix(n, n, lambda i, j: _tidy(eom.M[min(i, j), max(i, j)]))
-    f = sp.Matrix([_tidy(e) for e in eom.f])
+    # read once: on the sums path (SummedEquations) each read of M or f writes the sum out
+    Mw, fw = eom.M, eom.f
+    M = sp.Matrix(n, n, lambda i, j: _tidy(Mw[min(i, j), max(i, j)]))
+    f = sp.Matrix([_tidy(e) for e in fw])
     A = sp.Matrix(mc, n, lambda i, j: _tidy(eom.A[i, j])) if mc else sp.zeros(0, n)
     b = sp.Matrix([_tidy(e) for e in eom.b]) if mc else sp.zeros(0, 1)
     udm, lamm = sp.Matrix(ud), sp.Matrix(lam) if mc else sp.zeros(0, 1)
@@ -211,7 +213,8 @@ class _Kkt:
     def __init__(self, w: _Writer, eom: EquationsOfMotion, augmented: bool, X):
         n, mc, npar = len(eom.model.speeds), eom.A.shape[0], len(eom.model.parameters)
         self.w, self.n, self.m = w, n, mc
-        flat = [eom.M[i, j] for i in range(n) for j in range(i, n)]
+        Mw = eom.M  # once: see partials
+        flat = [Mw[i, j] for i in range(n) for j in range(i, n)]
         flat += list(eom.f) + list(eom.A) + list(eom.b)
         it = iter(w.cse_block([X(_tidy(e)) for e in flat]))
         Mc: list[list[Any]] = [["0"] * n for _ in range(n)]
