@@ -272,3 +272,26 @@ def test_user_file_records_follow_the_schema(tmp_path):
     new = {"contact_pairs", "limits", "states_rejected", "controls", "projection", "rows_left_out"}
     written = {k for r in data["records"] for k in r}
     assert new <= written <= set(results_schema()["$defs"]["record"]["properties"])
+
+
+def test_the_search_for_a_limit_stops_at_the_window_that_finds_it(monkeypatch):
+    """robot_arm reaches its wrist stop at 0.108 s of a 5 s horizon: the reference runs that
+    look for it cover windows doubling from 16 ms, up to the one that holds 0.108 s, and never
+    the rest of the horizon (a robot starting against a limit costs milliseconds)."""
+    import reference.integrate.driver as driver
+    from crosscheck.checks.trajectory.horizon import FIRST_WINDOW, first_activation
+
+    nm = registered(ARM)
+    spans, real = [], driver.simulate
+
+    def spy(nm_, q0, u0, t_end, *args, **kw):
+        spans.append((kw.get("t0", 0.0), t_end))
+        return real(nm_, q0, u0, t_end, *args, **kw)
+
+    monkeypatch.setattr(driver, "simulate", spy)
+    q0, u0 = nm.project(nm.model.initial_q, nm.model.initial_u)
+    t_act, what = first_activation(nm, q0, u0, 5.0, monitor_of(nm.model).active, 1e-10)
+    assert t_act == pytest.approx(0.108) and "wrist" in what
+    ends = [round(t1, 9) for _t0, t1 in spans]
+    assert ends == [0.016, 0.048, 0.112] and FIRST_WINDOW == 16
+    assert all(round(t0, 9) == e for (t0, _), e in zip(spans[1:], ends, strict=False))

@@ -317,11 +317,25 @@ def _reference_run(name: str, nm: NumericModel, t_end: float, start=None):
 
 
 def _reference_horizon_run(name: str, nm: NumericModel, t_end: float, start=None):
-    """_reference_run over t_end or, where a reference run reaches a singular pose first,
-    over the horizon before the earliest such pose (trajectory_horizon), and for a file with
-    contacts or limits before the first one acts, with a skipped record saying so. Each retry
-    stops strictly earlier, so this ends."""
-    t_try, earliest = t_end, None
+    """_reference_run over t_end or, for a file with contacts or limits, over the horizon
+    before the first one acts, and where a reference run reaches a singular pose first, over
+    the horizon before the earliest such pose (trajectory_horizon), with a skipped record
+    saying so. Each retry stops strictly earlier, so this ends."""
+    t_try, reason = t_end, None
+    monitor = monitor_of(nm.model)
+    if monitor is not None:  # first, so that the reference runs only over what is compared
+        q0, u0 = nm.project(*(start if start is not None else _initial(nm)))
+        try:
+            hit = first_activation(nm, q0, u0, t_end, monitor.active, REF_RTOL)
+        except Exception as exc:
+            interrupts.check()
+            raise _RunFailed("the reference's run checked for contacts and limits", exc) from exc
+        if hit is not None:
+            t_cut = horizon_before(hit[0], t_end)
+            reason = activation_reason(t_cut, t_end, *hit)
+            if t_cut is None:
+                raise NoHorizon(reason)
+            t_try = t_cut
     while True:
         try:
             ctx, records, series = _reference_run(name, nm, t_try, start)
@@ -332,26 +346,15 @@ def _reference_horizon_run(name: str, nm: NumericModel, t_end: float, start=None
             if t_sing is None or t_cut is None or t_cut >= t_try:
                 raise
             message = (str(exc.exc).splitlines() or [""])[0]
-            earliest = (t_sing, f"{exc.what}: {message}")
+            reason = horizon_reason(t_cut, t_end, t_sing, f"{exc.what}: {message}")
             t_try = t_cut
-    reason = None if earliest is None else horizon_reason(t_try, t_end, *earliest)
-    monitor = monitor_of(nm.model)
-    hit = None
-    if monitor is not None:
-        try:
-            hit = first_activation(nm, ctx.q0, ctx.u0, t_try, monitor.active, REF_RTOL)
-        except Exception as exc:
-            interrupts.check()
-            raise _RunFailed("the reference's run checked for contacts and limits", exc) from exc
-    if hit is not None:
-        t_cut = horizon_before(hit[0], t_try)
-        reason = activation_reason(t_cut, t_end, *hit)
-        if t_cut is None:
-            raise NoHorizon(reason)
-        ctx, records, series = _reference_run(name, nm, t_cut, start)
     if reason is not None:  # the last cut: each one ends before the one before
         records.append(ctx.rec("reference", "horizon", None, None, reason, t_requested=t_end))
     return ctx, records, series
+
+
+def _initial(nm: NumericModel):
+    return nm.model.initial_q, nm.model.initial_u
 
 
 def _reference_records(ctx: _Reference, tight):

@@ -32,6 +32,8 @@ HORIZON_MARGIN = 0.01
 # Horizons are whole milliseconds: the engines' fixed-step ladder (1 ms and 0.5 ms) then ends
 # exactly on them (crosscheck.checks.trajectory.check.step_ladder).
 HORIZON_QUANTUM = 1e-3
+# the first window, in quanta, of the run that looks for contacts and limits (first_activation)
+FIRST_WINDOW = 16
 
 
 def singular_time(exc: BaseException) -> float | None:
@@ -91,25 +93,38 @@ def first_activation(nm, q0, u0, t_end: float, active, rtol: float):
     -------
     tuple of (float, str), or None
         The first output time, every HORIZON_QUANTUM, at which something acts, and what; None
-        where nothing does.
+        where nothing does before t_end or before the run reaches a singular pose (which
+        the horizon's own runs then find).
 
     Notes
     -----
     The run is the reference's own (DOP853 with projection at ``rtol``) on a millisecond grid:
     the engines' fixed step, at which MuJoCo itself detects contacts, and the quantum the
     horizon is cut in; a contact that begins and ends between two milliseconds goes unseen by
-    both."""
+    both. It goes in windows that double from FIRST_WINDOW, each from the last one's end, and
+    stops at the first window where something acts: a robot that starts against a limit costs
+    milliseconds of integration, not the whole horizon."""
     from reference.integrate.driver import simulate
 
-    n = math.floor(t_end / HORIZON_QUANTUM + 1e-9)
-    grid = np.unique(np.append(np.arange(n + 1) * HORIZON_QUANTUM, t_end))
-    run = simulate(nm, q0, u0, t_end, "projection", rtol=rtol, atol=rtol, t_eval=grid)
-    for t, q, u in zip(run.t, run.q, run.u, strict=True):
-        acts = active(q, u)
-        if acts:
-            more = f" and {len(acts) - 3} more" if len(acts) > 3 else ""
-            return float(t), "; ".join(map(str, acts[:3])) + more
-    return None
+    n_end = math.floor(t_end / HORIZON_QUANTUM + 1e-9)
+    q, u, n0, width = q0, u0, 0, FIRST_WINDOW
+    while True:
+        n1 = min(n0 + width, n_end)
+        t0, t1 = n0 * HORIZON_QUANTUM, (n1 * HORIZON_QUANTUM if n1 < n_end else t_end)
+        grid = np.unique(np.append(np.arange(n0, n1 + 1) * HORIZON_QUANTUM, t1))
+        grid = grid[(grid >= t0) & (grid <= t1)]
+        try:
+            run = simulate(nm, q, u, t1, "projection", rtol=rtol, atol=rtol, t_eval=grid, t0=t0)
+        except SingularSystemError:
+            return None
+        for t, qi, ui in zip(run.t, run.q, run.u, strict=True):
+            acts = active(qi, ui)
+            if acts:
+                more = f" and {len(acts) - 3} more" if len(acts) > 3 else ""
+                return float(t), "; ".join(map(str, acts[:3])) + more
+        if n1 >= n_end:
+            return None
+        q, u, n0, width = run.q[-1], run.u[-1], n1, 2 * width
 
 
 def activation_reason(t_cut: float | None, t_end: float, t_act: float, what: str) -> str:
