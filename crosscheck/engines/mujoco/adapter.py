@@ -222,6 +222,25 @@ class MujocoAdapter(TableAdapter):
 
     def __init__(self, solref=SOLREF, solimp=SOLIMP):
         self.solref, self.solimp = tuple(solref), tuple(solimp)
+        self._user_models: dict = {}  # the last model built of each user's file
+
+    def annotate_records(self, model_name: str, records: list[dict]) -> list[dict]:
+        """A user's file whose joint equality rows MuJoCo's aref leaves J-dot v out of: its
+        soft instantaneous records say so, with the size at the states its last built model
+        was compared at (UserFileModel.omission_note)."""
+        em = self._user_models.get(model_name)
+        note = em.omission_note() if em is not None else ""
+        if not note:
+            return records
+        soft = ("accelerations", "multipliers", "constraint_forces")
+        return [
+            dict(r, reason=f"{r['reason']}; {note}")
+            if r["check"] == "instantaneous"
+            and r["tolerance"] is not None
+            and r["quantity"].removesuffix("_soft_vs_predicted") in soft
+            else r
+            for r in records
+        ]
 
     model_table = _MODELS
     refused = _UNSUPPORTED
@@ -239,7 +258,8 @@ class MujocoAdapter(TableAdapter):
             from crosscheck.engines.mujoco.user_file import UserFileModel
 
             single_variant(self.name, model_name, variant, "a user's file")
-            return UserFileModel(model_name, params)
+            em = self._user_models[model_name] = UserFileModel(model_name, params)
+            return em
         builder = lookup_builder(self.name, _MODELS, model_name, variant, _UNSUPPORTED)
         try:
             values = resolve_params(model_name, params)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from crosscheck.engines.mujoco.soft_recovery import joint_equality_row
 from reference.mjcf.checks import disabled
 from reference.numeric import redundant
 
@@ -77,20 +78,8 @@ def equality_rows(m, d):
             Js.append(J1 - J2)
             jdv.append(a1 - a2)
         elif t == int(EQ.mjEQ_JOINT):
-            j1, j2 = m.eq_obj1id[e], m.eq_obj2id[e]
-            row = np.zeros((1, m.nv))
-            row[0, m.jnt_dofadr[j1]] = 1.0
-            acc = 0.0
-            if j2 >= 0:
-                c = m.eq_data[e, :5]
-                a2 = m.jnt_qposadr[j2]
-                x = d.qpos[a2] - m.qpos0[a2]
-                v2 = d.qvel[m.jnt_dofadr[j2]]
-                row[0, m.jnt_dofadr[j2]] = -(
-                    c[1] + 2 * c[2] * x + 3 * c[3] * x**2 + 4 * c[4] * x**3
-                )
-                acc = -(2 * c[2] + 6 * c[3] * x + 12 * c[4] * x**2) * v2**2
-            Js.append(row)
+            row, acc = joint_equality_row(m, d, e)
+            Js.append(row[None, :])
             jdv.append(np.array([acc]))
         else:
             raise ValueError(f"equality #{e}: type {t} has no rigid rows here")

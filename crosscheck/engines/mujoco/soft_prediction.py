@@ -13,10 +13,13 @@ With R = 0 this is the rigid problem. The prediction below never reads MuJoCo's 
 force or acceleration:
 
 1. the rigid engine accelerations a_r from the REFERENCE's accelerations (mapped into engine
-   coordinates through the affine map G a + c the adapter uses the other way) and J a_r = aref;
+   coordinates through the affine map G a + c the adapter uses the other way) and
+   J a_r = aref + o (o below);
 2. the rigid force f_r from M a_r = s + Jᵀ f_r;
 3. the soft correction (y, δ) from subtracting the two systems:
-   [[M, −Jᵀ], [J, R]] [y; δ] = [0; −R f_r], so a = a_r + y and f = f_r + δ.
+   [[M, −Jᵀ], [J, R]] [y; δ] = [0; −R f_r − o], so a = a_r + y and f = f_r + δ, where o is
+   the part of the rigid row acceleration −J̇ v that MuJoCo's aref leaves out (a ``joint``
+   equality row's poly''(x) v2²: MuJoCo's model, predicted as it is; 0 on other rows).
 
 So raw − predicted measures MuJoCo's solve against the documented model of its own softness,
 and a physics error in the engine model (a wrong mass) shows as a miss of the size of that
@@ -114,14 +117,17 @@ def documented_R(m, d) -> np.ndarray:
     return out
 
 
-def predict(M, J, smooth, aref, R, G, c, reference_accelerations) -> SoftPrediction:
+def predict(M, J, smooth, aref, R, G, c, reference_accelerations, omitted=None) -> SoftPrediction:
     """The soft (qacc, efc_force) MuJoCo should return, from the reference's accelerations
-    (u' = G qacc + c maps engine accelerations to the reference's speeds)."""
+    (u' = G qacc + c maps engine accelerations to the reference's speeds). ``omitted``: the
+    part of -J-dot v aref leaves out per row (a joint equality's, soft_recovery.omitted_jdot_v):
+    the rigid answer meets aref + omitted, MuJoCo's soft one aims at aref alone."""
     nv, ne = M.shape[0], J.shape[0]
+    omitted = np.zeros(ne) if omitted is None else np.asarray(omitted, float)
     A = np.vstack([G, J])
-    rhs = np.concatenate([np.asarray(reference_accelerations, float) - c, aref])
+    rhs = np.concatenate([np.asarray(reference_accelerations, float) - c, aref + omitted])
     a_r = np.linalg.lstsq(A, rhs, rcond=None)[0]
     f_r = np.linalg.lstsq(J.T, M @ a_r - smooth, rcond=None)[0]
     K = np.block([[M, -J.T], [J, np.diag(R)]])
-    sol = np.linalg.solve(K, np.concatenate([np.zeros(nv), -R * f_r]))
+    sol = np.linalg.solve(K, np.concatenate([np.zeros(nv), -R * f_r - omitted]))
     return SoftPrediction(a_r + sol[:nv], f_r + sol[nv : nv + ne], np.asarray(R, float))

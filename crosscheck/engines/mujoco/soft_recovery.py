@@ -11,6 +11,7 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 
+from crosscheck.checks.tolerances import scaled_error
 from crosscheck.engines.base import EngineUnsupported
 from crosscheck.engines.mujoco.soft_prediction import documented_R, predict
 
@@ -64,6 +65,38 @@ def kkt_lstsq(M, J, rhs_c, equilibrate: bool = False):
     return sol[:nv], sol[nv:], int(rank)
 
 
+def joint_equality_row(m, d, e: int) -> tuple[np.ndarray, float]:
+    """J (nv,) and J-dot v of joint equality e, q1 - qpos0_1 - poly(q2 - qpos0_2), at the state
+    in d (engine_core_constraint.c: both joints measured from qpos0, `ref` included there):
+    J-dot v = -poly''(x) v2^2."""
+    row = np.zeros(m.nv)
+    row[m.jnt_dofadr[m.eq_obj1id[e]]] = 1.0
+    j2 = int(m.eq_obj2id[e])
+    if j2 < 0:
+        return row, 0.0
+    c = m.eq_data[e, :5]
+    a2 = m.jnt_qposadr[j2]
+    x = d.qpos[a2] - m.qpos0[a2]
+    v2 = d.qvel[m.jnt_dofadr[j2]]
+    row[m.jnt_dofadr[j2]] -= c[1] + 2 * c[2] * x + 3 * c[3] * x**2 + 4 * c[4] * x**3
+    return row, float(-(2 * c[2] + 6 * c[3] * x + 12 * c[4] * x**2) * v2**2)
+
+
+def omitted_jdot_v(m, d) -> np.ndarray:
+    """The part of the rigid row acceleration -J-dot v that MuJoCo's aref leaves out, per efc
+    row: on a joint equality row all of it, poly''(x) v2^2 (its mj_Jdotv subtracts J-dot v on
+    connect and weld rows only), 0 on every other row. Where it is not 0, MuJoCo's model is
+    not the rigid one: its soft solve aims at J qacc = -(stabilization) there."""
+    out = np.zeros(d.nefc)
+    for i in range(d.nefc):
+        if d.efc_type[i] != mujoco.mjtConstraint.mjCNSTR_EQUALITY:
+            continue
+        e = int(d.efc_id[i])
+        if m.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT:
+            out[i] = -joint_equality_row(m, d, e)[1]
+    return out
+
+
 class _Rows(NamedTuple):
     """MuJoCo's equality rows at the state in d, after mj_forward."""
 
@@ -89,12 +122,13 @@ def _rows(m, d) -> _Rows:
     )
 
 
-def _predicted_error(em, qe, ve, qacc, rows: _Rows):
+def _predicted_error(em, qe, ve, qacc, rows: _Rows, omitted):
     """The reference-coordinate rigid answer predicted from the impedance alone,
-    R_pred = (1 - d)/d diagA: (eps, R_pred, accelerations, multipliers)."""
+    R_pred = (1 - d)/d diagA, and aref's omitted J-dot v: (eps, R_pred, accelerations,
+    multipliers)."""
     eps = (1.0 - rows.imp) / rows.imp
     R_pred = eps * rows.diagA
-    y_p, delta_p, _ = kkt_lstsq(rows.M, rows.J, R_pred * rows.f, em.equilibrate_rows)
+    y_p, delta_p, _ = kkt_lstsq(rows.M, rows.J, R_pred * rows.f + omitted, em.equilibrate_rows)
     acc_p = em._acc_to_reference(qe, ve, qacc + y_p)
     lam_p = em._multipliers(qe, ve, qacc + y_p, rows.f + delta_p)
     return eps, R_pred, acc_p, lam_p
@@ -117,13 +151,14 @@ def _error_bounds(em, qe, ve, qacc, rows: _Rows, eps) -> tuple[float, float, flo
     return bound_f, bound_lam, bound_acc
 
 
-def _direct_kkt(em, qe, ve, rows: _Rows, smooth, raw) -> None:
-    """The rigid KKT assembled directly from MuJoCo's matrices (M, J, qfrc_smooth, aref),
-    independent of the soft solve: a diagnostic of the recovery's precision floor."""
+def _direct_kkt(em, qe, ve, rows: _Rows, smooth, target, raw) -> None:
+    """The rigid KKT assembled directly from MuJoCo's matrices (M, J, qfrc_smooth, and aref
+    with its omitted J-dot v: target), independent of the soft solve: a diagnostic of the
+    recovery's precision floor."""
     M, J, nv, nefc = rows.M, rows.J, rows.M.shape[0], rows.J.shape[0]
     sol = np.linalg.lstsq(
         np.block([[M, -J.T], [J, np.zeros((nefc, nefc))]]),
-        np.concatenate([smooth, rows.aref]),
+        np.concatenate([smooth, target]),
         rcond=None,
     )[0]
     raw["kkt_accelerations"] = em._acc_to_reference(qe, ve, sol[:nv])
@@ -145,6 +180,17 @@ def _stabilization(em, d) -> np.ndarray | float:
     return B * d.efc_vel[:n] + K * imp * (d.efc_pos[:n] - d.efc_margin[:n])
 
 
+def _omission(em, qe, ve, rows: _Rows, qacc_r, acc_r, omitted, raw) -> None:
+    """MuJoCo's omitted J-dot v per row, and its effect: the scaled_error of the rigid answer
+    of MuJoCo's own model (aiming at aref without it) against the rigid answer."""
+    raw["aref_omitted_jdot_v"] = omitted
+    raw["aref_omission_effect"] = 0.0
+    if np.any(omitted):
+        y, _delta, _ = kkt_lstsq(rows.M, rows.J, -omitted, em.equilibrate_rows)
+        acc_m = em._acc_to_reference(qe, ve, qacc_r + y)
+        raw["aref_omission_effect"] = scaled_error(acc_m, acc_r)
+
+
 def soft_recovery(em, qe, ve, qacc, acc, raw) -> np.ndarray:
     """The mapped multipliers of MuJoCo's soft answer at the state in em.d; fills raw with the
     rigid answer recovered from it, the impedance's predicted error and its bounds, and
@@ -153,14 +199,19 @@ def soft_recovery(em, qe, ve, qacc, acc, raw) -> np.ndarray:
     rows = _rows(em.m, d)
     f, J, M, R, aref = rows.f, rows.J, rows.M, rows.R, rows.aref
     lam = em._multipliers(qe, ve, qacc, f)
+    # the rigid target: aref, less its stabilization terms where the model removes them, with
+    # the J-dot v MuJoCo leaves out of a joint equality row's aref (omitted_jdot_v)
+    omitted = omitted_jdot_v(em.m, d)
+    stab = _stabilization(em, d)
     # de-regularized answer: f_rigid = f + A^-1 R f, qacc_rigid = qacc + M^-1 J^T (A^-1 R f)
-    y, delta, rank = kkt_lstsq(M, J, R * f + _stabilization(em, d), em.equilibrate_rows)
+    y, delta, rank = kkt_lstsq(M, J, R * f + stab + omitted, em.equilibrate_rows)
     qacc_r, f_r = qacc + y, f + delta
     acc_r = em._acc_to_reference(qe, ve, qacc_r)
     lam_r = em._multipliers(qe, ve, qacc_r, f_r)
-    eps, R_pred, acc_p, lam_p = _predicted_error(em, qe, ve, qacc, rows)
+    eps, R_pred, acc_p, lam_p = _predicted_error(em, qe, ve, qacc, rows, omitted)
     bound_f, bound_lam, bound_acc = _error_bounds(em, qe, ve, qacc, rows, eps)
-    _direct_kkt(em, qe, ve, rows, d.qfrc_smooth, raw)
+    _direct_kkt(em, qe, ve, rows, d.qfrc_smooth, aref + omitted, raw)
+    _omission(em, qe, ve, rows, qacc_r, acc_r, omitted, raw)
     jdv = em._jdot_v()
     raw.update(
         {
@@ -187,8 +238,8 @@ def soft_recovery(em, qe, ve, qacc, acc, raw) -> np.ndarray:
             # soft model: J qacc - aref = -R f (MuJoCo's own solve, checked on its output)
             "soft_model_residual": float(np.max(np.abs(J @ qacc - aref + R * f))),
             # the recovered rigid answer satisfies J qacc_rigid = aref (less its stabilization
-            # terms where the model removes them) ...
-            "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref - _stabilization(em, d)))),
+            # terms where the model removes them, with its omitted J-dot v) ...
+            "rigid_residual": float(np.max(np.abs(J @ qacc_r - aref - stab - omitted))),
             # ... and M qacc_rigid = qfrc_smooth + J^T f_rigid
             "rigid_dynamics_residual": float(
                 np.max(np.abs(M @ qacc_r - d.qfrc_smooth - J.T @ f_r))
@@ -205,7 +256,8 @@ def predict_soft(em, q, u, reference_accelerations):
     """MuJoCo's raw soft (accelerations, multipliers) predicted from the reference's
     accelerations and the documented solref/solimp impedance (soft_prediction.py), in
     reference coordinates. Reads only model quantities at the state (M, J, smooth forces,
-    aref, solimp, invweights) after mj_forward, never its constraint solution."""
+    aref, solimp, invweights) after mj_forward, never its constraint solution; MuJoCo's
+    model, so with the J-dot v its aref leaves out of joint equality rows left out."""
     m, d = em.m, em.d
     em._set(*em.to_engine_state(q, u))
     mujoco.mj_forward(m, d)
@@ -223,6 +275,7 @@ def predict_soft(em, q, u, reference_accelerations):
         G,
         c,
         reference_accelerations,
+        omitted_jdot_v(m, d),
     )
     acc = np.asarray(em._acc_to_reference(qe, ve, soft.engine_accelerations), float)
     lam = em._multipliers(qe, ve, soft.engine_accelerations, soft.engine_forces)

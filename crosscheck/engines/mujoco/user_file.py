@@ -49,6 +49,14 @@ QUATERNION_NOTE = (
     "the quaternion norm rows of the file's ball and free joints are left out: their "
     "multipliers depend on the formulation and have no engine counterpart"
 )
+OMISSION_NOTE = (
+    "MuJoCo's joint equality model: its aref has no J-dot v on joint equality rows (here "
+    "{rows}: polycoef of degree 2 or more), so its soft solve aims at J qacc = 0 there, not "
+    "at -J-dot v = poly''(q2) v2^2; the rigid recovery targets -J-dot v and the soft "
+    "prediction keeps MuJoCo's omission: |J-dot v| up to {size:.3g} at the checked states, "
+    "an acceleration error of {effect:.2g} (scaled) in MuJoCo's model that its "
+    "stabilization has to pull back"
+)
 QUATERNION_MASS = (
     "in the engine's own speeds (angular velocities, not quaternion rates): H^T M H against "
     "the engine's M, H the map of its speeds to the reference's at the state"
@@ -145,6 +153,10 @@ class UserFileModel(MjEngineModel):
         self._P = None if self._quaternions else np.eye(self.m.nv)
         self.solver = "MuJoCo (the file's solref/solimp, Newton to 1e-15)"
         self.constrained_solve = self.m.neq > 0
+        # over this model's forward calls: the equalities whose J-dot v MuJoCo's aref left
+        # out (soft_recovery.omitted_jdot_v), its largest size and its largest effect
+        self.omitted_rows: set[str] = set()
+        self.omitted_max = self.omission_effect_max = 0.0
 
     def _load_model(self):
         m = mujoco.MjModel.from_xml_path(self.imp.path)
@@ -230,8 +242,32 @@ class UserFileModel(MjEngineModel):
             return None
         return dense_efc_J(self.m, self.d).T @ np.asarray(forces, float)
 
+    def _note_omission(self, raw) -> None:
+        """Keep the size of the J-dot v MuJoCo's aref left out at this state (joint rows)."""
+        omitted = np.asarray(raw.get("aref_omitted_jdot_v", ()), float)
+        if not np.any(omitted):
+            return
+        for i in np.flatnonzero(omitted):
+            e = int(self.d.efc_id[i])
+            name = mujoco.mj_id2name(self.m, mujoco.mjtObj.mjOBJ_EQUALITY, e)
+            self.omitted_rows.add(name or f"equality {e}")
+        self.omitted_max = max(self.omitted_max, float(np.max(np.abs(omitted))))
+        self.omission_effect_max = max(self.omission_effect_max, raw["aref_omission_effect"])
+
+    def omission_note(self) -> str:
+        """What the soft records add where MuJoCo's aref left a joint equality's J-dot v out
+        at the states seen ("" where it did not)."""
+        if not self.omitted_rows:
+            return ""
+        return OMISSION_NOTE.format(
+            rows=", ".join(sorted(self.omitted_rows)),
+            size=self.omitted_max,
+            effect=self.omission_effect_max,
+        )
+
     def forward(self, q, u, t: float = 0.0):
         ef = super().forward(q, u, t)
+        self._note_omission(ef.raw)
         qe = ef.raw["engine_q"]
         ef.constraint_forces = self._generalized(ef.raw.get("engine_forces"))
         ef.rigid_constraint_forces = self._generalized(ef.raw.get("rigid_engine_forces"))
