@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from benchmarks.pinocchio_loop_derivatives import measured
 from crosscheck.checks.derivatives.engine import ReferenceAtState, compare_at_state
 from crosscheck.checks.derivatives.faults import Fault
 from crosscheck.checks.derivatives.records import engine_records, reference_records
@@ -31,7 +32,7 @@ CONSTRAINED = [
 ]
 TREES = [("pendulum_angle", None), ("double_pendulum_3d", "tree"), ("top_euler", None)]
 # Pinocchio 4.1's computeConstraintDynamicsDerivatives on a point constraint between two
-# moving bodies of a planar loop: du'/dq and dlambda/dq wrong at order one
+# moving bodies: du'/dq and dlambda/dq wrong at order one in tangent column 0 (a revolute here)
 LOOP_DEFECT = ("slider_crank", "slider_crank_split")
 
 
@@ -71,6 +72,35 @@ def test_pinocchio_loop_closure_dq_derivatives_are_wrong(name):
         assert r["differences_error"] < 1e-6, (qty, r["differences_error"])
     for qty in ("daccelerations_du", "dmultipliers_du", "daccelerations_dtau"):
         assert recs[qty]["passed"] and recs[qty]["error"] <= 1e-10
+
+
+def test_pinocchio_loop_defect_is_column_zero_counted_nv_extra_times():
+    """The loop defect's cause, with Pinocchio alone (benchmarks/pinocchio_loop_derivatives.py):
+    RigidConstraintModel's loop_span_indexes starts with nv zeros, so tangent column 0's
+    loop-closure term is added nv times too many. Taking those copies out leaves round-off;
+    a slider as column 0 (no angular part) is right; the proximal mu does not change the
+    error (not the regularization of the planar loop's dependent row), and a spatial loop
+    with 3 independent rows and mu = 0 is as wrong. When an upgrade fixes it, this says so."""
+    got = measured()
+    crank = got["2R arm tip to a root slider (slider_crank)"]
+    assert min(crank) > 1e-3, crank
+    for mu in ("1e-04", "1e-02"):
+        assert got[f"  ... proximal mu {mu}"] == pytest.approx(crank, rel=1e-3)
+    assert max(got["  ... column 0's nv extra copies taken out"]) < 1e-8
+    assert max(got["  ... the slider first (column 0 a translation)"]) < 1e-8
+    assert min(got["spatial RX-RY-RZ arm to an RY rocker (3 rows, mu 0)"]) > 1e-2
+
+
+def test_pinocchio_world_first_drift_is_its_constraint_jacobian_accumulating():
+    """The drift's cause, with Pinocchio alone: with the world as joint1 the routine only
+    subtracts joint2's part from data.dac_da, which it does not zero, so the constraint
+    Jacobian it differentiates with is -k J on the k-th call; initConstraintDynamics zeros it
+    (then the accelerations are right, the forces keep the column-0 defect above)."""
+    got = measured()
+    assert got["the same, the world first (3rd call)"][0] > 1.0
+    fresh = got["  ... initConstraintDynamics before each call"]
+    assert fresh[0] < 1e-8 and fresh[1] > 1e-2, fresh
+    assert max(got["  ... and column 0's extra copies taken out"]) < 1e-8
 
 
 def _file_records(file: str, engine: str = "pinocchio") -> dict:
