@@ -197,3 +197,22 @@ def test_a_tolerance_that_judges_nothing_is_reported_not_judged():
     r = recs["daccelerations_dtau"]
     assert r["skipped"] and r["reason"].startswith("not judged: the derived tolerance"), r
     assert f"at least {VACUOUS:g}" in r["reason"]
+
+
+def test_a_model_too_large_to_differentiate_is_one_skipped_record(monkeypatch):
+    """Past DERIVATIVES_MAX_SIZE the derivatives are not attempted (they write M and f out:
+    Cassie's did not finish in 25 minutes): DerivativeModel refuses in one line naming the
+    size, the bound and the way out, and a run's derivatives are one skipped record saying
+    so (here with the bound lowered below slider_crank's size, 29)."""
+    import reference.derivatives.exact as exact
+    from crosscheck.checks.derivatives.records import model_records
+    from reference.errors import UnsupportedModelError
+
+    monkeypatch.setattr(exact, "DERIVATIVES_MAX_SIZE", 20)
+    nm = NumericModel(models.get("slider_crank"))
+    why = r"size 29 .* bound is 20.*without --derivatives"
+    with pytest.raises(UnsupportedModelError, match=why):
+        DerivativeModel(nm)
+    (rec,) = model_records("slider_crank", nm, consistent_states(nm, 2), [], {})
+    assert (rec["check"], rec["skipped"]) == ("derivatives", True)
+    assert "no exact derivatives" in rec["reason"]

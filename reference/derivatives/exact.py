@@ -40,7 +40,7 @@ from reference.backends import select
 from reference.backends.kernels import OK, PIVOT_RATIO_MIN, Kernels
 from reference.backends.python_kernels import PythonKernels
 from reference.derivatives import codegen as dcodegen
-from reference.errors import SingularSystemError
+from reference.errors import SingularSystemError, UnsupportedModelError
 from reference.formulations import derive
 from reference.numeric.model import NumericModel
 from reference.numeric.redundant import RANK_RTOL
@@ -143,6 +143,27 @@ class Derivatives:
         return self.block("constraint_forces", "dtau")
 
 
+# The largest model whose derivatives are generated: they differentiate M and f written out,
+# on either derivation path, so their cost grows with the model's size (model_size) as the
+# symbolic path's does. Measured cold: the A02 chain 4-28 s from size 279 to 2204, the gripper
+# (692) 6 s, spatial_mix (1034) 74 s; Pinocchio's Cassie (2.4e6) did not finish in 25 minutes.
+# The bound is 10x the largest size measured to finish.
+DERIVATIVES_MAX_SIZE = 22_000
+
+
+def _check_size(model) -> None:
+    from reference.formulations import model_size
+
+    size = model_size(model)
+    if size > DERIVATIVES_MAX_SIZE:
+        raise UnsupportedModelError(
+            f"{model.name}: no exact derivatives for a model of size {size} (its bodies' "
+            f"velocities and constraint rows as trees; the bound is {DERIVATIVES_MAX_SIZE}): "
+            f"they differentiate M and f written out, which does not finish at this size; "
+            f"run without --derivatives"
+        )
+
+
 class DerivativeModel:
     """The exact derivatives of one NumericModel's forward answer.
 
@@ -169,6 +190,7 @@ class DerivativeModel:
         if self.kind == "kkt" and nm._numeric:
             raise ValueError(f"{nm.model.name}: its KKT solve is numeric: use kind='residual'")
         model, f = nm.model, nm.formulation
+        _check_size(model)
         scalar, batched, src, path = dcodegen.load(
             lambda: derive(model, f), model, f, self.kind, bool(nm._augmented)
         )

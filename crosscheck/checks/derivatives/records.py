@@ -28,6 +28,7 @@ from crosscheck.checks.records import Record, record
 from crosscheck.engines.base import EngineAdapter, EngineUnsupported
 from reference.derivatives import DerivativeModel
 from reference.derivatives.differences import STEP, central_differences
+from reference.errors import UnsupportedModelError
 
 CHECK = "derivatives"
 # the round-off of the reference's forward answer per unit of cond(K): a few ulps per operand
@@ -242,7 +243,11 @@ def model_records(name: str, nm, states, adapters, perturb: dict) -> list[Record
     at the run's states and the engines' (perturbed) parameters."""
     from crosscheck.checks.perturb import perturbed
 
-    dm = DerivativeModel(nm)
+    try:
+        dm = DerivativeModel(nm)
+    except UnsupportedModelError as exc:  # too large to differentiate: said, not attempted
+        return [record(name, nm.formulation, "reference", "derivatives", "derivatives",
+                       None, None, str(exc))]  # fmt: skip
     out = reference_records(name, nm, dm, states)
     for adapter in adapters:
         params = perturbed(name, nm.params, perturb.get(adapter.name, {}))
