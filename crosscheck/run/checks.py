@@ -83,18 +83,7 @@ def _formulation_records(name, nm, states):
             )
         )
         if nm.m == 0:
-            out.append(
-                record(
-                    name,
-                    other,
-                    "reference",
-                    "formulations",
-                    "multipliers",
-                    None,
-                    None,
-                    "no constraints, so no multipliers to compare",
-                )
-            )
+            out.append(_no_multipliers(name, other))
             continue
         reason = ""
         if dependent:
@@ -142,20 +131,20 @@ def _identical_records(name, other, nm) -> list[dict]:
         record(name, other, "reference", "formulations", q, None, None, why, against=nm.formulation)
         for q in quantities
     ]
-    if not nm.m:
-        out.append(
-            record(
-                name,
-                other,
-                "reference",
-                "formulations",
-                "multipliers",
-                None,
-                None,
-                "no constraints, so no multipliers to compare",
-            )
-        )
-    return out
+    return out if nm.m else [*out, _no_multipliers(name, other)]
+
+
+def _no_multipliers(name, formulation) -> dict:
+    return record(
+        name,
+        formulation,
+        "reference",
+        "formulations",
+        "multipliers",
+        None,
+        None,
+        "no constraints, so no multipliers to compare",
+    )
 
 
 SOFT_FILE = (
