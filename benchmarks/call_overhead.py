@@ -1,6 +1,7 @@
 """What a single-state forward call costs, and where it goes, on the model's backend.
 
     python benchmarks/call_overhead.py [models...]
+    python benchmarks/call_overhead.py pendulum_xy --rounds 2 --number 10   # a smoke run
 
 Per model, min us per call over interleaved rounds at bench's first state: the checked call
 (NumericModel.forward), the fast call (forward_fast: fresh arrays, and into a preallocated
@@ -11,7 +12,7 @@ goes to), and Pinocchio's timed call; then each over Pinocchio's.
 
 from __future__ import annotations
 
-import sys
+import argparse
 import timeit
 
 import numpy as np
@@ -20,16 +21,16 @@ ROUNDS, NUMBER = 31, 5000
 MODELS = ("pendulum_xy", "slider_crank", "double_pendulum_3d", "top_cartesian")
 
 
-def _min_us(stmts: dict, env: dict) -> dict:
-    """Min over ROUNDS interleaved rounds of NUMBER calls, us per call."""
+def _min_us(stmts: dict, env: dict, rounds: int, number: int) -> dict:
+    """Min over `rounds` interleaved rounds of `number` calls, us per call."""
     res: dict = {k: [] for k in stmts}
-    for _ in range(ROUNDS):
+    for _ in range(rounds):
         for k, s in stmts.items():
-            res[k].append(timeit.timeit(s, globals=env, number=NUMBER) / NUMBER * 1e6)
+            res[k].append(timeit.timeit(s, globals=env, number=number) / number * 1e6)
     return {k: min(v) for k, v in res.items()}
 
 
-def calls(names) -> None:
+def calls(names, rounds: int = ROUNDS, number: int = NUMBER) -> None:
     from crosscheck.checks.sampling import consistent_states
     from crosscheck.engines.registry import get_engine
     from reference import NumericModel, models
@@ -54,6 +55,8 @@ def calls(names) -> None:
                 "pinocchio": "pin()",
             },
             env,
+            rounds,
+            number,
         )
         print(f"{name} ({nm.backend}): " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
         print(
@@ -62,4 +65,9 @@ def calls(names) -> None:
 
 
 if __name__ == "__main__":
-    calls(sys.argv[1:] or MODELS)
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("models", nargs="*", default=list(MODELS))
+    ap.add_argument("--rounds", type=int, default=ROUNDS, help="interleaved rounds (min taken)")
+    ap.add_argument("--number", type=int, default=NUMBER, help="calls per round")
+    args = ap.parse_args()
+    calls(args.models, args.rounds, args.number)

@@ -319,6 +319,21 @@ def test_pinocchio_loop_derivatives_shows_the_defect(child):
     assert err["... and column 0's extra copies taken out"] < 1e-6, out
 
 
+def test_call_overhead_on_one_model(child):
+    out = _bench(child, "call_overhead.py", "pendulum_xy", "--rounds", "2", "--number", "10")
+    assert out.startswith("pendulum_xy (") and "over pinocchio:" in out, out
+
+
+def test_derivation_paths_on_one_cell(child):
+    """One cold and warm derivation on the sums path, the per-state costs against Pinocchio's
+    adapter and its constraintDynamics (benchmarks/pinocchio_loops.py), and their agreement."""
+    out = _bench(child, "derivation_paths.py", "a02:1", "--paths", "sums", "--budget", "120")
+    derived, per_state = (json.loads(line) for line in out.splitlines())
+    assert derived["cold"]["finished"] and derived["warm"]["finished"], derived
+    assert set(per_state["cost_s"]) >= {"reference_forward", "pinocchio_constraint_dynamics"}
+    assert max(per_state["error"].values()) < 1e-9, per_state
+
+
 def test_mujoco_transition_fd_on_one_model(child):
     out = _bench(child, "mujoco_transition_fd.py", "pendulum_xy")
     assert out.count("pendulum_xy") == 3 and "predicted soft effect" in out, out
