@@ -195,10 +195,9 @@ def _fixed_step_runs(ctx, em, integrator, has_soft_limit: bool):
         return runs, _Tolerances(state_tol, SOFT_DRIFT, energy_tol, SOFT_VELOCITY_DRIFT), [limit]
     state_tol = C.Tolerance(
         10 * halving + 1e-10,
-        f"no constraint rows in {engine_label(em.engine)}'s model: {integrator}'s global "
-        f"error, estimated "
-        f"in this run by halving the step ({halving:.1e}), times 10, plus the "
-        f"reference's own accuracy",
+        f"{engine_label(em.engine)}'s constraint rows, if any, are rigid (no soft "
+        f"regularization to extrapolate away): {integrator}'s global error, estimated in this "
+        f"run by halving the step ({halving:.1e}), times 10, plus the reference's own accuracy",
     )
     E0, E1 = (energy_measure(ctx, trs[h].t, trs[h].q, trs[h].u) for h in (h0, h1))
     energy_tol = C.Tolerance(
