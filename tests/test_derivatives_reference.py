@@ -200,15 +200,18 @@ def test_a_tolerance_that_judges_nothing_is_reported_not_judged():
 
 
 def test_a_model_too_large_to_differentiate_is_one_skipped_record(monkeypatch):
-    """Past DERIVATIVES_MAX_SIZE the derivatives are not attempted (they write M and f out:
-    Cassie's did not finish in 25 minutes): DerivativeModel refuses in one line naming the
-    size, the bound and the way out, and a run's derivatives are one skipped record saying
-    so (here with the bound lowered below slider_crank's size, 29)."""
+    """Past DERIVATIVES_MAX_SIZE the symbolic derivatives are not attempted (they write M and f
+    out: Cassie's did not finish in 25 minutes): on the symbolic path, where nothing else
+    works, DerivativeModel refuses in one line naming the size, the bound and the ways out,
+    and a run's derivatives are one skipped record saying so (here with the bound lowered
+    below slider_crank's size, 29; on the sums path the same model takes complex steps:
+    tests/test_derivatives_complex_step.py)."""
     import reference.derivatives.exact as exact
     from crosscheck.checks.derivatives.records import model_records
     from reference.errors import UnsupportedModelError
 
     monkeypatch.setattr(exact, "DERIVATIVES_MAX_SIZE", 20)
+    monkeypatch.delenv("CROSSCHECK_DERIVATION", raising=False)
     nm = NumericModel(models.get("slider_crank"))
     why = r"size 29 .* bound is 20.*without --derivatives"
     with pytest.raises(UnsupportedModelError, match=why):

@@ -69,8 +69,10 @@ def sum_tables(
 
 
 def _stacked(values: np.ndarray, take: np.ndarray, put: np.ndarray, terms: int, n: int):
-    """The terms' partial velocities as one (3 terms) x n array (trailing axes: a batch)."""
-    out = np.zeros((terms * 3 * n, *values.shape[1:]))
+    """The terms' partial velocities as one (3 terms) x n array (trailing axes: a batch), of the
+    values' dtype (complex for the complex-step derivatives: a float array would drop their
+    imaginary parts)."""
+    out = np.zeros((terms * 3 * n, *values.shape[1:]), values.dtype)
     out[put] = values[take]
     return out.reshape(terms * 3, n, *values.shape[1:])
 
@@ -92,9 +94,20 @@ def sums(
 
 def _column(values: Sequence[Any]) -> np.ndarray:
     """Values of a batch (arrays of the states, or numbers shared by all) as one array, one row
-    per value."""
-    size = max((np.size(v) for v in values), default=1)
-    return np.array([np.broadcast_to(np.asarray(v, float), (size,)) for v in values])
+    per value: float, or complex where a value is (reference.derivatives.complex_step)."""
+    arrays = [i for i, v in enumerate(values) if type(v) is np.ndarray and v.ndim]
+    numbers = [i for i, v in enumerate(values) if not (type(v) is np.ndarray and v.ndim)]
+    rows = [values[i] for i in arrays]
+    if len({r.shape for r in rows}) > 1:  # numbers of some states only: broadcast
+        rows = np.broadcast_arrays(*rows)
+    size = rows[0].size if rows else 1
+    stacked = np.array(rows).reshape(len(arrays), size)
+    shared = np.array([values[i] for i in numbers]).reshape(len(numbers), 1)
+    complex_ = stacked.dtype.kind == "c" or shared.dtype.kind == "c"
+    out = np.empty((len(values), size), complex if complex_ else float)
+    out[arrays] = stacked
+    out[numbers] = shared
+    return out
 
 
 def sums_batched(

@@ -107,6 +107,12 @@ class PythonKernels(Kernels):
         """True for a module on the sums path (reference.backends.summed_source)."""
         return bool(self._scalar["META"].get("sums"))
 
+    def generated(self, fname: str) -> Callable[..., tuple]:
+        """The generated function itself, in the batched namespace (numpy: complex arrays go
+        through, as reference.derivatives.complex_step needs)."""
+        self._known(fname)
+        return self._batched[fname]  # type: ignore[no-any-return]
+
     def function(self, fname: str) -> Callable[..., int]:
         f = self._made.get(fname)
         if f is None:

@@ -5,7 +5,8 @@ The equations are reference.derivatives.codegen's (the implicit function theorem
 M u' - f - tau = A^T lambda, A u' = b). A model whose forward solve is unrolled gets one
 generated kernel that solves and differentiates in one call (C where the forward model runs on
 C); a model whose KKT solve is numeric (dependent rows, or past codegen.UNROLL_KKT_MAX) gets
-the partial derivatives from generated code and the solve here, on the independent rows:
+the partial derivatives from generated code (on the sums path: complex steps of the forward
+module, reference.derivatives.complex_step) and the solve here, on the independent rows:
 
     [ M    -A_r^T ] [du'/dx]     [ P_x - L_x   ]
     [ A_r   0     ] [dmu/dx ] = -[ U_r^T C_x   ],    dlambda/dx = U_r dmu/dx,
@@ -40,6 +41,7 @@ from reference.backends import select
 from reference.backends.kernels import OK, PIVOT_RATIO_MIN, Kernels
 from reference.backends.python_kernels import PythonKernels
 from reference.derivatives import codegen as dcodegen
+from reference.derivatives.complex_step import ComplexStep, unsupported
 from reference.errors import SingularSystemError, UnsupportedModelError
 from reference.formulations import derive
 from reference.numeric.model import NumericModel
@@ -143,11 +145,12 @@ class Derivatives:
         return self.block("constraint_forces", "dtau")
 
 
-# The largest model whose derivatives are generated: they differentiate M and f written out,
-# on either derivation path, so their cost grows with the model's size (model_size) as the
-# symbolic path's does. Measured cold: the A02 chain 4-28 s from size 279 to 2204, the gripper
-# (692) 6 s, spatial_mix (1034) 74 s; Pinocchio's Cassie (2.4e6) did not finish in 25 minutes.
-# The bound is 10x the largest size measured to finish.
+# The largest model whose derivatives are differentiated symbolically: they write M and f out,
+# so their cost grows with the model's size (model_size) as the symbolic path's does. Measured
+# cold: the A02 chain 4-28 s from size 279 to 2204, the gripper (692) 6 s, spatial_mix (1034)
+# 74 s; Pinocchio's Cassie (2.4e6) did not finish in 25 minutes. The bound is 10x the largest
+# size measured to finish. A model on the sums path takes complex steps instead (any size);
+# the bound stops only a symbolic path forced past it (CROSSCHECK_DERIVATION=symbolic).
 DERIVATIVES_MAX_SIZE = 22_000
 
 
@@ -160,7 +163,7 @@ def _check_size(model) -> None:
             f"{model.name}: no exact derivatives for a model of size {size} (its bodies' "
             f"velocities and constraint rows as trees; the bound is {DERIVATIVES_MAX_SIZE}): "
             f"they differentiate M and f written out, which does not finish at this size; "
-            f"run without --derivatives"
+            f"derive on the sums path (complex-step derivatives) or run without --derivatives"
         )
 
 
@@ -177,38 +180,73 @@ class DerivativeModel:
         derivatives by the other path (tests compare the two).
     backend : {None, 'python'}, optional
         'python' keeps the generated Python code; None takes the setting, as NumericModel.
+    method : {None, 'symbolic', 'complex_step'}, optional
+        How R's partial derivatives are taken: 'symbolic' differentiates M and f written out
+        (reference.derivatives.codegen), 'complex_step' steps the forward module itself
+        (reference.derivatives.complex_step; sums path only). None: complex steps where the
+        forward module is summed, else symbolic.
 
     Notes
     -----
-    The module is generated on the first use of a model and formulation and cached on disk
-    (reference.derivatives.codegen); the forward model's code and cache are not touched.
+    The symbolic module is generated on the first use of a model and formulation and cached on
+    disk (reference.derivatives.codegen); the forward model's code and cache are not touched.
+    Complex steps generate nothing.
     """
 
-    def __init__(self, nm: NumericModel, kind: str | None = None, backend: str | None = None):
+    def __init__(
+        self,
+        nm: NumericModel,
+        kind: str | None = None,
+        backend: str | None = None,
+        method: str | None = None,
+    ):
         self.nm = nm
         self.kind = kind or ("residual" if nm._numeric else "kkt")
         if self.kind == "kkt" and nm._numeric:
             raise ValueError(f"{nm.model.name}: its KKT solve is numeric: use kind='residual'")
+        self.method = method or ("complex_step" if nm._py.summed else "symbolic")
+        self.n, self.nq, self.m = nm.n, nm.nq, nm.m
+        self._nlam = self.n + self.m
+        self._shape = (self.n + self.m, self.nq + 2 * self.n)
+        self._steps: ComplexStep | None = None
+        if self.method == "complex_step":
+            self._complex_steps(nm)
+        elif self.method == "symbolic":
+            self._generated(nm, backend)
+        else:
+            raise ValueError(f"method {method!r}: 'symbolic' or 'complex_step'")
+
+    def _complex_steps(self, nm: NumericModel) -> None:
+        """R's partial derivatives by complex steps of the forward module (sums path)."""
+        if self.kind != "residual" or not nm._py.summed:
+            raise ValueError(f"{nm.model.name}: complex steps need a summed module's numeric solve")
+        bad = unsupported(nm.source)
+        if bad:
+            raise UnsupportedModelError(
+                f"{nm.model.name}: no complex-step derivatives through {', '.join(sorted(bad))} "
+                f"(not analytic, or no complex version)"
+            )
+        self._steps = ComplexStep(nm)
+        # no module of its own: the forward one is differentiated
+        self.source, self.cache_path = nm.source, nm.cache_path
+        self.kernels: Kernels = nm._py
+
+    def _generated(self, nm: NumericModel, backend: str | None) -> None:
+        """The symbolic partial derivatives' generated module (its own cache entry)."""
         model, f = nm.model, nm.formulation
         _check_size(model)
         scalar, batched, src, path = dcodegen.load(
             lambda: derive(model, f), model, f, self.kind, bool(nm._augmented)
         )
         self.source, self.cache_path = src, path
-        self.n, self.nq, self.m = nm.n, nm.nq, nm.m
         npa = len(nm.p) + (self.m if self.kind == "kkt" else self.n + self.m)
         dims = (self.nq, self.n, npa, 0)
         py = PythonKernels(scalar, batched, src, dims)
-        self.kernels: Kernels = select.kernels(py, src, path.stem, backend)
-        self._fn = self.kernels.function(
-            "derivatives" if self.kind == "kkt" else "residual_jacobians"
-        )
+        self.kernels = select.kernels(py, src, path.stem, backend)
+        fname = "derivatives" if self.kind == "kkt" else "residual_jacobians"
+        self._fn = self.kernels.function(fname)
         self._vj = self.kernels.function("velocity_jacobian")
-        self._nout = self.kernels.total[
-            "derivatives" if self.kind == "kkt" else "residual_jacobians"
-        ]
-        self._nlam = self.n + self.m
-        self._shape = (self.n + self.m, self.nq + 2 * self.n)
+        self._nout = self.kernels.total[fname]
 
     def for_model(self, nm: NumericModel) -> DerivativeModel:
         """The same generated code and kernels for another parameter set of the same model and
@@ -305,6 +343,8 @@ class DerivativeModel:
     ) -> dict[str, np.ndarray]:
         """R's partial derivatives at (u', lambda) ('residual' modules): P_x, L_x, C_x for
         x = q and u (see reference.derivatives.codegen)."""
+        if self._steps is not None:
+            return self._steps.residual_jacobians(q, u, t, ud, lam)
         pa = np.concatenate([np.asarray(self.nm.p, float), ud, lam])
         out = np.empty(self._nout)
         st = self._fn(q, u, t, pa, out)
@@ -371,6 +411,8 @@ class DerivativeModel:
         numpy.ndarray
         """
         q, u, t = self.nm._arrays(q, u, t)
+        if self._steps is not None:
+            return self._steps.velocity_jacobian(q, u, t)
         pa = self.nm.kernel_parameters
         if self.kind == "residual":
             pa = np.concatenate([np.asarray(self.nm.p, float), np.zeros(self.n + self.m)])

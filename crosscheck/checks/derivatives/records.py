@@ -208,7 +208,7 @@ def reference_records(name: str, nm, dm: DerivativeModel, states) -> list[Record
         for qty, got, fd, t in _slow_blocks(nm, dm, q, u):
             err = float(np.max(np.abs(got - fd))) / D.scale(got) if fd.size else 0.0
             j = D.differenced(err, t, delta, STEP, D.scale(values), D.scale(got))
-            j = D.Judged(j.error, j.tolerance, _slow_reason(j, kappa), j.figures)
+            j = D.Judged(j.error, j.tolerance, _slow_reason(j, kappa, dm.method), j.figures)
             worst.setdefault(qty, _Worst()).add(j, i, {})
     if states:
         q0, u0 = states[0]
@@ -226,14 +226,15 @@ def reference_records(name: str, nm, dm: DerivativeModel, states) -> list[Record
     return _fold(rec, worst, skips)
 
 
-def _slow_reason(j: D.Judged, kappa: float) -> str:
+def _slow_reason(j: D.Judged, kappa: float, method: str) -> str:
     f = j.figures
+    how = "complex steps of its generated M, f, A, b" if method == "complex_step" else ""
     return (
         f"the reference's exact derivatives (the implicit function theorem on its KKT "
-        f"system, generated code) against central differences of its own forward answer "
-        f"(fourth order, step {f['step']:.0e}, whole Jacobians; d/dtau on a dense LU of its "
-        f"M, f, A, b): {D.DIFFERENCE_SLACK:g}x the stencil's truncation estimated from the step "
-        f"2h ({f['truncation_estimate']:.1e}) plus its round-off, 16 eps x cond(K) = "
+        f"system, {how or 'generated code'}) against central differences of its own forward "
+        f"answer (fourth order, step {f['step']:.0e}, whole Jacobians; d/dtau on a dense LU "
+        f"of its M, f, A, b): {D.DIFFERENCE_SLACK:g}x the stencil's truncation estimated from "
+        f"the step 2h ({f['truncation_estimate']:.1e}) plus its round-off, 16 eps x cond(K) = "
         f"{kappa:.2g} magnified by 1.5/h ({f['round_off_estimate']:.1e})"
     )
 
