@@ -2,6 +2,7 @@
 one run, interleaved (the rows `crosscheck bench` writes to bench.json `derivatives`):
 
     python benchmarks/derivative_speed.py [MODEL ...]      (default: every built-in model)
+    python benchmarks/derivative_speed.py --model-file tests/data/real/pinocchio_cassie.xml
 
 prints microseconds per state (medians over 15 interleaved rounds) of the reference's checked
 call (DerivativeModel.at), its kernel alone, Pinocchio's forward call with its derivative
@@ -38,5 +39,20 @@ def main(names) -> None:
         )
 
 
+def _names(args: list[str]) -> list[str]:
+    """The models named, and every model of each `--model-file PATH` (registered)."""
+    from crosscheck.user_models import load_model_file, register_all
+
+    names: list[str] = []
+    while args:
+        arg, *args = args
+        if arg == "--model-file":
+            path, *args = args
+            names += register_all(load_model_file(path))
+        else:
+            names.append(arg)
+    return names
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:] or list(models.names()))
+    main(_names(sys.argv[1:]) or list(models.names()))

@@ -186,3 +186,18 @@ def test_cassie_has_exact_derivatives():
     judged = {r["quantity"]: r for r in recs if not r["skipped"]}
     assert {"daccelerations_dq", "daccelerations_du", "daccelerations_dtau"} <= set(judged)
     assert all(r["passed"] for r in judged.values()), judged
+
+
+def test_the_derivative_benchmark_times_pinocchio_on_a_users_file():
+    """benchmarks/derivative_speed.py --model-file: Pinocchio's routine on the file's rows as
+    its constraint models (how Cassie's per-state figure is measured)."""
+    from crosscheck.bench.derivatives import derivative_records
+    from crosscheck.engines.registry import get_engine
+    from crosscheck.user_models import register_all
+
+    names = register_all(load_model_file(DATA / "fourbar_connect.xml"))
+    rows = {r["path"]: r for r in derivative_records(names, [get_engine("pinocchio")])}
+    assert "file's rows" in rows["pinocchio"]["call"]
+    assert (
+        rows["reference-checked"]["us_per_state"] > 0 and "checked_over_pinocchio" in rows["ratio"]
+    )

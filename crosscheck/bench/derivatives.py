@@ -35,6 +35,8 @@ def _pinocchio_call(em, q, u):
     import pinocchio as pin
 
     qe, ve = (np.array(x, float) for x in em.to_engine_state(q, u))
+    if hasattr(em, "_eq"):  # a user's file: its rows as Pinocchio's constraint models
+        return _user_file_call(em, qe, ve)
     m, d = em.model, em.data
     tau = np.asarray(em._applied(qe, ve, 0.0), float)
     if em.solver == "constraint":
@@ -48,6 +50,26 @@ def _pinocchio_call(em, q, u):
     if em.solver == "aba":
         return (lambda: pin.computeABADerivatives(m, d, qe, ve, tau)), "computeABADerivatives"
     return None, ""
+
+
+def _user_file_call(em, qe, ve):
+    """The same on a user's MJCF file (crosscheck.engines.pinocchio.user_file_derivatives)."""
+    import pinocchio as pin
+
+    from crosscheck.engines.pinocchio.user_file_derivatives import UserFileDerivatives
+
+    try:
+        ud = UserFileDerivatives(em)
+    except EngineUnsupported:  # a joint equality: no constraint model, no routine
+        return None, ""
+    m, d, cms, cds, prox = em.model, ud.data, ud.cms, ud.cds, ud.prox
+    tau = np.asarray(em._tau(qe, ve), float)
+
+    def call():
+        pin.constraintDynamics(m, d, qe, ve, tau, cms, cds, prox)
+        return pin.computeConstraintDynamicsDerivatives(m, d, cms, cds, prox)
+
+    return call, "constraintDynamics + computeConstraintDynamicsDerivatives (the file's rows)"
 
 
 def derivative_records(names, engines=()) -> list[dict]:
@@ -74,7 +96,7 @@ def derivative_records(names, engines=()) -> list[dict]:
                     em = adapter.build(name, nm.params, variant=variant)
                 except EngineUnsupported:
                     continue
-                call, what = _pinocchio_call(em, q, u) if hasattr(em, "solver") else (None, "")
+                call, what = _pinocchio_call(em, q, u)
                 if call is not None:
                     calls["pinocchio"] = call
                     break
