@@ -265,6 +265,8 @@ class DerivativeModel:
             raise ValueError(f"{nm.model.name}: another model or formulation's code")
         other = copy.copy(self)
         other.nm = nm
+        if self._steps is not None:  # the steps take the parameters from their model
+            other._steps = ComplexStep(nm)
         return other
 
     @property
