@@ -7,7 +7,11 @@ State maps: the tree's coordinates are qpos - qpos0 and its speeds qvel (hinges 
 free joint's body has MuJoCo's qpos as its coordinates (position of the body frame, Euler
 parameters = MuJoCo's quaternion) and the quaternion's rates p' = p (x) (0, w) / 2 as speeds;
 a ball joint's body is turned by its parent frame's fixed rotation (p = q_F (x) q). The local
-angular acceleration comes back as 2 vec(p* (x) p'') (p'* (x) p' is a scalar).
+angular acceleration comes back as 2 vec(p* (x) p'') (p'* (x) p' is a scalar). A ball or free
+joint built as tree links (a floating base) has the free joint's position and world velocity on
+its slides, and on its turns zero angles (re-based to the state's rotation) with the local
+angular velocity as rates; its angular acceleration comes back as G phi'' plus the rates' terms
+(euler_links.py).
 
 Multipliers: the equalities' generalized force -C_q^T lambda (Exudyn's sign) from Exudyn's own
 C_q, the connectors' analytic Jacobians (the solver's system Jacobian before and after
@@ -27,6 +31,11 @@ import numpy as np
 from crosscheck.engines.base import EngineForward, EngineUnsupported
 from crosscheck.engines.compiled_model import mat_quat, quat_conj, quat_matrix, quat_mul
 from crosscheck.engines.exudyn.engine_model import ExudynModel
+from crosscheck.engines.exudyn.euler_links import (
+    euler_columns,
+    euler_rotation,
+    euler_velocity_terms,
+)
 from crosscheck.engines.exudyn.trajectory import quiet
 from crosscheck.engines.exudyn.user_system import SystemBuilder, rank_of, refusals
 from crosscheck.engines.user_file_model import (
@@ -65,6 +74,11 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
     def _slots(self, node: int) -> list[int]:
         return list(self.mbs.systemData.GetNodeLTGODE2(node))
 
+    @staticmethod
+    def _euler_slots(slots, first: int) -> list[int]:
+        """A tree ball or free joint's coordinates: the three slides' (free) and the turns'."""
+        return [slots[k] for k in range(max(first - 3, 0), first + 3)][-6:]
+
     def _engine_state(self, qpos, qvel) -> tuple[np.ndarray, np.ndarray]:
         n = self.mbs.systemData.ODE2Size()
         qe, ve = np.zeros(n), np.zeros(n)
@@ -72,7 +86,16 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
             slots = self._slots(self.tree_node)
             for k, lk in enumerate(self.links):
                 jt = self.cm.joint(lk.joint)
-                qe[slots[k]], ve[slots[k]] = qpos[jt.qposadr] - jt.qpos0, qvel[jt.dofadr]
+                if jt.kind in ("hinge", "slide"):
+                    qe[slots[k]], ve[slots[k]] = qpos[jt.qposadr] - jt.qpos0, qvel[jt.dofadr]
+            for j, first in self.euler.items():
+                joint, at = self.cm.joint(j), self._euler_slots(slots, first[0])
+                a, d = joint.qposadr, joint.dofadr
+                if joint.kind == "free":
+                    qe[at[:3]], ve[at[:3]] = qpos[a : a + 3], qvel[d : d + 3]
+                    a, d = a + 3, d + 3
+                self.rebase(j, quat_matrix(qpos[a : a + 4]))  # the angles are zero here
+                ve[at[-3:]] = qvel[d : d + 3]  # G(0) = I
         for j, (node, _, _) in self.ep.items():
             joint, slots = self.cm.joint(j), self._slots(node)
             a, d = joint.qposadr, joint.dofadr
@@ -96,7 +119,17 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
             slots = self._slots(self.tree_node)
             for k, lk in enumerate(self.links):
                 jt = self.cm.joint(lk.joint)
-                qpos[jt.qposadr], qvel[jt.dofadr] = qe[slots[k]] + jt.qpos0, ve[slots[k]]
+                if jt.kind in ("hinge", "slide"):
+                    qpos[jt.qposadr], qvel[jt.dofadr] = qe[slots[k]] + jt.qpos0, ve[slots[k]]
+            for j, first in self.euler.items():
+                joint, at = self.cm.joint(j), self._euler_slots(slots, first[0])
+                a, d = joint.qposadr, joint.dofadr
+                if joint.kind == "free":
+                    qpos[a : a + 3], qvel[d : d + 3] = qe[at[:3]], ve[at[:3]]
+                    a, d = a + 3, d + 3
+                phi = qe[at[-3:]]
+                qpos[a : a + 4] = mat_quat(self.euler_base[j] @ euler_rotation(phi))
+                qvel[d : d + 3] = euler_columns(phi) @ ve[at[-3:]]
         for j, (node, _, _) in self.ep.items():
             joint, slots = self.cm.joint(j), self._slots(node)
             a, d = joint.qposadr, joint.dofadr
@@ -119,7 +152,7 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
     def from_engine_state(self, qe, ve):
         return self.reference_state(*self._mj_state(qe, ve))
 
-    def _qacc(self, qe, ae) -> np.ndarray:
+    def _qacc(self, qe, ve, ae) -> np.ndarray:
         """MuJoCo's qacc from Exudyn's accelerations: the tree's as they are; a rigid body's
         local angular acceleration 2 vec(p* (x) p'') (p'* (x) p' is a scalar), its position's
         acceleration in world axes."""
@@ -127,7 +160,16 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
         if self.links:
             slots = self._slots(self.tree_node)
             for k, lk in enumerate(self.links):
-                qacc[self.cm.joint(lk.joint).dofadr] = ae[slots[k]]
+                if self.cm.joint(lk.joint).kind in ("hinge", "slide"):
+                    qacc[self.cm.joint(lk.joint).dofadr] = ae[slots[k]]
+            for j, first in self.euler.items():
+                joint, at = self.cm.joint(j), self._euler_slots(slots, first[0])
+                d = joint.dofadr
+                if joint.kind == "free":
+                    qacc[d : d + 3] = ae[at[:3]]
+                    d += 3
+                phi, phid = qe[at[-3:]], ve[at[-3:]]
+                qacc[d : d + 3] = euler_columns(phi) @ ae[at[-3:]] + euler_velocity_terms(phi, phid)
         for j, (node, _, _) in self.ep.items():
             joint, slots = self.cm.joint(j), self._slots(node)
             alpha = 2.0 * quat_mul(quat_conj(qe[slots][3:]), ae[slots][3:])[1:]
@@ -140,7 +182,9 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
 
     def _acc_to_reference(self, qe, ve, ae):
         qpos, qvel = self.recall(qe, *self._mj_state(qe, ve))
-        return self.reference_accelerations(qpos, qvel, self._qacc(np.asarray(qe), np.asarray(ae)))
+        return self.reference_accelerations(
+            qpos, qvel, self._qacc(np.asarray(qe), np.asarray(ve), np.asarray(ae))
+        )
 
     # ---- kinematics, rows, multipliers ---------------------------------------------------
     def _set_coordinates(self, qe, ve) -> None:

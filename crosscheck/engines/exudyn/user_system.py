@@ -14,6 +14,11 @@
   ObjectRigidBody with the inertia about that point): its coordinates are MuJoCo's qpos and
   its Euler parameters' rates the quaternion rates; a ball joint on a body whose parent is
   fixed to the world is the same body held by an ObjectJointSpherical at the anchor;
+- a ball or free joint with joints below it (a floating-base robot), or a ball joint on a
+  moving body, is links of the tree instead, so the joints below stay minimal coordinates with
+  their armature, springs, dampers and actuators: three prismatic links along the world axes
+  (free) and three revolute links about x, y, z of a base rotation re-based at every mapped
+  state (euler_links.py); its damping is on those links' rates (exact at zero angles);
 - gravity: the tree's own gravity vector and LoadMassProportional on the rigid bodies;
   armature, stiffness (about springref), damping and the actuators at their stated controls
   on hinges and slides: one ObjectGenericODE2 on the tree's coordinates, M th'' + D th' + K th
@@ -32,10 +37,9 @@ translation) are taken greedily, largest independent part first, until the rank 
 reached (pivoted Gram-Schmidt); the axes left free are dependent there (a planar loop's
 out-of-plane axis, fixed in the frame as the loop moves).
 
-Not built, each named in the skip record: a ball or free joint on a moving body or beside other
-joints, a hinge or slide below a ball or free joint (this builder keeps hinges and slides in
-the tree, whose base is the ground), armature or damping on a ball or free joint, and a joint
-equality beyond quadratic (ObjectConnectorCoordinateVector has linear and quadratic terms).
+Not built, each named in the skip record: a ball or free joint beside other joints, armature
+on a ball or free joint, damping on one of the Euler-parameter bodies, and a joint equality
+beyond quadratic (ObjectConnectorCoordinateVector has linear and quadratic terms).
 """
 
 from __future__ import annotations
@@ -96,7 +100,8 @@ class Carrier:
 
 @dataclass
 class Link:
-    """One ObjectKinematicTree link: a hinge or slide of MuJoCo joint ``joint``."""
+    """One ObjectKinematicTree link: a hinge or slide of MuJoCo joint ``joint`` (along its
+    z axis), or one of a ball or free joint's links (along ``axis``)."""
 
     parent: int
     offset: np.ndarray
@@ -104,6 +109,13 @@ class Link:
     slide: bool
     joint: int
     carrier: Carrier
+    axis: int = 2
+
+    def joint_type(self):
+        """Exudyn's joint type of this link."""
+        return getattr(
+            exu.JointType, ("Prismatic" if self.slide else "Revolute") + "XYZ"[self.axis]
+        )
 
 
 def refusals(cm: CompiledModel) -> list[str]:
@@ -122,26 +134,26 @@ def refusals(cm: CompiledModel) -> list[str]:
     for b in cm.bodies:
         kinds = [j.kind for j in b.joints]
         spatial = [j for j in b.joints if j.kind in ("ball", "free")]
-        if spatial and (len(kinds) > 1 or cm.moving(b.parent)):
+        if spatial and len(kinds) > 1:
             out.append(
-                f"{spatial[0].kind} joint {spatial[0].name!r} on body {b.name!r} "
-                + ("beside other joints" if len(kinds) > 1 else "below a moving body")
-                + ": this builder keeps hinges and slides in Exudyn's ObjectKinematicTree (its "
-                "base is the ground) and ball and free joints on Euler-parameter bodies held "
-                "to the ground"
+                f"{spatial[0].kind} joint {spatial[0].name!r} on body {b.name!r} beside other "
+                "joints: this builder keeps a ball or free joint alone on its body (an "
+                "Euler-parameter body, or Euler-angle links of the tree)"
             )
-        elif b.joints and not spatial and _below_spatial(cm, b.parent):
-            out.append(
-                f"{b.joints[0].kind} joint {b.joints[0].name!r} on body {b.name!r} below a ball "
-                "or free joint: Exudyn's ObjectKinematicTree has its base on the ground"
-            )
+        tree = bool(spatial) and in_tree(cm, b)
         for j in spatial:
-            if np.any(j.armature) or np.any(j.damping):
+            if np.any(j.armature) or (np.any(j.damping) and not tree):
                 what = "armature" if np.any(j.armature) else "damping"
                 out.append(
                     f"{what} on {j.kind} joint {j.name!r}: MuJoCo's acts on the joint's "
                     "relative angular velocity in the child's frame, which an Exudyn rigid "
                     "body's inertia (absolute angular velocity) does not express"
+                    + (
+                        ", nor a constant mass matrix on the tree's Euler angles (its rates' "
+                        "velocity terms)"
+                        if tree
+                        else ""
+                    )
                 )
     for e in cm.equalities:
         if e.kind == "joint" and e.polycoef is not None and np.any(e.polycoef[3:]):
@@ -152,12 +164,20 @@ def refusals(cm: CompiledModel) -> list[str]:
     return out
 
 
-def _below_spatial(cm: CompiledModel, index: int) -> bool:
-    while index:
-        b = cm.body(index)
-        if any(j.kind in ("ball", "free") for j in b.joints):
-            return True
-        index = b.parent
+def in_tree(cm: CompiledModel, b) -> bool:
+    """Whether body b's ball or free joint is links of the tree (module docstring): it is on a
+    moving body, or a body below it has a joint."""
+    return cm.moving(b.parent) or _carries_joints(cm, b.index)
+
+
+def _carries_joints(cm: CompiledModel, index: int) -> bool:
+    """Whether a body below body ``index`` has a joint."""
+    below = {index}
+    for b in cm.bodies:  # parents come before their children
+        if b.parent in below and b.index != index:
+            below.add(b.index)
+            if b.joints:
+                return True
     return False
 
 
@@ -177,6 +197,9 @@ class SystemBuilder:
         self.static_potential = 0.0
         self.com_markers: list[tuple[float, int]] = []  # (mass, marker at its mass centre)
         self.ball_frames: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        # a tree ball or free joint -> (its first revolute link, base axes); its base rotation
+        self.euler: dict[int, tuple[int, np.ndarray]] = {}
+        self.euler_base: dict[int, np.ndarray] = {}
         for b in cm.bodies:
             self._place(b)
         self._tree_objects()
@@ -191,6 +214,9 @@ class SystemBuilder:
         carrier, R, p = self.carriers[b.parent]
         R, p = R @ b.rot, p + R @ b.pos  # the body frame before its joints, in the carrier
         for j in b.joints:
+            if j.kind in ("ball", "free") and in_tree(self.cm, b):
+                carrier, R, p = self._euler_links(j, carrier, R, p)
+                continue
             if j.kind in ("ball", "free"):
                 if j.kind == "ball":  # the parent is fixed to the world: R, p are world axes
                     self.ball_frames[j.index] = (R, p)
@@ -211,6 +237,33 @@ class SystemBuilder:
         else:
             carrier.add(b.mass, p + R @ b.com, R @ b.inertia @ R.T)
 
+    def _euler_links(self, j, carrier, R, p) -> tuple[Carrier, np.ndarray, np.ndarray]:
+        """A ball or free joint as tree links (euler_links.py); the body frame in the last."""
+        parent = carrier.index if carrier.kind == "link" else -1
+        if j.kind == "free":  # a top-level body: its frame is qpos in world axes
+            R, p = np.eye(3), np.zeros(3)
+        slides = [(True, np.zeros(3), np.eye(3))] * (3 if j.kind == "free" else 0)
+        turns = [(False, p + R @ j.anchor, R)] + [(False, np.zeros(3), np.eye(3))] * 2
+        self.euler[j.index] = (len(self.links) + len(slides), R)
+        self.euler_base[j.index] = np.eye(3)
+        for k, (slide, offset, rotation) in enumerate(slides + turns):
+            carrier = Carrier("link", len(self.links))
+            self.links.append(Link(parent, offset, rotation, slide, j.index, carrier, k % 3))
+            parent = carrier.index
+        return carrier, np.eye(3), -np.asarray(j.anchor, float)
+
+    def rebase(self, joint: int, quat_matrix) -> None:
+        """Re-base a tree ball or free joint's angles at its rotation ``quat_matrix``."""
+        first, R = self.euler[joint]
+        self.links[first].rotation = R @ quat_matrix
+        self.euler_base[joint] = np.array(quat_matrix, float)
+        if self.links and int(self.tree) >= 0:
+            self.mbs.SetObjectParameter(
+                self.tree,
+                "jointTransformations",
+                exu.Matrix3DList([lk.rotation for lk in self.links]),
+            )
+
     def _tree_objects(self) -> None:
         n = len(self.links)
         self.tree = self.tree_node = -1
@@ -226,12 +279,11 @@ class SystemBuilder:
             )
         )
         inertia = [lk.carrier.central() for lk in self.links]
-        kind = exu.JointType
         self.tree = mbs.AddObject(
             ObjectKinematicTree(
                 nodeNumber=self.tree_node,
                 gravity=list(self.cm.gravity),
-                jointTypes=[kind.PrismaticZ if lk.slide else kind.RevoluteZ for lk in self.links],
+                jointTypes=[lk.joint_type() for lk in self.links],
                 linkParents=[lk.parent for lk in self.links],
                 jointTransformations=exu.Matrix3DList([lk.rotation for lk in self.links]),
                 jointOffsets=exu.Vector3DList([lk.offset for lk in self.links]),
@@ -300,11 +352,18 @@ class SystemBuilder:
         if not n:
             return
         joints = [self.cm.joint(lk.joint) for lk in self.links]
-        M = np.diag([j.armature[0] for j in joints])
-        K = np.diag([j.stiffness for j in joints])
-        D = np.diag([j.damping[0] for j in joints])
-        f = np.array([j.stiffness * (j.springref - j.qpos0) for j in joints])
-        slot = {lk.joint: i for i, lk in enumerate(self.links)}
+        one = np.array([j.kind in ("hinge", "slide") for j in joints])
+        # a ball's or free joint's damping per dof on its links' rates: exact where its angles
+        # are zero (G = I), as every mapped state re-bases them (their armature is refused)
+        dof = [
+            k - min(i for i, o in enumerate(self.links) if o.joint == lk.joint)
+            for k, lk in enumerate(self.links)
+        ]
+        M = np.diag(np.where(one, [j.armature[0] for j in joints], 0.0))
+        K = np.diag(np.where(one, [j.stiffness for j in joints], 0.0))
+        D = np.diag([j.damping[d] for j, d in zip(joints, dof, strict=True)])
+        f = np.where(one, [j.stiffness * (j.springref - j.qpos0) for j in joints], 0.0)
+        slot = {lk.joint: i for i, lk in enumerate(self.links) if one[i]}
         qpos0 = np.array([j.qpos0 for j in joints])
         for a in self.cm.actuators:  # k_i F, F = c + a_L sum k_j qpos_j + a_V sum k_j qvel_j
             k = np.zeros(n)
