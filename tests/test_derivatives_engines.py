@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 
 from benchmarks.pinocchio_loop_derivatives import measured
+from crosscheck.checks.derivatives import tolerances as D
 from crosscheck.checks.derivatives.engine import ReferenceAtState, compare_at_state
 from crosscheck.checks.derivatives.faults import Fault
 from crosscheck.checks.derivatives.records import engine_records, reference_records
+from crosscheck.checks.instantaneous import build
 from crosscheck.checks.sampling import consistent_states
 from crosscheck.engines.registry import available_engines, get_engine
 from crosscheck.user_models import load_model_file, register_all
@@ -260,11 +262,12 @@ def test_mujoco_transition_fd_refusing_a_model_leaves_its_answer_differenced():
     assert all("mjd_transitionFD refuses" in r["derivative_method"] for r in rigid), rigid
 
 
-def test_a_stencil_reaching_a_limit_leaves_its_state_out_and_says_so():
+def test_a_stencil_reaching_a_limit_shrinks_its_step_and_says_so():
     """A user's arm drawn where no limit acts, some states near the wrist's limit: a
-    differenced engine's stencil there reaches it (other equations), so that state is not
-    compared and the records say which and why; Pinocchio's own derivatives, at the states
-    themselves, are judged at every state."""
+    differenced engine's stencil there would reach it at the balanced step (other equations),
+    so that block's step is halved until it clears and the state is judged, the records saying
+    at which states and steps; Pinocchio's own derivatives, at the states themselves, are
+    judged at every state with no step shrunk."""
     (name,) = register_all(load_model_file(DATA / "robot_arm.xml"))
     nm = NumericModel(models.get(name))
     states, dm = consistent_states(nm, 6), DerivativeModel(nm)
@@ -272,8 +275,70 @@ def test_a_stencil_reaching_a_limit_leaves_its_state_out_and_says_so():
         recs = engine_records(name, nm, dm, states, get_engine(engine), nm.params)
         judged = [r for r in recs if not r["skipped"]]
         assert judged and all(r["passed"] for r in judged), judged
-        left = ["not compared at" in r["reason"] for r in judged]
-        if engine == "mujoco":
-            assert all(left) and "at its limit within the difference stencil" in judged[0]["reason"]
-        else:
-            assert not any(left)
+        assert not any("not compared at" in r["reason"] for r in judged)
+        shrunk = ["the difference step shrunk at" in r["reason"] for r in judged]
+        assert all(shrunk) if engine == "mujoco" else not any(shrunk)
+
+
+def _wrist_state(gap: float):
+    """The arm's draw with the wrist slide `gap` inside its upper limit."""
+    (name,) = register_all(load_model_file(DATA / "robot_arm.xml"))
+    nm = NumericModel(models.get(name))
+    q, u = consistent_states(nm, 1)[0]
+    q = np.array(q, float)
+    q[2] = 0.05 - gap  # the wrist's coordinate (its range is +-0.05 m)
+    return name, nm, q, np.asarray(u, float)
+
+
+def test_a_stencil_near_a_limit_is_judged_at_its_shrunk_step():
+    """The wrist 5 mm from its stop: the dq stencil at the balanced 6.3e-3 reaches it, at a
+    quarter of it (1.6e-3, 2h = 3.2 mm) it does not: judged there, the tolerance the formula's
+    at that step, the step and why in the reason; the du block keeps the balanced step."""
+    name, nm, q, u = _wrist_state(5e-3)
+    adapter = get_engine("mujoco")
+    em = build(adapter, name, nm.params, None)
+    sd = compare_at_state(em, adapter, DerivativeModel(nm), name, q, u)
+    dq, du = sd.judged["daccelerations_dq"], sd.judged["daccelerations_du"]
+    assert dq.ratio <= 1 and du.ratio <= 1, (dq, du)
+    assert sd.steps == {"dq": pytest.approx(D.step(1e-11) / 4)}
+    assert dq.figures["step"] == sd.steps["dq"] and du.figures["step"] == D.step(1e-11)
+    assert "step 1.6e-03, shrunk from 6.3e-03: at that step joint 'wrist' at its limit" in (
+        dq.reason
+    )
+    f = dq.figures
+    assert dq.tolerance == pytest.approx(
+        D.DIFFERENCE_SLACK * f["truncation_estimate"] + f["round_off_estimate"]
+    )
+
+
+def test_a_stencil_reaching_a_limit_below_the_floor_leaves_its_state_out():
+    """The wrist 1e-6 m from its stop: only a step below the floor (1.5 delta / 1e-5 =
+    1.5e-6, the round-off bound's bar) would clear it, so the state is left out, the records
+    saying why."""
+    name, nm, q, u = _wrist_state(1e-6)
+    far = consistent_states(nm, 1)[0]
+    recs = engine_records(name, nm, DerivativeModel(nm), [far, (q, u)],
+                          get_engine("mujoco"), nm.params)  # fmt: skip
+    judged = [r for r in recs if not r["skipped"]]
+    assert judged and all(r["passed"] for r in judged), judged
+    assert (
+        "not compared at 1 of 2 states (state 1: joint 'wrist' at its limit"
+        in (judged[0]["reason"])
+    )
+    assert "(the floor 1.5e-06: below it the round-off bound" in judged[0]["reason"]
+
+
+@pytest.mark.slow
+def test_mujoco_derivatives_on_cassie_are_judged_at_shrunk_steps():
+    """Cassie's 16 limits: every drawn state's dq stencil reaches one at the balanced step
+    (1.6e-2, MuJoCo's rigid recovery); shrunk to clear them, every state is judged and
+    passes."""
+    (name,) = register_all(load_model_file(DATA / "real" / "pinocchio_cassie.xml"))
+    nm = NumericModel(models.get(name))
+    states, dm = consistent_states(nm, 6), DerivativeModel(nm)
+    recs = engine_records(name, nm, dm, states, get_engine("mujoco"), nm.params)
+    judged = {r["quantity"]: r for r in recs if not r["skipped"]}
+    assert {"daccelerations_dq", "daccelerations_du"} <= set(judged), recs
+    assert all(r["passed"] for r in judged.values()), judged
+    assert all("not compared at" not in r["reason"] for r in judged.values())
+    assert "the difference step shrunk at 6 of 6 states" in judged["daccelerations_dq"]["reason"]

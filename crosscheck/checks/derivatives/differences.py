@@ -11,6 +11,12 @@ states gives the same stencil of the reference, whose exact derivative is known:
 difference is the truncation the engine's stencil has too (crosscheck.checks.derivatives
 .tolerances).
 
+Where a stencil state at the balanced step h would reach what an MJCF file's monitor watches (a
+limit, a contact, a force clamp: other equations), the block's step is halved until every
+direction's stencil clears, down to the floor (tolerances.step_floor); the block is judged at
+the step used, and a state whose stencil reaches something even at the floor is left out
+(StencilLeaves).
+
 A soft engine (MuJoCo) is differenced twice on the same states: its rigid recovery (judged
 against the reference's exact derivative) and its raw answer, beside the raw answer its
 documented impedance predicts from the reference's accelerations there (predict_soft).
@@ -22,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from crosscheck.checks.derivatives.tolerances import STENCIL
+from crosscheck.checks.derivatives.tolerances import STENCIL, STEP_ROUND_OFF_BAR
 from crosscheck.engines.base import EngineModel
 from reference.numeric.redundant import RANK_RTOL
 
@@ -75,11 +81,17 @@ def stencil(values: list[np.ndarray], h: float) -> np.ndarray:
 class Differenced:
     """Per block ('dq', 'du') and quantity ('accelerations', 'multipliers'): the difference
     columns of each kind (KINDS) and the largest value scale max(max |g|, 1) met on the
-    stencil states (the round-off bound's scale)."""
+    stencil states (the round-off bound's scale); per block the step used where the balanced
+    step h was shrunk, and why."""
 
     h: float
     columns: dict = field(default_factory=dict)  # (block, quantity, kind) -> list of columns
     scales: dict = field(default_factory=dict)  # (block, quantity) -> float
+    steps: dict = field(default_factory=dict)  # block -> (step, why) where shrunk
+
+    def step(self, block: str) -> tuple[float, str]:
+        """The block's step and, where shrunk, the clause saying why."""
+        return self.steps.get(block, (self.h, ""))
 
     def add(self, block: str, quantity: str, kind: str, column: np.ndarray) -> None:
         self.columns.setdefault((block, quantity, kind), []).append(column)
@@ -113,29 +125,65 @@ def _answers(em: EngineModel, nm, qq, uu, t: float, soft: bool) -> dict:
     return out
 
 
-def _clear(monitor, states: list, h: float) -> None:
-    """Raise StencilLeaves where the monitor (sampling.monitor_of) sees something act."""
-    for qq, uu in states if monitor is not None else ():
-        acts = monitor.active(qq, uu)
-        if acts:
+def _acting(monitor, states: list) -> list:
+    """What the monitor (sampling.monitor_of) sees act at any of the states."""
+    return [a for qq, uu in states for a in monitor.active(qq, uu)] if monitor is not None else []
+
+
+def _cleared(nm, monitor, q, u, t: float, DQ, DU, h: float, floor: float, on: bool):
+    """The largest step h / 2^k (at least `floor`) at which no direction's stencil reaches
+    what the monitor watches, with the stencils' states there and the clause saying why it
+    is below h; StencilLeaves where none down to the floor clears."""
+    step, first = h, []
+    while True:
+        states, acts = [], []
+        for k in range(DQ.shape[1]):
+            states.append(stencil_states(nm, q, u, t, DQ[:, k], DU[:, k], step, on))
+            acts = _acting(monitor, states[-1])
+            if acts:
+                break
+        if not acts:
+            why = f", shrunk from {h:.1e}: at that step {'; '.join(map(str, first))}"
+            return step, states, why if first else ""
+        first = first or sorted(set(map(str, acts)))
+        if step / 2 < floor:
+            what = "; ".join(sorted(set(map(str, acts))))
+            if step == h:
+                raise StencilLeaves(f"{what} within the difference stencil (step {h:.1e})")
             raise StencilLeaves(
-                f"{'; '.join(map(str, acts))} within the difference stencil (step {h:.1e})"
+                f"{what} within the difference stencil at every step from {h:.1e} halved down "
+                f"to {step:.1e} (the floor {floor:.1e}: below it the round-off bound "
+                f"1.5 delta / h passes {STEP_ROUND_OFF_BAR:.0e} of the answer)"
             )
+        step /= 2
 
 
 def engine_differences(
-    em: EngineModel, nm, dirs, q, u, t: float, h: float, soft_prediction: bool, monitor=None
+    em: EngineModel,
+    nm,
+    dirs,
+    q,
+    u,
+    t: float,
+    h: float,
+    soft_prediction: bool,
+    monitor=None,
+    floor: float | None = None,
 ) -> Differenced:
-    """The stencils of every kind along every q- and u-direction (module docstring); raises
-    StencilLeaves where a stencil state leaves the region where nothing `monitor` watches
-    acts."""
+    """The stencils of every kind along every q- and u-direction (module docstring), at the
+    step h, or where a stencil would reach what `monitor` watches, the block's step halved, no
+    further than `floor` (tolerances.step_floor; None: not shrunk); raises StencilLeaves
+    where even the smallest step's stencil reaches something."""
     q, u = np.asarray(q, float), np.asarray(u, float)
     out = Differenced(h)
     for block in ("dq", "du"):
         DQ, DU = dirs.state_directions(block)
-        for k in range(DQ.shape[1]):
-            states = stencil_states(nm, q, u, t, DQ[:, k], DU[:, k], h, not dirs.whole)
-            _clear(monitor, states, h)
+        step, per_direction, why = _cleared(
+            nm, monitor, q, u, t, DQ, DU, h, h if floor is None else floor, not dirs.whole
+        )
+        if why:
+            out.steps[block] = (step, why)
+        for states in per_direction:
             answers = [_answers(em, nm, qq, uu, t, soft_prediction) for qq, uu in states]
             for j, quantity in enumerate(("accelerations", "multipliers", "constraint_forces")):
                 for kind in KINDS:
@@ -143,7 +191,7 @@ def engine_differences(
                     if any(v is None for v in vals):
                         continue
                     vals = [np.asarray(v, float) for v in vals]
-                    out.add(block, quantity, kind, stencil(vals, h))
+                    out.add(block, quantity, kind, stencil(vals, step))
                     if kind == "engine":
                         key = (block, quantity)
                         big = max(

@@ -60,12 +60,14 @@ def quantity(of: str, block: str) -> str:
 @dataclass
 class StateDerivatives:
     """One engine model at one state: judged comparisons by quantity, skips by quantity, and
-    reported figures (quantity -> {field: value})."""
+    reported figures (quantity -> {field: value}); the judged differences' shrunk steps by
+    block (a limit or contact within the stencil at the balanced step)."""
 
     judged: dict[str, D.Judged] = field(default_factory=dict)
     skips: dict[str, str] = field(default_factory=dict)
     reported: dict[str, dict] = field(default_factory=dict)
     soft: bool = False
+    steps: dict[str, float] = field(default_factory=dict)
 
 
 class ReferenceAtState:
@@ -177,7 +179,8 @@ def _judge_differences(
                 continue
             trunc = float(np.max(np.abs(diff.get(block, of, "reference") - exact)))
             scale = diff.scales[(block, of)]
-            out.judged[qty] = D.differenced(err, trunc, delta, diff.h, scale, D.scale(exact))
+            h, why = diff.step(block)
+            out.judged[qty] = D.differenced(err, trunc, delta, h, scale, D.scale(exact), why)
     if judged:
         for j, of in enumerate(ref.of):
             out.skips.setdefault(quantity(of, "dtau"), (j and ref.skip) or NO_FORCE_INPUT)
@@ -203,9 +206,9 @@ def _judge_soft(out: StateDerivatives, diff, ref, own) -> None:
             exact, at_ref = ref.exact(of, block), diff.get(block, of, "reference")
             effect = pred - at_ref
             miss, raw_err, pred_err = C.soft_prediction(exact + raw - at_ref, exact, effect)
-            out.judged[qty] = D.soft(
-                miss, diff.h, diff.scales[(block, of)], D.scale(exact), pred_err
-            )
+            h, why = diff.step(block)
+            value_scale = diff.scales[(block, of)]
+            out.judged[qty] = D.soft(miss, h, value_scale, D.scale(exact), pred_err, why)
             extra = {"soft_rel_error_max": raw_err, "predicted_rel_error_max": pred_err}
             mine = own.blocks.get(block, (None, None))[j] if own is not None else None
             if mine is not None:
@@ -239,10 +242,11 @@ def compare_at_state(
     if own_exact is not None:
         _judge_analytic(out, own_exact, ref)
     step, soft_prediction = D.step(delta), adapter.capabilities.soft_prediction
+    floor = D.step_floor(delta)
     monitor = monitor_of(dm.nm.model)
     try:
         diff = engine_differences(
-            em, dm.nm, ref.dirs, ref.q, ref.u, t, step, soft_prediction, monitor
+            em, dm.nm, ref.dirs, ref.q, ref.u, t, step, soft_prediction, monitor, floor
         )
     except StencilLeaves:
         if own_exact is None:
@@ -252,6 +256,8 @@ def compare_at_state(
         planted = fault if own_exact is None else None  # where the judged blocks come from
         _judge_differences(out, diff, ref, delta, planted, own_exact is None)
         _judge_soft(out, diff, ref, own_soft)
+        if own_exact is None:
+            out.steps = {block: h for block, (h, _why) in diff.steps.items()}
     mode = "whole Jacobians" if ref.dirs.whole else "consistent directions"
     for qty in out.judged:
         out.reported.setdefault(qty, {})["directions"] = mode

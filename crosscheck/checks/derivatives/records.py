@@ -110,6 +110,7 @@ def engine_records(
     worst: dict[str, _Worst] = {}
     skips: dict[str, str] = {}
     left: list[str] = []  # states whose stencil leaves the region the equations hold in
+    shrunk: list[str] = []  # states whose stencil's step was shrunk to stay inside it
     for i, (q, u) in enumerate(states):
         try:
             sd = compare_at_state(em, adapter, dm, name, q, u, 0.0, fault)
@@ -123,11 +124,23 @@ def engine_records(
             worst.setdefault(qty, _Worst()).add(judged, i, sd.reported.get(qty, {}))
         for qty, why in sd.skips.items():
             skips.setdefault(qty, why)
-    note = f"not compared at {len(left)} of {len(states)} states ({'; '.join(left)})"
-    note = note if left else ""
+        if sd.steps:
+            shrunk.append(f"state {i}: " + ", ".join(f"{b} {h:.1e}" for b, h in sd.steps.items()))
+    note = _left_note(left, shrunk, len(states))
     if left and not worst:
         return [rec(CHECK, quantity(of, "dq"), None, None, note) for of in compared(nm)]
     return _fold(rec, worst, skips, note)
+
+
+def _left_note(left: list[str], shrunk: list[str], count: int) -> str:
+    """What the judged records leave out, and where their stencil's step was shrunk."""
+    parts = [f"not compared at {len(left)} of {count} states ({'; '.join(left)})"] if left else []
+    if shrunk:
+        parts.append(
+            f"the difference step shrunk at {len(shrunk)} of {count} states, where the balanced "
+            f"one's stencil reaches a limit or contact ({'; '.join(shrunk)})"
+        )
+    return "; ".join(parts)
 
 
 def _slow_blocks(nm, dm: DerivativeModel, q, u) -> list[tuple]:

@@ -40,6 +40,12 @@ DIFFERENCE_SLACK = 2.0
 # stencil's truncation (~h^4) against the engine's error magnified by 1.5 / h (delta = 1e-11:
 # h = 6.3e-3; delta = 1e-9: h = 1.6e-2), within these bounds
 STEP_RANGE = (1e-3, 3e-2)
+# where a stencil at that step would reach what an MJCF file's monitor watches (a limit, a
+# contact), the step is halved until it clears, down to the step at which the round-off bound
+# 1.5 delta / h reaches STEP_ROUND_OFF_BAR of the answer's scale: the largest differenced
+# tolerance the built-in models get at the balanced step (1.3e-5, docs/tolerances.md) rounded
+# down, so a shrunk step judges no looser than those records already do
+STEP_ROUND_OFF_BAR = 1e-5
 STENCIL = ((1, 8.0), (-1, -8.0), (2, -1.0), (-2, 1.0))  # offsets in h and weights / 12h
 ROUND_OFF_GAIN = 1.5  # sum of |weights| / 12
 # where MuJoCo's soft solve stops: its raw answer misses the predicted one by <= 8.6e-10 of the
@@ -73,6 +79,11 @@ def scale(x: np.ndarray) -> float:
 def step(delta: float) -> float:
     """The engines' difference step for an answer accurate to delta (relative)."""
     return float(np.clip(delta**0.2, *STEP_RANGE))
+
+
+def step_floor(delta: float) -> float:
+    """The smallest step a stencil is shrunk to (STEP_ROUND_OFF_BAR), at most the balanced one."""
+    return min(ROUND_OFF_GAIN * delta / STEP_ROUND_OFF_BAR, step(delta))
 
 
 def condition(M: np.ndarray, A: np.ndarray) -> float:
@@ -114,15 +125,21 @@ def analytic(
 
 
 def differenced(
-    error: float, truncation: float, delta: float, h: float, value_scale: float, dscale: float
+    error: float,
+    truncation: float,
+    delta: float,
+    h: float,
+    value_scale: float,
+    dscale: float,
+    shrunk: str = "",
 ) -> Judged:
     """The tolerance of an engine's central differences at one state: the measured
     truncation (absolute), the round-off bound 1.5 delta value_scale / h, over the
-    derivative's scale dscale."""
+    derivative's scale dscale (`shrunk`: why h is below the balanced step, said)."""
     round_off = ROUND_OFF_GAIN * delta * value_scale / h
     tol = (DIFFERENCE_SLACK * truncation + round_off) / dscale
     reason = (
-        f"central differences (fourth order, step {h:.1e}) of the engine's answer along "
+        f"central differences (fourth order, step {h:.1e}{shrunk}) of the engine's answer along "
         f"consistent directions against the reference's exact derivatives: "
         f"{DIFFERENCE_SLACK:g}x the stencil's truncation measured with the reference's answer "
         f"on the same states ({truncation / dscale:.1e}) plus the engine's error bound "
@@ -136,7 +153,9 @@ def differenced(
     return Judged(error, tol, reason, figures)
 
 
-def soft(miss: float, h: float, value_scale: float, dscale: float, predicted: float) -> Judged:
+def soft(
+    miss: float, h: float, value_scale: float, dscale: float, predicted: float, shrunk: str = ""
+) -> Judged:
     """The tolerance of a soft engine's raw derivatives against the predicted ones (metric
     relative_miss): SOFT_PREDICTION, as for the answer itself, plus the soft solve's own miss
     (SOFT_SOLVE_MISS of the answer's scale) magnified by the stencil's 1.5/h, in the same
@@ -145,7 +164,8 @@ def soft(miss: float, h: float, value_scale: float, dscale: float, predicted: fl
     noise /= max(predicted, SOFT_PREDICTION_FLOOR)
     tol = SOFT_PREDICTION.value + noise
     reason = (
-        f"the derivative of the engine's raw soft answer (central differences, step {h:.1e}) "
+        f"the derivative of the engine's raw soft answer (central differences, step {h:.1e}"
+        f"{shrunk}) "
         f"against the derivative of the raw answer its documented impedance predicts from "
         f"the reference's: {SOFT_PREDICTION.value:.0e} of the predicted soft effect, as for the "
         f"answer itself, plus the soft solve's own miss ({SOFT_SOLVE_MISS:.0e} of the answer) "
