@@ -13,7 +13,8 @@ import pytest
 # whether the workers' server started: a child of this process running multiprocessing's
 # forkserver (read from /proc, so no private attribute of multiprocessing is relied on)
 PROBE = """
-import os, sys
+import os, sys, time
+WAIT_S = 1.0
 from crosscheck.commands.run import start_workers_early
 start_workers_early(sys.argv[1:])
 def children():
@@ -28,7 +29,14 @@ def children():
                 continue
             if ppid == os.getpid():
                 yield cmd
-print(any(b"multiprocessing.forkserver" in c for c in children()))
+# a forked child shows its parent's command line until it has exec'd the server: look again
+# for up to WAIT_S before calling it absent
+deadline = time.monotonic() + WAIT_S
+while not (found := any(b"multiprocessing.forkserver" in c for c in children())):
+    if time.monotonic() > deadline:
+        break
+    time.sleep(0.02)
+print(found)
 """
 
 
