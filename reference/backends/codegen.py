@@ -239,32 +239,39 @@ def _augment(w, Mc: list, fc: list, Ac: list, bc: list, n: int, mc: int) -> None
             fc[i] = w.assign(f"{fc[i]} + {rho}*({' + '.join(terms)})")
 
 
+def kkt_entries(w: _Writer, eom: EquationsOfMotion, X) -> tuple[list, list, list, list]:
+    """M (both triangles), f, A and b of `eom` as one CSE'd block in `w`: M's, f's and A's
+    entries assigned to variables (each evaluated once), b's left as expressions for the
+    caller to offset; "0" where an entry is zero."""
+    n, mc = len(eom.model.speeds), eom.A.shape[0]
+    M = eom.M  # read once: on the sums path each read writes the sum out
+    flat = [M[i, j] for i in range(n) for j in range(i, n)]
+    flat += list(eom.f) + list(eom.A) + list(eom.b)
+    it = iter(w.cse_block([X(_tidy(e)) for e in flat]))
+    upper: list[list[Any]] = [["0"] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i, n):
+            upper[i][j] = next(it)
+    fc = [next(it) for _ in range(n)]
+    Ac = [[next(it) for _ in range(n)] for _ in range(mc)]
+    bc = [next(it) for _ in range(mc)]
+    mat = lambda c: c if c == "0" else w.assign(c)
+    Mc: list[list[Any]] = [
+        [mat(upper[i][j]) if j >= i else None for j in range(n)] for i in range(n)
+    ]
+    for i in range(n):
+        for j in range(i):
+            Mc[i][j] = Mc[j][i]
+    return Mc, [mat(c) for c in fc], [[mat(c) for c in row] for row in Ac], bc
+
+
 def _forward_source(eom: EquationsOfMotion, augment: bool, X) -> list[str]:
     """forward(): u', lambda and the smallest pivot ratio, by Cholesky of M and of the Schur
     complement A M^-1 A^T, with every entry a CSE'd expression."""
     n, mc = len(eom.model.speeds), eom.A.shape[0]
     out: list[str] = []
     w = _Writer()
-    flat = [eom.M[i, j] for i in range(n) for j in range(i, n)]
-    flat += list(eom.f) + list(eom.A) + list(eom.b)
-    flat = [X(_tidy(e)) for e in flat]
-    code = w.cse_block(flat)
-    it = iter(code)
-    Mc: list[list[Any]] = [["0"] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i, n):
-            Mc[i][j] = Mc[j][i] = next(it)
-    fc = [next(it) for _ in range(n)]
-    Ac = [[next(it) for _ in range(n)] for _ in range(mc)]
-    bc = [next(it) for _ in range(mc)]
-    # materialize entries as variables so they are evaluated once
-    mat = lambda c: c if c == "0" else w.assign(c)
-    Mc = [[mat(Mc[i][j]) if j >= i else None for j in range(n)] for i in range(n)]
-    for i in range(n):
-        for j in range(i):
-            Mc[i][j] = Mc[j][i]
-    fc = [mat(c) for c in fc]
-    Ac = [[mat(c) for c in row] for row in Ac]
+    Mc, fc, Ac, bc = kkt_entries(w, eom, X)
     # A u' = b + _db: the caller's offset of the constraint rows' right side (zeros, or the
     # Baumgarte terms -2 alpha (A u + a0) - beta^2 f), so stabilization costs no extra solve
     bc = [

@@ -68,14 +68,18 @@ def safe_symbols(eom: EquationsOfMotion | SummedEquations) -> dict:
     return rename
 
 
-def header(name: str, eom: EquationsOfMotion | SummedEquations) -> list[str]:
-    """A generated function's first lines: its signature and its arguments unpacked."""
+def header(
+    name: str, eom: EquationsOfMotion | SummedEquations, npa: int | None = None
+) -> list[str]:
+    """A generated function's first lines: its signature and its arguments unpacked, _p
+    holding `npa` numbers (None: the model's parameters)."""
     m = eom.model
+    npa = len(m.parameters) if npa is None else npa
     lines = [f"def {name}(_q, _u, _t, _p):"]
     if m.coordinates:
         lines.append("    " + ", ".join(f"_q{i}" for i in range(len(m.coordinates))) + ", = _q")
     if m.speeds:
         lines.append("    " + ", ".join(f"_u{i}" for i in range(len(m.speeds))) + ", = _u")
-    if m.parameters:
-        lines.append("    " + ", ".join(f"_p{i}" for i in range(len(m.parameters))) + ", = _p")
+    if npa:
+        lines.append("    " + ", ".join(f"_p{i}" for i in range(npa)) + ", = _p")
     return lines

@@ -54,9 +54,11 @@ from reference.backends.codegen import (
     _chol_solve,
     _cholesky,
     _dot_terms,
+    _header,
     _safe_symbols,
     _tidy,
     _Writer,
+    kkt_entries,
 )
 from reference.eom import EquationsOfMotion
 
@@ -120,19 +122,6 @@ def partials(eom: EquationsOfMotion, ud: list, lam: list) -> dict[str, sp.Matrix
 def _flat(mat: sp.Matrix) -> list:
     """Row-major entries."""
     return [mat[i, j] for i in range(mat.shape[0]) for j in range(mat.shape[1])]
-
-
-def _header(name: str, eom: EquationsOfMotion, npa: int) -> list[str]:
-    """def name(_q, _u, _t, _p): with _p holding `npa` numbers (_p0 ... _p{npa-1})."""
-    m = eom.model
-    lines = [f"def {name}(_q, _u, _t, _p):"]
-    if m.coordinates:
-        lines.append("    " + ", ".join(f"_q{i}" for i in range(len(m.coordinates))) + ", = _q")
-    if m.speeds:
-        lines.append("    " + ", ".join(f"_u{i}" for i in range(len(m.speeds))) + ", = _u")
-    if npa:
-        lines.append("    " + ", ".join(f"_p{i}" for i in range(npa)) + ", = _p")
-    return lines
 
 
 def _groups(w: _Writer, groups: list[list]) -> list[str]:
@@ -213,25 +202,8 @@ class _Kkt:
     def __init__(self, w: _Writer, eom: EquationsOfMotion, augmented: bool, X):
         n, mc, npar = len(eom.model.speeds), eom.A.shape[0], len(eom.model.parameters)
         self.w, self.n, self.m = w, n, mc
-        Mw = eom.M  # once: see partials
-        flat = [Mw[i, j] for i in range(n) for j in range(i, n)]
-        flat += list(eom.f) + list(eom.A) + list(eom.b)
-        it = iter(w.cse_block([X(_tidy(e)) for e in flat]))
-        Mc: list[list[Any]] = [["0"] * n for _ in range(n)]
-        for i in range(n):
-            for j in range(i, n):
-                Mc[i][j] = Mc[j][i] = next(it)
-        fc = [next(it) for _ in range(n)]
-        Ac = [[next(it) for _ in range(n)] for _ in range(mc)]
-        bc = [next(it) for _ in range(mc)]
-        mat = lambda c: c if c == "0" else w.assign(c)
-        Mc = [[mat(Mc[i][j]) if j >= i else None for j in range(n)] for i in range(n)]
-        for i in range(n):
-            for j in range(i):
-                Mc[i][j] = Mc[j][i]
-        fc = [mat(c) for c in fc]
-        self.A = [[mat(c) for c in row] for row in Ac]
-        bc = [mat(c) for c in bc]
+        Mc, fc, self.A, bc = kkt_entries(w, eom, X)
+        bc = [c if c == "0" else w.assign(c) for c in bc]
         self.rho: str | None = None
         if augmented and mc:
             self.rho = f"_v{w.n}"  # _augment's first assignment is rho
