@@ -215,6 +215,21 @@ class UserFileMaps:
         """The engine's state of MuJoCo's (qpos, qvel) (each engine's map)."""
         raise NotImplementedError
 
+    def _mj_state(self, qe, ve) -> tuple[np.ndarray, np.ndarray]:
+        """MuJoCo's (qpos, qvel) of an engine state (each engine's map)."""
+        raise NotImplementedError
+
+    def to_engine_state(self, q, u):
+        """The engine's state of a reference state, through MuJoCo's (remembered: ``recall``)."""
+        qpos, qvel = self.mj_state(q, u)
+        qe, ve = self._engine_state(qpos, qvel)
+        self.remember(qpos, qvel, qe)
+        return qe, ve
+
+    def from_engine_state(self, qe, ve):
+        """The reference's state of an engine state, through MuJoCo's."""
+        return self.reference_state(*self._mj_state(np.asarray(qe, float), np.asarray(ve, float)))
+
     def velocity_map(self, qpos) -> np.ndarray:
         """N with the engine's speeds v_e = N qvel at qpos (its map is linear in qvel)."""
         cols = [self._engine_state(qpos, e)[1] for e in np.eye(self.cm.nv)]

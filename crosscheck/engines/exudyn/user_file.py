@@ -143,15 +143,6 @@ class ExudynUserFile(SystemBuilder, UserFileMaps, ExudynModel):
                 qvel[d : d + 3] = w
         return qpos, qvel
 
-    def to_engine_state(self, q, u):
-        qpos, qvel = self.mj_state(q, u)
-        qe, ve = self._engine_state(qpos, qvel)
-        self.remember(qpos, qvel, qe)
-        return qe, ve
-
-    def from_engine_state(self, qe, ve):
-        return self.reference_state(*self._mj_state(qe, ve))
-
     def _qacc(self, qe, ve, ae) -> np.ndarray:
         """MuJoCo's qacc from Exudyn's accelerations: the tree's as they are; a rigid body's
         local angular acceleration 2 vec(p* (x) p'') (p'* (x) p' is a scalar), its position's

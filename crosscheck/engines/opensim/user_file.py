@@ -420,15 +420,6 @@ class OsimUserFile(UserFileMaps, OsimModel):
             qvel[d : d + 3] = w
         return qpos, qvel
 
-    def to_engine_state(self, q, u):
-        qpos, qvel = self.mj_state(q, u)
-        qe, ve = self._engine_state(qpos, qvel)
-        self.remember(qpos, qvel, qe)
-        return qe, ve
-
-    def from_engine_state(self, qe, ve):
-        return self.reference_state(*self._mj_state(np.asarray(qe, float), np.asarray(ve, float)))
-
     def _qacc(self, qe, ae) -> np.ndarray:
         """MuJoCo's qacc from OpenSim's u' (a ball's or free joint's angular part: the local
         angular acceleration R_FM^T u', since d/dt R_FM^T = -[w]x R_FM^T and w x w = 0)."""
